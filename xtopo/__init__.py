@@ -1,0 +1,19 @@
+"""xtopo: surface topography analysis and contact mechanics on xarray.
+
+Importing xtopo registers the ``.topo`` accessors on DataArray, Dataset and DataTree.
+"""
+
+from ._version import __version__
+from . import conventions, datasets, errors
+from .conventions import make_measurement, validate
+from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, ReaderError, UnitsError,
+                     UnsupportedFormatError, ValidationError, XtopoError)
+from .io import open_topography, to_netcdf
+from . import accessors as _accessors  # noqa: F401  (registers .topo)
+
+__all__ = [
+    "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
+    "open_topography", "to_netcdf",
+    "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
+    "ValidationError", "ContactError", "ConvergenceWarning",
+]

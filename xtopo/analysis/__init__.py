@@ -1,0 +1,1 @@
+"""Analyses of measurements: pure functions on Datasets/DataArrays (paper §4)."""

@@ -1,0 +1,104 @@
+"""Scalar roughness parameters of a measurement (paper §4.4, Table 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .._apply import apply_lateral
+from .._kernels import scalars as _k
+from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
+
+__all__ = ["scalars"]
+
+_META = {
+    "Sq": ("root mean square height", 1),
+    "Sdq": ("root mean square gradient", 0),
+    "Sddq": ("root mean square curvature", -1),
+    "Sa": ("arithmetic mean height", 1),
+    "Sz": ("maximum height (peak to valley)", 1),
+    "Ssk": ("skewness of the height distribution", None),
+    "Sku": ("kurtosis of the height distribution", None),
+    "Rq": ("root mean square height of profiles", 1),
+    "Rdq": ("root mean square slope of profiles", 0),
+    "Rddq": ("root mean square curvature of profiles", -1),
+    "Ra": ("arithmetic mean height of profiles", 1),
+    "Rz": ("maximum height of profiles (mean peak to valley)", 1),
+    "Rsk": ("skewness of profiles", None),
+    "Rku": ("kurtosis of profiles", None),
+}
+
+
+def _units(length_units: str, power) -> str:
+    if power is None or power == 0:
+        return "1"
+    return length_units if power == 1 else f"{length_units}-1"
+
+
+def _annotate(name, da, length_units):
+    long_name, power = _META[name]
+    da.attrs = {"units": _units(length_units, power), "long_name": long_name}
+    return da.rename(name)
+
+
+def scalars(obj) -> xr.Dataset:
+    """Scalar roughness parameters of a measurement.
+
+    Area scans give Sq, SΔq (``Sdq``, RMS gradient), SΔ²q (``Sddq``), Sa, Sz, Ssk, Sku and
+    the profile parameters Rq, RΔq (``Rdq``), RΔ²q (``Rddq``), Ra, Rz, Rsk, Rku along a
+    ``direction`` dimension (``"x"``: profiles along x, ``"y"``: along y). Line scans
+    give the R-parameters only (``direction = ["x"]``).
+
+    Discrete operators follow paper Table 1. Periodic data wrap around; nonperiodic
+    differences use only the samples that exist. Heights are taken about their mean
+    (S: global mean, R: mean of each profile). Missing data (NaN/mask) are ignored.
+    Extra dims (a batch of measurements) broadcast; dask inputs stay lazy.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement or its height.
+
+    Returns
+    -------
+    xarray.Dataset
+        Heights in the measurement's length unit, slopes dimensionless, curvatures
+        in inverse length; every variable has ``units`` and ``long_name``.
+    """
+    h = height_of(obj)
+    lat = lateral_dims(h)
+    units = h.attrs.get("units", obj.attrs.get("units", "1") if hasattr(obj, "attrs") else "1")
+    if X in h.coords and "units" in h.coords[X].attrs:
+        units = h.coords[X].attrs["units"]
+    periodic = is_periodic(h)
+    out = {}
+    if lat == (Y, X):
+        dy, dx = spacing(h, Y), spacing(h, X)
+        s = apply_lateral(_k.area_parameters, h, output_core_dims=[["parameter"]],
+                          output_sizes={"parameter": len(_k.AREA_PARAMETERS)},
+                          kwargs=dict(dy=dy, dx=dx, periodic=periodic), what="scalars")
+        for i, name in enumerate(_k.AREA_PARAMETERS):
+            out[name] = _annotate(name, s.isel(parameter=i, drop=True), units)
+        rx = apply_lateral(_k.profile_parameters, h, output_core_dims=[["parameter"]],
+                           output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
+                           kwargs=dict(dx=dx, periodic=periodic, rows=1), what="scalars")
+        ry = apply_lateral(_k.profile_parameters, h, core_dims=(X, Y), output_core_dims=[["parameter"]],
+                           output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
+                           kwargs=dict(dx=dy, periodic=periodic, rows=1), what="scalars")
+        r = xr.concat([rx, ry], dim=xr.DataArray(["x", "y"], dims="direction", name="direction"))
+    elif is_nonuniform(h):
+        xv = np.asarray(h[X].values, dtype=float)
+        r = apply_lateral(_k.nonuniform_parameters, h, output_core_dims=[["parameter"]],
+                          output_sizes={"parameter": len(_k.LINE_PARAMETERS)}, kwargs=dict(x=xv), what="scalars")
+        r = r.expand_dims(direction=["x"])
+    else:
+        r = apply_lateral(_k.profile_parameters, h, output_core_dims=[["parameter"]],
+                          output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
+                          kwargs=dict(dx=spacing(h, X), periodic=periodic, rows=0), what="scalars")
+        r = r.expand_dims(direction=["x"])
+    for i, name in enumerate(_k.LINE_PARAMETERS):
+        out[name] = _annotate(name, r.isel(parameter=i, drop=True), units)
+    ds = xr.Dataset(out)
+    ds["direction"].attrs = {"long_name": "direction of the profiles"}
+    ds.attrs = {"title": "scalar roughness parameters", "periodic": int(periodic)}
+    return ds

@@ -1,0 +1,420 @@
+"""Names, units and grid helpers of the xtopo data model (DESIGN.md §2).
+
+A *measurement* is an :class:`xarray.Dataset` with
+
+* a ``height`` variable on dims ``("y", "x")`` (area scan) or ``("x",)`` (line scan),
+* coordinates ``x`` (and ``y``) at the pixel starts, ``x_m = m Δx``, so that the
+  physical size is ``L = N Δx``,
+* one length unit (UDUNITS string, e.g. ``"m"``, ``"um"``, ``"nm"``) shared by
+  ``x``, ``y`` and ``height``,
+* an optional boolean ``mask`` (``True`` where the instrument gave no data),
+* attributes ``periodic`` (0/1), ``tip_radius``/``resolution`` (in the dataset's
+  length unit), ``instrument``, ``vendor``, ``acquisition_time``, ``source_file``,
+  ``source_sha256``, ``history`` and ``Conventions``.
+
+Nonuniform line scans have a strictly increasing, non-equidistant ``x`` and the
+attribute ``grid="nonuniform"``.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+
+import numpy as np
+import xarray as xr
+
+from .errors import GridError, UnitsError, ValidationError
+
+__all__ = [
+    "HEIGHT", "MASK", "X", "Y", "LATERAL_DIMS", "CONVENTIONS",
+    "LENGTH_ATTRS", "MEASUREMENT_ATTRS",
+    "normalize_units", "length_factor", "convert_length",
+    "spacing", "physical_size", "is_uniform", "is_periodic", "is_nonuniform",
+    "lateral_dims", "height_of", "make_measurement", "validate", "append_history",
+    "with_units",
+]
+
+HEIGHT = "height"
+MASK = "mask"
+X = "x"
+Y = "y"
+LATERAL_DIMS = (Y, X)
+CONVENTIONS = "CF-1.12, ACDD-1.3"
+
+#: Dataset attributes that hold a length in the dataset's length unit.
+LENGTH_ATTRS = ("tip_radius", "resolution")
+#: Attributes that describe the measurement as a whole and travel with ``height``.
+MEASUREMENT_ATTRS = ("periodic", "tip_radius", "resolution", "grid", "instrument")
+
+_LONG_NAMES = {X: "position x", Y: "position y", HEIGHT: "height"}
+
+_UNIT_ALIASES = {
+    "µm": "um", "μm": "um", "micron": "um", "microns": "um", "micrometer": "um",
+    "micrometre": "um", "nanometer": "nm", "nanometre": "nm", "millimeter": "mm",
+    "millimetre": "mm", "meter": "m", "metre": "m", "meters": "m", "Å": "angstrom",
+    "A": "angstrom", "Angstrom": "angstrom", "pm": "pm", "picometer": "pm",
+    "km": "km", "cm": "cm", "centimeter": "cm",
+}
+
+
+@functools.lru_cache(maxsize=1)
+def _ureg():
+    import pint
+
+    return pint.UnitRegistry()
+
+
+@functools.lru_cache(maxsize=256)
+def _length_in_m(units: str) -> float:
+    ureg = _ureg()
+    try:
+        q = ureg.Quantity(1.0, units)
+    except Exception as exc:  # pint raises several unrelated types
+        raise UnitsError(f"cannot parse the unit {units!r}: {exc}") from None
+    if q.dimensionality != ureg.meter.dimensionality:
+        raise UnitsError(f"{units!r} is not a length unit")
+    return float(q.to("m").magnitude)
+
+
+def normalize_units(units) -> str:
+    """Return the UDUNITS ASCII spelling of a length unit (``"µm"`` → ``"um"``).
+
+    Raises
+    ------
+    UnitsError
+        If ``units`` is not a length unit.
+    """
+    if units is None:
+        raise UnitsError("no length unit given")
+    u = str(units).strip()
+    u = _UNIT_ALIASES.get(u, u).replace("µ", "u").replace("μ", "u")
+    _length_in_m(u)
+    return u
+
+
+def length_factor(from_units: str, to_units: str) -> float:
+    """Factor that converts a length in ``from_units`` to ``to_units``."""
+    f, t = normalize_units(from_units), normalize_units(to_units)
+    if f == t:
+        return 1.0
+    return _length_in_m(f) / _length_in_m(t)
+
+
+def with_units(da: xr.DataArray, units: str, long_name: str, **attrs) -> xr.DataArray:
+    """Return ``da`` with ``units`` and ``long_name`` (and further ``attrs``) set."""
+    da = da.copy(deep=False)
+    da.attrs = {**da.attrs, "units": units, "long_name": long_name, **attrs}
+    return da
+
+
+def _scale_attr_units(attrs: dict, factor_units: str, to: str) -> dict:
+    out = dict(attrs)
+    for key in ("valid_min", "valid_max", "actual_range"):
+        if key in out:
+            out[key] = np.asarray(out[key]) * length_factor(factor_units, to)
+    out["units"] = to
+    return out
+
+
+def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
+    """Convert coordinates, heights and length attributes to ``units``.
+
+    Works on a measurement Dataset or on a height DataArray whose coords carry
+    ``units``. The original unit is recorded in ``history``.
+    """
+    to = normalize_units(units)
+    obj = ds.copy(deep=False)
+    current = _length_units_of(obj)
+    if current == to:
+        return obj
+    f = length_factor(current, to)
+    for name in (X, Y):
+        if name in obj.coords:
+            c = obj.coords[name]
+            obj = obj.assign_coords({name: c.copy(data=c.values * f)})
+            obj.coords[name].attrs = _scale_attr_units(c.attrs, current, to)
+    variables = [obj] if isinstance(obj, xr.DataArray) else [obj[v] for v in obj.data_vars]
+    for var in variables:
+        if var.attrs.get("units") is not None and var.dtype.kind == "f":
+            try:
+                same = normalize_units(var.attrs["units"]) == current
+            except UnitsError:
+                same = False
+            if same:
+                if isinstance(obj, xr.DataArray):
+                    obj = (obj * f).assign_attrs(_scale_attr_units(obj.attrs, current, to))
+                    obj.name = ds.name
+                else:
+                    obj[var.name] = (var * f).assign_attrs(_scale_attr_units(var.attrs, current, to))
+    for key in LENGTH_ATTRS:
+        if obj.attrs.get(key) is not None:
+            obj.attrs[key] = float(obj.attrs[key]) * f
+            obj.attrs[f"{key}_units"] = to
+    return append_history(obj, f"convert_length(units={to!r}) from {current!r}")
+
+
+def _length_units_of(obj) -> str:
+    for name in (X, Y):
+        if name in obj.coords and "units" in obj.coords[name].attrs:
+            return normalize_units(obj.coords[name].attrs["units"])
+    h = obj if isinstance(obj, xr.DataArray) else obj.get(HEIGHT)
+    if h is not None and "units" in h.attrs:
+        return normalize_units(h.attrs["units"])
+    raise UnitsError("the data carry no length unit (coordinate attr 'units')")
+
+
+def lateral_dims(obj) -> tuple[str, ...]:
+    """The lateral dims present, in canonical order: ``("y", "x")`` or ``("x",)``."""
+    dims = obj.dims
+    present = tuple(d for d in LATERAL_DIMS if d in dims)
+    if X not in present:
+        raise GridError(f"no 'x' dimension (dims are {tuple(dims)}); rename your lateral dims to 'x'/'y'")
+    return present
+
+
+def is_nonuniform(obj) -> bool:
+    """True for a nonuniform line scan (``grid="nonuniform"``)."""
+    return obj.attrs.get("grid") == "nonuniform"
+
+
+def is_uniform(coord, rtol: float = 1e-6) -> bool:
+    """True if the coordinate values are equally spaced within ``rtol``."""
+    v = np.asarray(coord, dtype=float)
+    if v.size < 3:
+        return True
+    d = np.diff(v)
+    return bool(np.all(np.abs(d - d[0]) <= rtol * abs(d[0])))
+
+
+def spacing(obj, dim: str = X) -> float:
+    """Grid spacing Δ along ``dim`` from the coordinate (never assumed to be 1).
+
+    A single-pixel axis takes the coordinate attribute ``spacing``.
+
+    Raises
+    ------
+    GridError
+        If the coordinate is missing, nonuniform, or not increasing.
+    """
+    if dim not in obj.coords:
+        raise GridError(f"dimension {dim!r} has no coordinate; assign physical positions first")
+    c = obj.coords[dim]
+    v = np.asarray(c.values, dtype=float)
+    if v.size < 2:
+        if "spacing" in c.attrs:
+            return float(c.attrs["spacing"])
+        raise GridError(f"cannot infer the spacing of {dim!r} from a single point; set coord attr 'spacing'")
+    d = (v[-1] - v[0]) / (v.size - 1)
+    if not d > 0 or not np.isfinite(d):
+        raise GridError(f"coordinate {dim!r} must be strictly increasing and finite")
+    if not is_uniform(v):
+        raise GridError(f"coordinate {dim!r} is not uniformly spaced; this operation needs a uniform grid "
+                        "(interpolate explicitly, e.g. with .interp)")
+    return float(d)
+
+
+def physical_size(obj, dim: str = X) -> float:
+    """Physical size ``L = N Δ`` along ``dim`` (for nonuniform scans: last minus first position)."""
+    if is_nonuniform(obj):
+        v = np.asarray(obj.coords[dim].values, dtype=float)
+        return float(v[-1] - v[0])
+    return obj.sizes[dim] * spacing(obj, dim)
+
+
+def is_periodic(obj) -> bool:
+    """The ``periodic`` attribute as a bool (absent means nonperiodic)."""
+    return bool(int(obj.attrs.get("periodic", 0)))
+
+
+def height_of(obj) -> xr.DataArray:
+    """The height DataArray of a measurement, with missing data as NaN.
+
+    For a Dataset, the measurement attributes (``periodic``, ``tip_radius``, ...)
+    are copied onto the returned DataArray so that functions on DataArrays see them.
+    """
+    if isinstance(obj, xr.DataArray):
+        return obj
+    if HEIGHT not in obj:
+        raise ValidationError(f"the Dataset has no {HEIGHT!r} variable (variables: {list(obj.data_vars)})")
+    h = obj[HEIGHT]
+    if MASK in obj:
+        h = h.where(~obj[MASK].astype(bool))
+    attrs = dict(obj[HEIGHT].attrs)
+    for key in MEASUREMENT_ATTRS:
+        if key in obj.attrs and key not in attrs:
+            attrs[key] = obj.attrs[key]
+    h.attrs = attrs
+    h.name = HEIGHT
+    return h
+
+
+def append_history(obj, line: str):
+    """Return ``obj`` with ``line`` appended to its ``history`` attribute (one line per step)."""
+    obj = obj.copy(deep=False)
+    hist = obj.attrs.get("history", "")
+    obj.attrs["history"] = f"{hist}\n{line}" if hist else line
+    return obj
+
+
+def _coord(values, name, units):
+    return xr.Variable((name,), np.asarray(values, dtype=float),
+                       {"units": units, "long_name": _LONG_NAMES[name], "axis": name.upper()})
+
+
+def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m", periodic: bool = False,
+                     mask=None, tip_radius=None, resolution=None, height_scale: float = 1.0, name: str | None = None,
+                     **attrs) -> xr.Dataset:
+    """Build a measurement Dataset from a height array.
+
+    Parameters
+    ----------
+    height : array_like, shape (ny, nx) or (nx,)
+        Heights in ``units`` (after multiplication by ``height_scale``).
+    size : float or tuple of float, optional
+        Physical size ``(Ly, Lx)`` (or ``Lx`` for a line scan) in ``units``.
+    spacing : float or tuple of float, optional
+        Pixel size ``(Δy, Δx)`` (or ``Δx``) in ``units``; alternative to ``size``.
+    x : array_like, optional
+        Explicit positions of a (possibly nonuniform) line scan in ``units``.
+    units : str
+        Length unit of positions and heights (UDUNITS string).
+    periodic : bool
+        Whether the measurement is periodic.
+    mask : array_like of bool, optional
+        ``True`` where data are missing; NaNs in ``height`` are masked too.
+    tip_radius, resolution : float, optional
+        Probe tip radius and lateral resolution in ``units``.
+    height_scale : float
+        Factor applied to ``height`` (e.g. a raw-count-to-length scale).
+    name : str, optional
+        Stored as attribute ``title``.
+    **attrs
+        Further attributes (``instrument``, ``vendor``, ...).
+
+    Returns
+    -------
+    xarray.Dataset
+    """
+    units = normalize_units(units)
+    h = np.asarray(height)
+    if h.ndim not in (1, 2):
+        raise GridError(f"height must be 1D or 2D, got shape {h.shape}")
+    if h.dtype.kind not in "fiu":
+        raise GridError(f"height must be numeric, got dtype {h.dtype}")
+    h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
+    if height_scale != 1.0:
+        h = h * height_scale
+    dims = (Y, X) if h.ndim == 2 else (X,)
+    coords = {}
+    grid_attrs = {}
+    if x is not None:
+        if h.ndim != 1:
+            raise GridError("explicit x positions are only supported for line scans")
+        xv = np.asarray(x, dtype=float)
+        if xv.shape != h.shape:
+            raise GridError(f"x has shape {xv.shape} but height has shape {h.shape}")
+        if not np.all(np.isfinite(xv)) or np.any(np.diff(xv) <= 0):
+            raise GridError("x positions must be finite and strictly increasing")
+        coords[X] = _coord(xv, X, units)
+        if not is_uniform(xv):
+            grid_attrs["grid"] = "nonuniform"
+    else:
+        if (size is None) == (spacing is None):
+            raise GridError("give exactly one of size= or spacing= (or x= for a line scan)")
+        n = h.shape
+        if spacing is not None:
+            sp = np.broadcast_to(np.asarray(spacing, dtype=float), (h.ndim,))
+        else:
+            sz = np.broadcast_to(np.asarray(size, dtype=float), (h.ndim,))
+            sp = sz / np.asarray(n, dtype=float)
+        if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
+            raise GridError(f"physical size/spacing must be positive and finite, got spacing {tuple(sp)}")
+        for dim, ni, d in zip(dims, n, sp):
+            c = _coord(np.arange(ni) * d, dim, units)
+            c.attrs["spacing"] = float(d)
+            coords[dim] = c
+    missing = ~np.isfinite(h)
+    if mask is not None:
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != h.shape:
+            raise GridError(f"mask has shape {m.shape} but height has shape {h.shape}")
+        missing = missing | m
+    data_vars = {HEIGHT: (dims, h, {"units": units, "long_name": "height"})}
+    if missing.any():
+        h = np.where(missing, np.nan, h)
+        data_vars[HEIGHT] = (dims, h, {"units": units, "long_name": "height"})
+        data_vars[MASK] = (dims, missing, {"long_name": "missing data", "flag_meanings": "missing"})
+    ds_attrs = {"Conventions": CONVENTIONS, "periodic": int(bool(periodic)), **grid_attrs}
+    if name is not None:
+        ds_attrs["title"] = str(name)
+    if tip_radius is not None:
+        ds_attrs["tip_radius"] = float(tip_radius)
+        ds_attrs["tip_radius_units"] = units
+    if resolution is not None:
+        ds_attrs["resolution"] = float(resolution)
+        ds_attrs["resolution_units"] = units
+    ds_attrs.update({k: v for k, v in attrs.items() if v is not None})
+    return xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
+
+
+def validate(ds: xr.Dataset) -> xr.Dataset:
+    """Check that ``ds`` follows the measurement data model; return it unchanged.
+
+    Raises
+    ------
+    ValidationError
+        Naming the first violation found.
+    """
+    if not isinstance(ds, xr.Dataset):
+        raise ValidationError(f"expected an xarray.Dataset, got {type(ds).__name__}")
+    if HEIGHT not in ds.data_vars:
+        raise ValidationError(f"missing data variable {HEIGHT!r}")
+    h = ds[HEIGHT]
+    lat = tuple(d for d in h.dims if d in LATERAL_DIMS)
+    if lat not in ((Y, X), (X,)):
+        raise ValidationError(f"{HEIGHT!r} must have lateral dims ('y', 'x') or ('x',) in that order, got {h.dims}")
+    try:
+        units = normalize_units(h.attrs.get("units"))
+    except UnitsError as exc:
+        raise ValidationError(f"{HEIGHT!r} has no valid length 'units' attribute: {exc}") from None
+    for dim in lat:
+        if dim not in ds.coords:
+            raise ValidationError(f"dimension {dim!r} has no coordinate")
+        cu = ds.coords[dim].attrs.get("units")
+        try:
+            same = cu is not None and normalize_units(cu) == units
+        except UnitsError:
+            same = False
+        if not same:
+            raise ValidationError(f"coordinate {dim!r} has units {cu!r}, but heights are in {units!r}; "
+                                  "one length unit per dataset (use .topo.to_units)")
+        v = np.asarray(ds.coords[dim].values, dtype=float)
+        if v.size > 1 and np.any(np.diff(v) <= 0):
+            raise ValidationError(f"coordinate {dim!r} must be strictly increasing")
+        if not is_nonuniform(ds) and not is_uniform(v):
+            raise ValidationError(f"coordinate {dim!r} is nonuniform but attr grid='nonuniform' is not set")
+    if is_nonuniform(ds) and lat != (X,):
+        raise ValidationError("grid='nonuniform' is only allowed for line scans")
+    if MASK in ds:
+        if ds[MASK].dtype != bool:
+            raise ValidationError(f"{MASK!r} must be boolean, got {ds[MASK].dtype}")
+        if ds[MASK].dims != h.dims:
+            raise ValidationError(f"{MASK!r} dims {ds[MASK].dims} differ from height dims {h.dims}")
+    if int(ds.attrs.get("periodic", 0)) not in (0, 1):
+        raise ValidationError("attr 'periodic' must be 0 or 1")
+    for key in LENGTH_ATTRS:
+        if key in ds.attrs:
+            val = float(ds.attrs[key])
+            if not (np.isfinite(val) and val > 0):
+                raise ValidationError(f"attr {key!r} must be a positive length, got {val!r}")
+    return ds
+
+
+_NAME_RE = re.compile(r"[^A-Za-z0-9_.@+-]")
+
+
+def safe_name(name: str) -> str:
+    """A NetCDF/DataTree-safe variant of ``name`` (used for node and variable names)."""
+    s = _NAME_RE.sub("_", str(name)).strip("_")
+    return s or "unnamed"

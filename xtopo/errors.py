@@ -1,0 +1,68 @@
+"""Exceptions and warnings raised by xtopo.
+
+Every error xtopo raises on purpose is an :class:`XtopoError`, so callers can
+catch one type.  Messages name the file or variable involved and say what to do.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "XtopoError",
+    "ReaderError",
+    "UnsupportedFormatError",
+    "UnitsError",
+    "GridError",
+    "ChunkError",
+    "ValidationError",
+    "ContactError",
+    "ConvergenceWarning",
+]
+
+
+class XtopoError(Exception):
+    """Root of every error raised by xtopo."""
+
+
+class ReaderError(XtopoError, ValueError):
+    """A file could not be read: it is corrupt, truncated or inconsistent.
+
+    Parameters
+    ----------
+    path : str or os.PathLike or None
+        The file that failed; its name is put in front of the message.
+    message : str
+        What is wrong with the file.
+    """
+
+    def __init__(self, path, message: str):
+        self.path = None if path is None else str(path)
+        self.reason = message
+        super().__init__(message if path is None else f"{path}: {message}")
+
+
+class UnsupportedFormatError(ReaderError):
+    """The file's format is not recognised, or the requested channel does not exist."""
+
+
+class UnitsError(XtopoError, ValueError):
+    """A unit string could not be parsed, or two quantities have incompatible units."""
+
+
+class GridError(XtopoError, ValueError):
+    """The data do not lie on the grid an operation needs (uniform, 2D, large enough, ...)."""
+
+
+class ChunkError(XtopoError, ValueError):
+    """A dask array is chunked along a dimension the operation needs whole."""
+
+
+class ValidationError(XtopoError, ValueError):
+    """A Dataset does not follow the xtopo data model (see :mod:`xtopo.conventions`)."""
+
+
+class ContactError(XtopoError, ValueError):
+    """A contact problem is ill-posed (negative modulus, no load given, ...)."""
+
+
+class ConvergenceWarning(UserWarning):
+    """An iterative solver stopped before reaching its tolerance."""

@@ -1,0 +1,32 @@
+"""xarray backend entry point: ``xr.open_dataset(path, engine="xtopo")``."""
+
+from __future__ import annotations
+
+import os
+
+from xarray.backends import BackendEntrypoint
+
+from .open import open_topography
+
+
+class XtopoBackendEntrypoint(BackendEntrypoint):
+    """Opens any file :func:`xtopo.open_topography` can read."""
+
+    description = "Surface topography files (AFM, profilometers, X3P, ...) via xtopo"
+    url = "https://github.com/xtopo/xtopo"
+    open_dataset_parameters = ("filename_or_obj", "drop_variables", "channel", "units", "periodic", "format")
+
+    def open_dataset(self, filename_or_obj, *, drop_variables=None, channel=None, units="m", periodic=None,
+                     format=None):
+        ds = open_topography(filename_or_obj, channel=channel, units=units, periodic=periodic, format=format)
+        if drop_variables:
+            ds = ds.drop_vars(drop_variables, errors="ignore")
+        return ds
+
+    def guess_can_open(self, filename_or_obj):
+        try:
+            from .registry import detect
+
+            return bool(detect(os.fspath(filename_or_obj)))
+        except Exception:
+            return False

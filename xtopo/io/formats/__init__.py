@@ -1,0 +1,1 @@
+"""One module per format family; each registers a :class:`xtopo.io.registry.Format`."""

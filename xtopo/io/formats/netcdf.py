@@ -1,0 +1,23 @@
+"""xtopo's own NetCDF layout (NetCDF-3 classic and NetCDF-4/HDF5)."""
+
+from __future__ import annotations
+
+from ..netcdf import read_netcdf
+from ..registry import Format, register
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head[:3] == b"CDF" or head[:8] == b"\x89HDF\r\n\x1a\n"
+
+
+def _read(path, *, channel=None):
+    ds = read_netcdf(path)
+    if "height" not in ds:
+        from ...errors import UnsupportedFormatError
+
+        raise UnsupportedFormatError(path, "NetCDF file without a 'height' variable is not an xtopo measurement")
+    return ds
+
+
+FORMAT = register(Format("netcdf", "xtopo NetCDF measurement", (".nc", ".nc4", ".h5", ".hdf5"),
+                         _sniff, _read, priority=-1))

@@ -1,0 +1,152 @@
+"""NetCDF out and in: CF-1.12/ACDD-1.3 attributes, provenance, atomic writes.
+
+:func:`to_netcdf` writes a measurement (or any xtopo result Dataset) to a
+temporary file next to the target and moves it into place with ``os.replace``,
+so a write that fails midway never destroys an existing file.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import tempfile
+
+import numpy as np
+import xarray as xr
+
+from .._version import __version__
+from ..conventions import CONVENTIONS
+from ..errors import ReaderError, XtopoError
+
+__all__ = ["to_netcdf", "read_netcdf", "sanitize_attrs", "provenance_attrs", "ENGINES"]
+
+ENGINES = ("netcdf4", "h5netcdf")
+#: Attributes the writer sets; they describe the file, not the data.
+PROVENANCE_KEYS = ("Conventions", "xtopo_version", "date_created", "product_version", "processing_level")
+
+
+def _sanitize_value(value):
+    if isinstance(value, (bool, np.bool_)):
+        return int(value)
+    if value is None:
+        return None
+    if isinstance(value, dict):
+        return json.dumps(value, default=str, sort_keys=True)
+    if isinstance(value, (_dt.datetime, _dt.date)):
+        return value.isoformat()
+    if isinstance(value, (list, tuple)):
+        if all(isinstance(v, str) for v in value):
+            return json.dumps(list(value))
+        arr = np.asarray([_sanitize_value(v) for v in value])
+        return arr if arr.dtype.kind in "iuf" else json.dumps(list(value), default=str)
+    if isinstance(value, np.ndarray):
+        if value.dtype == bool:
+            return value.astype(np.int8)
+        return value if value.dtype.kind in "iufS" else json.dumps(value.tolist(), default=str)
+    if isinstance(value, (str, int, float, np.integer, np.floating, bytes)):
+        return value
+    return str(value)
+
+
+def sanitize_attrs(attrs: dict) -> dict:
+    """Attributes NetCDF can store: bool → int, dict/list of str → JSON, None dropped."""
+    out = {}
+    for key, value in attrs.items():
+        v = _sanitize_value(value)
+        if v is not None:
+            out[str(key)] = v
+    return out
+
+
+def provenance_attrs(attrs: dict) -> dict:
+    """``attrs`` with the CF/ACDD and provenance attributes the writer adds."""
+    now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+    out = dict(attrs)
+    out["Conventions"] = CONVENTIONS
+    out.setdefault("date_created", now)
+    out["xtopo_version"] = __version__
+    out.setdefault("product_version", __version__)
+    return out
+
+
+def _prepare(ds: xr.Dataset) -> xr.Dataset:
+    ds = ds.copy(deep=False)
+    ds.attrs = sanitize_attrs(provenance_attrs(ds.attrs))
+    for name in list(ds.variables):
+        ds[name].attrs = sanitize_attrs(ds[name].attrs)
+        ds[name].encoding = {k: v for k, v in ds[name].encoding.items()
+                             if k in ("dtype", "_FillValue", "zlib", "complevel", "chunksizes", "units",
+                                      "calendar", "compression")}
+    return ds
+
+
+def _default_engine() -> str:
+    try:
+        import netCDF4  # noqa: F401
+
+        return "netcdf4"
+    except ImportError:
+        return "h5netcdf"
+
+
+def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) -> str:
+    """Write ``ds`` to ``path`` atomically, with CF/ACDD and provenance attributes.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset or xarray.DataArray
+        A measurement or an analysis result (a DataArray is written as its Dataset).
+    path : str or os.PathLike
+        Target file; replaced only once the new file is complete.
+    engine : {"netcdf4", "h5netcdf"}, optional
+        Default ``netcdf4`` if installed.
+    compress : bool
+        zlib-compress float variables.
+
+    Returns
+    -------
+    str
+        The path written.
+    """
+    if isinstance(ds, xr.DataArray):
+        ds = ds.to_dataset(name=ds.name or "data")
+    if not isinstance(ds, xr.Dataset):
+        raise XtopoError(f"to_netcdf expects an xarray Dataset, got {type(ds).__name__}")
+    engine = engine or _default_engine()
+    if engine not in ENGINES:
+        raise XtopoError(f"engine must be one of {ENGINES}, got {engine!r}")
+    out = _prepare(ds)
+    encoding = {}
+    if compress:
+        key = "zlib" if engine == "netcdf4" else "compression"
+        val = True if engine == "netcdf4" else "gzip"
+        encoding = {v: {key: val} for v in out.data_vars if out[v].dtype.kind == "f"}
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
+    os.close(fd)
+    try:
+        out.to_netcdf(tmp, engine=engine, encoding=encoding)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
+    """Open an xtopo NetCDF file; loaded into memory unless ``lazy``."""
+    try:
+        ds = xr.open_dataset(path, engine=engine)
+    except (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError) as exc:
+        raise ReaderError(path, f"not a readable NetCDF/HDF5 file: {exc}") from None
+    if lazy:
+        return ds
+    with ds:
+        out = ds.load()
+    for name in out.variables:
+        out[name].encoding.pop("source", None)
+    out.encoding.pop("source", None)
+    return out
