@@ -202,13 +202,7 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
             raise XtopoError("the requested spectrum is empty on this grid (check the cutoffs)")
         prefactor = target**2 / expected
     psd = dataclasses.replace(psd, prefactor=float(prefactor))
-    rng = np.random.default_rng(seed)
-    amp = np.sqrt(psd.c_native(qabs) * area) / np.sqrt(2.0)
-    ht = amp * (rng.standard_normal(qabs.shape) + 1j * rng.standard_normal(qabs.shape))
-    ht.flat[0] = 0.0
-    # modes that are their own conjugate must be real with full variance
-    _make_self_conjugate_real(ht, gshape, amp, rng)
-    h = _fft.irfftn(ht, s=gshape, axes=tuple(range(-dim, 0))) * (int(np.prod(gshape)) / area)
+    h = _synthesize(gshape, gsize, psd.c_native(qabs), np.random.default_rng(seed))
     if rms_height is not None or rms_slope is not None:
         if rms_slope is not None:
             from ._kernels.derivatives import forward_difference
@@ -224,6 +218,18 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
                           title="fractal surface", source="xtopo.datasets.fractal_surface",
                           **psd.to_attrs(), seed=int(seed))
     return append_history(ds, f"fractal_surface(shape={shape}, hurst={hurst}, seed={seed}, periodic={periodic})")
+
+
+def _synthesize(shape, size, c, rng) -> np.ndarray:
+    """Gaussian random field on a periodic grid whose expected PSD is ``c`` (on the rfft grid).
+
+    ``E|h̃|² = c · area`` for every mode, i.e. the expected C2D (or C1D) equals ``c``.
+    """
+    area = float(np.prod(size))
+    amp = np.sqrt(c * area) / np.sqrt(2.0)
+    ht = amp * (rng.standard_normal(c.shape) + 1j * rng.standard_normal(c.shape))
+    _make_self_conjugate_real(ht, shape, amp, rng)
+    return _fft.irfftn(ht, s=shape, axes=tuple(range(-len(shape), 0))) * (int(np.prod(shape)) / area)
 
 
 def _make_self_conjugate_real(ht, shape, amp, rng):
@@ -300,3 +306,235 @@ def sinusoid(shape, size, *, amplitude: float = 1.0, wavelength: float | None = 
                           title=f"sinusoid λ={lam:g} {units}", source="xtopo.datasets.sinusoid")
     ds.attrs.update(sinusoid_amplitude=float(amplitude), sinusoid_wavelength=lam)
     return ds
+
+
+def _tip_dilate_line(h: np.ndarray, dx: float, radius: float) -> np.ndarray:
+    """Morphological dilation of profiles ``h[..., n]`` by a sphere of ``radius`` (apex at the origin)."""
+    ptp = float(np.nanmax(h) - np.nanmin(h)) if h.size else 0.0
+    reach = radius if ptp >= radius else np.sqrt(max(radius**2 - (radius - ptp) ** 2, 0.0))
+    k = int(np.ceil(reach / dx))
+    out = h.copy()
+    n = h.shape[-1]
+    for s in range(1, min(k, n - 1) + 1):
+        d = s * dx
+        if d > radius:
+            break
+        drop = radius - np.sqrt(radius**2 - d**2)
+        np.maximum(out[..., :-s], h[..., s:] - drop, out=out[..., :-s])
+        np.maximum(out[..., s:], h[..., :-s] - drop, out=out[..., s:])
+    return out
+
+
+def _tip_dilate_area(h: np.ndarray, dy: float, dx: float, radius: float) -> np.ndarray:
+    """Dilation of a map ``h[ny, nx]`` by a spherical tip; only offsets whose drop can matter are visited."""
+    ptp = float(np.nanmax(h) - np.nanmin(h))
+    reach = radius if ptp >= radius else np.sqrt(max(radius**2 - (radius - ptp) ** 2, 0.0))
+    ky, kx = int(np.ceil(reach / dy)), int(np.ceil(reach / dx))
+    out = h.copy()
+    ny, nx = h.shape
+    for i in range(-min(ky, ny - 1), min(ky, ny - 1) + 1):
+        for j in range(-min(kx, nx - 1), min(kx, nx - 1) + 1):
+            r2 = (i * dy) ** 2 + (j * dx) ** 2
+            if (i == 0 and j == 0) or r2 > reach**2:
+                continue
+            drop = radius - np.sqrt(radius**2 - r2)
+            # out[y, x] = max(out[y, x], h[y+i, x+j] - drop)
+            ys_o = slice(max(0, -i), ny - max(0, i))
+            xs_o = slice(max(0, -j), nx - max(0, j))
+            ys_h = slice(max(0, i), ny - max(0, -i))
+            xs_h = slice(max(0, j), nx - max(0, -j))
+            np.maximum(out[ys_o, xs_o], h[ys_h, xs_h] - drop, out=out[ys_o, xs_o])
+    return out
+
+
+def _missing_patches(shape, fraction: float, rng, patch: int | None = None) -> np.ndarray:
+    """Boolean mask with roughly ``fraction`` of the points in compact random patches."""
+    mask = np.zeros(shape, dtype=bool)
+    if fraction <= 0:
+        return mask
+    target = int(round(fraction * np.prod(shape)))
+    patch = patch or max(1, int(0.05 * min(shape)))
+    while mask.sum() < target:
+        centre = [rng.integers(0, n) for n in shape]
+        radius = rng.uniform(0.5, 1.0) * patch
+        grids = np.ogrid[tuple(slice(0, n) for n in shape)]
+        r2 = sum((g - c) ** 2 for g, c in zip(grids, centre))
+        mask |= r2 <= radius**2
+    return mask
+
+
+def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_radius: float | None = None,
+            noise: float = 0.0, missing_fraction: float = 0.0, resolution: float | None = None,
+            line: bool = False, seed: int = 0, instrument: str = "simulated instrument") -> xr.Dataset:
+    """Simulate an instrument measuring ``surface``.
+
+    The window of ``size`` at ``offset`` is cut from the ground truth, dilated by a
+    spherical tip of ``tip_radius`` at the ground truth's resolution (morphological
+    dilation: the apex height where the sphere first touches the surface, as a
+    scanning probe or stylus records it), sampled at ``pixels`` points (linear
+    interpolation), perturbed by white noise of RMS ``noise`` and punched with
+    missing-data patches covering ``missing_fraction`` of the points.
+
+    Parameters
+    ----------
+    surface : xarray.Dataset
+        Ground truth (area or line), finer than the simulated instrument.
+    size : float or tuple of float, optional
+        Physical size of the measured window in the surface's unit (default: all of it).
+    pixels : int or tuple of int, optional
+        Number of samples (default: those of the window at the ground-truth spacing).
+    offset : float or tuple of float, optional
+        Position of the window's lower-left corner (default 0).
+    tip_radius : float, optional
+        Tip radius in the surface's unit; recorded in ``attrs["tip_radius"]``.
+    noise : float
+        RMS of additive Gaussian white noise, in the surface's unit.
+    missing_fraction : float
+        Fraction of points to mark missing (NaN in ``height``, ``True`` in ``mask``).
+    resolution : float, optional
+        Lateral resolution recorded in attrs (for optical instruments).
+    line : bool
+        Measure a single profile along x (the first row) of an area surface.
+    seed : int
+        Seed for noise and missing patches.
+
+    Returns
+    -------
+    xarray.Dataset
+        A nonperiodic measurement in the surface's unit.
+    """
+    h = height_of(surface)
+    units = h.coords["x"].attrs.get("units", "m")
+    area = h.ndim == 2
+    dims = ("y", "x") if area else ("x",)
+    sp = np.array([spacing(h, d) for d in dims])
+    n = np.array([h.sizes[d] for d in dims])
+    full = sp * n
+    size = full if size is None else np.broadcast_to(np.asarray(size, dtype=float), (len(dims),)).copy()
+    offset = np.zeros(len(dims)) if offset is None else np.broadcast_to(np.asarray(offset, float), (len(dims),))
+    if np.any(size <= 0) or np.any(offset < 0) or np.any(offset + size > full * (1 + 1e-12)):
+        raise GridError(f"window offset={tuple(offset)} size={tuple(size)} does not fit into the surface {tuple(full)}")
+    values = np.asarray(h.values, dtype=float)
+    # crop with a margin of one tip reach so the dilation near the window edge sees its neighbours
+    margin = np.zeros(len(dims), dtype=int)
+    if tip_radius is not None:
+        margin = np.ceil(tip_radius / sp).astype(int)
+    lo = np.maximum(np.floor(offset / sp).astype(int) - margin, 0)
+    hi = np.minimum(np.ceil((offset + size) / sp).astype(int) + 1 + margin, n)
+    crop = values[tuple(slice(a, b) for a, b in zip(lo, hi))]
+    if tip_radius is not None:
+        if tip_radius <= 0:
+            raise XtopoError(f"tip_radius must be positive, got {tip_radius}")
+        crop = _tip_dilate_area(crop, sp[0], sp[1], tip_radius) if area else _tip_dilate_line(crop, sp[0], tip_radius)
+    if pixels is None:
+        pixels = np.maximum(np.round(size / sp).astype(int), 1)
+    pixels = np.broadcast_to(np.asarray(pixels, dtype=int), (len(dims),))
+    if line and area:
+        pixels = np.array([1, pixels[-1]])
+    new_sp = size / pixels
+    # sample positions relative to the crop origin, in crop pixels
+    pos = [(offset[k] + np.arange(pixels[k]) * new_sp[k]) / sp[k] - lo[k] for k in range(len(dims))]
+    from scipy.ndimage import map_coordinates
+
+    grid = np.meshgrid(*pos, indexing="ij")
+    sampled = map_coordinates(crop, grid, order=1, mode="nearest")
+    rng = np.random.default_rng(seed)
+    if noise:
+        sampled = sampled + noise * rng.standard_normal(sampled.shape)
+    if line and area:
+        sampled = sampled[0]
+        new_sp = new_sp[1:]
+    missing = _missing_patches(sampled.shape, missing_fraction, rng)
+    ds = make_measurement(np.where(missing, np.nan, sampled), spacing=tuple(new_sp) if sampled.ndim == 2 else new_sp[0],
+                          units=units, periodic=False, tip_radius=tip_radius, resolution=resolution,
+                          instrument=instrument, source="xtopo.datasets.measure")
+    for key in ("psd_hurst", "psd_prefactor", "psd_long_cutoff", "psd_short_cutoff", "psd_dim"):
+        if key in surface.attrs:
+            ds.attrs[key] = surface.attrs[key]
+    if sampled.ndim == 1 and surface.attrs.get("psd_dim") == 2:
+        ds.attrs["psd_dim"] = 2  # a profile of an isotropic area surface: compare with FractalPSD.c1d
+    return append_history(ds, f"measure(size={[float(v) for v in size]}, pixels={[int(p) for p in pixels]}, "
+                              f"tip_radius={tip_radius}, noise={noise}, missing_fraction={missing_fraction}, seed={seed})")
+
+
+def _line_truth(truth: FractalPSD, n: int, dx: float, seed: int) -> np.ndarray:
+    """A nonperiodic profile of ``n`` points of the isotropic area surface with PSD ``truth``."""
+    gshape = (2 * n,)
+    q = np.abs(wavevectors(gshape[0], dx, real=True))
+    qpos = q[q > 0]
+    grid = np.geomspace(qpos.min(), qpos.max(), 256)
+    c1d = np.zeros_like(q)
+    c1d[q > 0] = np.exp(np.interp(np.log(qpos), np.log(grid), np.log(truth.c1d(grid))))
+    return _synthesize(gshape, (2 * n * dx,), c1d, np.random.default_rng(seed))[:n]
+
+
+#: Instruments of the example twin: (name, kind, size [m], pixels, oversampling, tip radius [m], extra)
+_TWIN_PLAN = (
+    ("stylus-5mm", "line", 5e-3, 5000, 4, 5e-6, {"noise": 2e-9}),
+    ("stylus-500um", "line", 5e-4, 5000, 4, 1e-6, {"noise": 1e-9}),
+    ("optical-1mm", "area", 1e-3, 256, 2, None, {"resolution": 1.6e-5, "noise": 5e-9, "missing_fraction": 0.03}),
+    ("afm-50um", "area", 5e-5, 256, 2, 5e-8, {"noise": 2e-10}),
+    ("afm-5um", "area", 5e-6, 256, 2, 2e-8, {"noise": 1e-10, "missing_fraction": 0.02}),
+    ("afm-500nm", "area", 5e-7, 256, 2, 1e-8, {}),
+    ("tem-profile-200nm", "nonuniform", 2e-7, 400, 10, None, {"resolution": 1e-9}),
+)
+
+
+@functools.lru_cache(maxsize=2)
+def _example_twin_cached(seed: int):
+    truth = FractalPSD(hurst=0.8, prefactor=1.5e-4, long_cutoff=2e-4, dim=2)
+    nodes = {}
+    for k, (name, kind, size, pixels, over, tip, extra) in enumerate(_TWIN_PLAN):
+        s = seed * 1000 + k
+        extra = dict(extra)
+        if kind == "area":
+            n = pixels * over
+            dx = size / n
+            gt = _synthesize((2 * n, 2 * n), (2 * size, 2 * size),
+                             truth.c_native(_grid_q((2 * n, 2 * n), (dx, dx))[0]), np.random.default_rng(s))[:n, :n]
+            surf = make_measurement(gt, spacing=dx, units="m")
+            meas = measure(surf, pixels=pixels, tip_radius=tip, seed=s, instrument=name, **extra)
+        elif kind == "line":
+            n = pixels * over
+            dx = size / n
+            surf = make_measurement(_line_truth(truth, n, dx, s), spacing=dx, units="m")
+            meas = measure(surf, pixels=pixels, tip_radius=tip, seed=s, instrument=name, **extra)
+        else:  # cross-section contour digitised at irregular positions
+            n = pixels * over
+            dx = size / n
+            line = _line_truth(truth, n, dx, s)
+            rng = np.random.default_rng(s)
+            x = np.sort(rng.choice(np.arange(1, n - 1), size=pixels - 2, replace=False)) * dx
+            x = np.concatenate([[0.0], x + rng.uniform(-0.3, 0.3, x.size) * dx, [(n - 1) * dx]])
+            h = np.interp(x, np.arange(n) * dx, line)
+            meas = make_measurement(h, x=x, units="m", instrument=name, resolution=extra.get("resolution"),
+                                    source="xtopo.datasets.example_twin")
+        meas.attrs.update(truth.to_attrs())
+        meas.attrs["title"] = name
+        meas.attrs["measurement_kind"] = kind
+        nodes[name] = meas
+    root = xr.Dataset(attrs={"title": "example digital surface twin",
+                             "summary": "Seven simulated measurements (stylus, optical, AFM, cross-section) of one "
+                                        "self-affine surface (H = 0.8) spanning 5 mm down to 1 nm.",
+                             "Conventions": "CF-1.12, ACDD-1.3", **truth.to_attrs()})
+    return root, nodes
+
+
+def example_twin(seed: int = 0) -> xr.DataTree:
+    """The built-in example twin: simulated measurements of one ground-truth surface.
+
+    Seven measurements of an isotropic self-affine surface (Hurst exponent 0.8, roll-off
+    at 200 µm) spanning more than six decades of length: two stylus line scans
+    (5 mm and 0.5 mm, tip radii 5 µm and 1 µm), an optical area scan (1 mm, with a
+    resolution limit and missing data), three AFM area scans (50 µm, 5 µm, 0.5 µm,
+    with tip artifacts, noise and missing data) and a nonuniform cross-section
+    profile (200 nm). Each node carries the ground-truth PSD parameters
+    (see :func:`prescribed_psd`).
+
+    Returns
+    -------
+    xarray.DataTree
+        One child node per measurement, surface description on the root.
+    """
+    root, nodes = _example_twin_cached(int(seed))
+    return xr.DataTree.from_dict({"/": root.copy(), **{f"/{k}": v.copy(deep=True) for k, v in nodes.items()}})

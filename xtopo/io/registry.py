@@ -84,8 +84,7 @@ def _load_all() -> None:
     global _LOADED
     if _LOADED:
         return
-    from . import formats as pkg
-
+    pkg = importlib.import_module(f"{__package__}.formats")
     for mod in pkgutil.iter_modules(pkg.__path__):
         if not mod.name.startswith("_"):
             importlib.import_module(f"{pkg.__name__}.{mod.name}")

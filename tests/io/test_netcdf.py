@@ -1,0 +1,89 @@
+import os
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+from xtopo.io.netcdf import sanitize_attrs
+
+
+def _measurement():
+    ds = xtopo.datasets.measure(xtopo.datasets.fractal_surface((64, 48), (1e-6, 7.5e-7), hurst=0.7, periodic=False),
+                                tip_radius=1e-8, missing_fraction=0.1, seed=2)
+    ds.attrs.update(instrument="AFM", flag=True, settings={"mode": "tapping", "gain": 2})
+    return ds
+
+
+@pytest.mark.parametrize("engine", ["netcdf4", "h5netcdf"])
+def test_round_trip_is_exact(tmp_path, engine):
+    ds = _measurement()
+    path = tmp_path / f"m-{engine}.nc"
+    xtopo.to_netcdf(ds, path, engine=engine)
+    back = xtopo.open_topography(path)
+    # values, coords, mask and every original attribute survive
+    np.testing.assert_array_equal(back.height.values, ds.height.values)
+    xr.testing.assert_identical(back.mask, ds.mask)
+    xr.testing.assert_identical(back.x, ds.x)
+    for key, value in sanitize_attrs(ds.attrs).items():
+        np.testing.assert_equal(back.attrs[key], value)
+    assert back.attrs["settings"] == '{"gain": 2, "mode": "tapping"}'
+    # CF/ACDD and provenance
+    assert back.attrs["Conventions"] == "CF-1.12, ACDD-1.3"
+    assert back.attrs["xtopo_version"] == xtopo.__version__
+    assert "date_created" in back.attrs
+    # a second round trip of what was read is identical (nothing drifts)
+    xtopo.to_netcdf(back, tmp_path / "again.nc", engine=engine)
+    xr.testing.assert_identical(xtopo.open_topography(tmp_path / "again.nc"), back)
+    # and xarray's own reader, through the entry point, sees the same data
+    via_xr = xr.open_dataset(path, engine="xtopo")
+    xr.testing.assert_identical(via_xr, back)
+
+
+def test_engines_agree(tmp_path):
+    ds = _measurement()
+    a = xtopo.open_topography(xtopo.to_netcdf(ds, tmp_path / "a.nc", engine="netcdf4"))
+    b = xtopo.open_topography(xtopo.to_netcdf(ds, tmp_path / "b.nc", engine="h5netcdf"))
+    xr.testing.assert_identical(a.drop_attrs(), b.drop_attrs())
+
+
+def test_failed_write_leaves_existing_file_intact(tmp_path, monkeypatch):
+    path = tmp_path / "keep.nc"
+    ds = _measurement()
+    xtopo.to_netcdf(ds, path)
+    before = path.read_bytes()
+
+    original = xr.Dataset.to_netcdf
+
+    def write_half_then_fail(self, target, *args, **kwargs):
+        original(self, target, *args, **kwargs)
+        with open(target, "r+b") as f:  # the temp file is half-overwritten, then the process "dies"
+            f.truncate(100)
+        raise OSError("disk full")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", write_half_then_fail)
+    with pytest.raises(OSError, match="disk full"):
+        xtopo.to_netcdf(ds.assign(height=ds.height * 2), path)
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert os.listdir(tmp_path) == ["keep.nc"]  # no temp file left behind
+    xr.testing.assert_identical(xtopo.open_topography(path).mask, ds.mask)
+
+
+def test_unencodable_attrs_are_sanitised():
+    out = sanitize_attrs({"a": True, "b": None, "c": {"k": 1}, "d": ["x", "y"], "e": np.array([True, False])})
+    assert out == {"a": 1, "c": '{"k": 1}', "d": '["x", "y"]', "e": out["e"]}
+    assert out["e"].dtype == np.int8
+
+
+def test_reading_garbage_names_the_file(tmp_path):
+    bad = tmp_path / "bad.nc"
+    bad.write_bytes(b"CDF\x01" + b"\xff" * 50)
+    with pytest.raises(xtopo.ReaderError, match="bad.nc"):
+        xtopo.open_topography(bad)
+    empty = tmp_path / "empty.nc"
+    empty.write_bytes(b"")
+    with pytest.raises(xtopo.ReaderError, match="empty"):
+        xtopo.open_topography(empty)
+    with pytest.raises(xtopo.ReaderError, match="no such file"):
+        xtopo.open_topography(tmp_path / "missing.nc")

@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+from xtopo.conventions import (convert_length, height_of, length_factor, make_measurement, normalize_units, spacing,
+                               validate)
+from xtopo.errors import GridError, UnitsError, ValidationError, XtopoError
+
+
+def test_unit_normalisation_and_factors():
+    assert normalize_units("µm") == "um"
+    assert normalize_units("micrometer") == "um"
+    assert length_factor("mm", "nm") == pytest.approx(1e6, rel=1e-15)
+    with pytest.raises(UnitsError):
+        normalize_units("kg")
+    with pytest.raises(UnitsError):
+        normalize_units("not-a-unit")
+    assert issubclass(UnitsError, XtopoError)
+
+
+def test_to_units_converts_coords_heights_and_length_attrs_consistently():
+    ds = make_measurement(np.arange(12.0).reshape(3, 4) * 1e-9, size=(3e-6, 4e-6), units="m", tip_radius=2e-8,
+                          resolution=1e-7)
+    nm = ds.topo.to_units("nm")
+    np.testing.assert_allclose(nm.height.values, ds.height.values * 1e9, rtol=1e-15)
+    np.testing.assert_allclose(nm.x.values, ds.x.values * 1e9, rtol=1e-15)
+    assert nm.height.attrs["units"] == nm.x.attrs["units"] == nm.y.attrs["units"] == "nm"
+    assert nm.attrs["tip_radius"] == pytest.approx(20.0) and nm.attrs["tip_radius_units"] == "nm"
+    assert nm.attrs["resolution"] == pytest.approx(100.0)
+    assert spacing(nm, "x") == pytest.approx(1e3)
+    assert "convert_length" in nm.attrs["history"]
+    # the original is untouched and the round trip is exact to round-off
+    assert ds.height.attrs["units"] == "m"
+    back = convert_length(nm, "m")
+    xr.testing.assert_allclose(back.height, ds.height, rtol=1e-14)
+    validate(nm)
+
+
+def test_make_measurement_masks_nan_and_validate_catches_errors():
+    h = np.ones((4, 5))
+    h[1, 2] = np.nan
+    ds = make_measurement(h, spacing=(0.5, 0.25), units="um")
+    assert bool(ds.mask[1, 2]) and int(ds.mask.sum()) == 1
+    assert np.isnan(float(height_of(ds)[1, 2]))
+    validate(ds)
+    bad = ds.copy()
+    bad["x"] = bad.x.assign_attrs(units="nm")
+    with pytest.raises(ValidationError, match="one length unit"):
+        validate(bad)
+    with pytest.raises(ValidationError, match="height"):
+        validate(ds.drop_vars("height"))
+    with pytest.raises(GridError):
+        make_measurement(np.ones((2, 2, 2)), size=1.0)
+    with pytest.raises(GridError):
+        make_measurement(np.ones(3), size=-1.0)
+
+
+def test_nonuniform_line_scan():
+    x = np.array([0.0, 0.1, 0.35, 0.4, 1.0])
+    ds = make_measurement(np.sin(x), x=x, units="mm")
+    assert ds.attrs["grid"] == "nonuniform"
+    validate(ds)
+    with pytest.raises(GridError, match="not uniformly spaced"):
+        spacing(ds, "x")
+    with pytest.raises(GridError, match="strictly increasing"):
+        make_measurement(np.ones(3), x=[0, 2, 1])

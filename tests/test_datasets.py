@@ -1,0 +1,123 @@
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+from xtopo._kernels.derivatives import forward_difference, second_difference
+from xtopo.datasets import example_twin, fractal_surface, measure, prescribed_psd, sinusoid, sphere
+
+
+@pytest.mark.parametrize("shape,size", [((128, 96), (1.0, 0.75)), (512, 2.0), ((64, 64), (1e-6, 1e-6))])
+@pytest.mark.parametrize("hurst", [0.3, 0.8])
+def test_fractal_rms_height_exact(shape, size, hurst):
+    ds = fractal_surface(shape, size, hurst=hurst, rms_height=3.5e-3, seed=4)
+    assert float(np.sqrt(np.mean(ds.height.values**2))) == pytest.approx(3.5e-3, rel=1e-10)
+    assert float(ds.topo.scalars()["Sq" if ds.height.ndim == 2 else "Rq"].squeeze()) == pytest.approx(3.5e-3, rel=1e-10)
+
+
+@pytest.mark.parametrize("shape,size", [((128, 96), (1.0, 0.75)), (512, 2.0)])
+def test_fractal_rms_slope_exact(shape, size):
+    ds = fractal_surface(shape, size, hurst=0.5, rms_slope=0.2, seed=1)
+    sc = ds.topo.scalars()
+    value = sc["Sdq"] if ds.height.ndim == 2 else sc["Rdq"].sel(direction="x")
+    assert float(value) == pytest.approx(0.2, rel=1e-10)
+
+
+def test_fractal_is_seeded_and_periodic_flags():
+    a = fractal_surface((64, 64), 1.0, hurst=0.7, seed=3)
+    b = fractal_surface((64, 64), 1.0, hurst=0.7, seed=3)
+    c = fractal_surface((64, 64), 1.0, hurst=0.7, seed=4)
+    xr.testing.assert_identical(a, b)
+    assert not np.allclose(a.height, c.height)
+    assert a.attrs["periodic"] == 1
+    assert fractal_surface((64, 64), 1.0, hurst=0.7, periodic=False).attrs["periodic"] == 0
+
+
+def test_fractal_expected_spectrum_matches_prescribed_psd():
+    """Ensemble-averaged |h̃|²/A follows the prescribed PSD (checks the synthesis normalisation)."""
+    shape, size = (64, 64), (1.0, 1.0)
+    acc = 0
+    for seed in range(40):
+        ds = fractal_surface(shape, size, hurst=0.6, prefactor=1e-6, seed=seed)
+        ht = np.fft.fft2(ds.height.values) * (1 / 64) ** 2
+        acc = acc + np.abs(ht) ** 2 / 1.0
+    c2d = acc / 40
+    q = 2 * np.pi * np.fft.fftfreq(64, 1 / 64)
+    qabs = np.hypot(*np.meshgrid(q, q, indexing="ij"))
+    truth = prescribed_psd(ds).c_iso(qabs)
+    ring = (qabs > 20) & (qabs < 150)
+    ratio = np.mean(c2d[ring] / truth[ring])
+    assert ratio == pytest.approx(1.0, abs=0.05)
+
+
+def test_c1d_of_power_law_matches_closed_form():
+    from math import gamma, pi, sqrt
+
+    psd = xtopo.datasets.FractalPSD(hurst=0.7, prefactor=2.0)
+    q = np.array([0.5, 3.0, 40.0])
+    closed = 2.0 / pi * q ** (-1 - 1.4) * sqrt(pi) * gamma(0.7 + 0.5) / (2 * gamma(1.7))
+    np.testing.assert_allclose(psd.c1d(q), closed, rtol=1e-6)
+
+
+def test_sphere_and_sinusoid_geometry():
+    s = sphere((64, 64), (2.0, 2.0), radius=10.0, center=(1.0, 1.0))
+    assert float(s.height.max()) == pytest.approx(0.0, abs=1e-15)
+    # at distance 1 from the apex: sqrt(R²-1)-R
+    assert float(s.height.sel(x=0.0, y=1.0, method="nearest")) == pytest.approx(np.sqrt(99) - 10, rel=1e-12)
+    w = sinusoid(64, 2.0, amplitude=0.5, wavelength=0.5)
+    assert float(w.height.max()) == pytest.approx(0.5) and w.attrs["periodic"] == 1
+    with pytest.raises(xtopo.XtopoError):
+        sinusoid(64, 1.0, direction="y")
+
+
+def _second_derivative_max(h, dx):
+    """Largest curvature of the graph, -h''/(1+h'²)^(3/2), from central differences."""
+    slope = (h[2:] - h[:-2]) / (2 * dx)
+    return float(np.nanmax(-second_difference(h, dx, periodic=False) / (1 + slope**2) ** 1.5))
+
+
+def test_measure_with_tip_never_below_truth_and_rounds_peaks():
+    truth = fractal_surface(8192, 1e-3, hurst=0.8, rms_slope=0.5, periodic=False, seed=2)
+    R = 2e-6
+    m = measure(truth, tip_radius=R)  # same grid: sample-by-sample comparison
+    assert m.attrs["tip_radius"] == R
+    h_true, h_meas = truth.height.values, m.height.values
+    assert np.all(h_meas >= h_true - 1e-18)
+    dx = float(truth.x[1] - truth.x[0])
+    assert _second_derivative_max(h_true, dx) > 5 / R  # the truth is sharper than the tip ...
+    assert _second_derivative_max(h_meas, dx) <= 1.05 / R  # ... the measurement is not
+    # with noise: the noise-free dilation is never below the truth, so the noisy one stays above truth - noise
+    noisy = measure(truth, tip_radius=R, noise=1e-9, seed=5)
+    assert np.all(noisy.height.values >= h_true - 6e-9)
+
+
+def test_measure_area_tip_and_missing_data():
+    truth = fractal_surface((256, 256), (1e-6, 1e-6), hurst=0.8, rms_slope=0.8, periodic=False, seed=1)
+    R = 2e-8
+    m = measure(truth, tip_radius=R, missing_fraction=0.1, seed=3)
+    present = ~m.mask.values
+    assert np.all(m.height.values[present] >= truth.height.values[present] - 1e-18)
+    assert 0.09 <= float(m.mask.mean()) <= 0.2
+    # resampling a window to fewer pixels keeps units and records the history
+    small = measure(truth, size=(5e-7, 5e-7), pixels=(64, 64), offset=(1e-7, 2e-7))
+    assert small.height.shape == (64, 64)
+    assert float(small.x[1] - small.x[0]) == pytest.approx(5e-7 / 64)
+    assert "measure(" in small.attrs["history"]
+    with pytest.raises(xtopo.GridError):
+        measure(truth, size=(2e-6, 1e-6))
+
+
+def test_example_twin_spans_four_decades():
+    tree = example_twin()
+    assert isinstance(tree, xr.DataTree)
+    kids = [n.to_dataset() for n in tree.children.values()]
+    assert len(kids) >= 6
+    sizes = [float(k.x.max() - k.x.min()) for k in kids]
+    spacings = [float(np.min(np.diff(k.x.values))) for k in kids]
+    assert max(sizes) / min(spacings) > 1e4
+    assert any(k.height.ndim == 1 and k.attrs.get("tip_radius") for k in kids)  # stylus
+    assert any(k.height.ndim == 2 and k.attrs.get("tip_radius") for k in kids)  # AFM
+    assert any(k.attrs.get("grid") == "nonuniform" for k in kids)
+    for k in kids:
+        xtopo.validate(k)
+    xr.testing.assert_identical(example_twin()["afm-5um"].to_dataset(), tree["afm-5um"].to_dataset())
