@@ -90,6 +90,16 @@ def _default_engine() -> str:
         return "h5netcdf"
 
 
+def _file_mode(path) -> int:
+    """Mode for the new file: that of the file it replaces, else 0o666 minus the umask."""
+    try:
+        return os.stat(path).st_mode & 0o777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
 def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) -> str:
     """Write ``ds`` to ``path`` atomically, with CF/ACDD and provenance attributes.
 
@@ -128,6 +138,7 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
     os.close(fd)
     try:
         out.to_netcdf(tmp, engine=engine, encoding=encoding)
+        os.chmod(tmp, _file_mode(path))
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
