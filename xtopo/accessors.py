@@ -14,6 +14,7 @@ from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
 from .io import netcdf as _netcdf
+from . import twins as _twin
 
 
 def _delegate(func):
@@ -60,3 +61,16 @@ class TopoDataArrayAccessor(_TopoAccessor):
     """``da.topo``: analyses of a height DataArray."""
 
     __slots__ = ()
+
+
+@xr.register_datatree_accessor("topo")
+class TopoTreeAccessor:
+    """``tree.topo``: a digital surface twin (one child node per measurement)."""
+
+    __slots__ = ("_obj",)
+
+    def __init__(self, tree):
+        self._obj = tree
+
+    to_netcdf = _delegate(_twin.to_netcdf)
+    measurements = _delegate(_twin.measurements)

@@ -19,7 +19,8 @@ from .._version import __version__
 from ..conventions import CONVENTIONS
 from ..errors import ReaderError, XtopoError
 
-__all__ = ["to_netcdf", "read_netcdf", "sanitize_attrs", "provenance_attrs", "ENGINES"]
+__all__ = ["to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
+           "ENGINES"]
 
 ENGINES = ("netcdf4", "h5netcdf")
 #: Attributes the writer sets; they describe the file, not the data.
@@ -70,15 +71,25 @@ def provenance_attrs(attrs: dict) -> dict:
     return out
 
 
-def _prepare(ds: xr.Dataset) -> xr.Dataset:
+def prepare_for_netcdf(ds: xr.Dataset, *, provenance: bool = True) -> xr.Dataset:
+    """``ds`` with sanitised attributes, CF/ACDD provenance (unless not wanted, e.g. for
+    groups below an archive's root) and only encodings NetCDF understands."""
     ds = ds.copy(deep=False)
-    ds.attrs = sanitize_attrs(provenance_attrs(ds.attrs))
+    ds.attrs = sanitize_attrs(provenance_attrs(ds.attrs) if provenance else ds.attrs)
     for name in list(ds.variables):
         ds[name].attrs = sanitize_attrs(ds[name].attrs)
         ds[name].encoding = {k: v for k, v in ds[name].encoding.items()
                              if k in ("dtype", "_FillValue", "zlib", "complevel", "chunksizes", "units",
                                       "calendar", "compression")}
     return ds
+
+
+def check_engine(engine: str | None) -> str:
+    """The engine to use (default ``netcdf4`` if installed); raise for unknown ones."""
+    engine = engine or _default_engine()
+    if engine not in ENGINES:
+        raise XtopoError(f"engine must be one of {ENGINES}, got {engine!r}")
+    return engine
 
 
 def _default_engine() -> str:
@@ -98,6 +109,27 @@ def _file_mode(path) -> int:
         umask = os.umask(0)
         os.umask(umask)
         return 0o666 & ~umask
+
+
+def atomic_write(path, write) -> str:
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then move it into place.
+
+    A ``write`` that fails (or a process that dies) leaves an existing ``path`` untouched
+    and no temporary file behind (the latter except on a hard kill).
+    """
+    path = os.fspath(path)
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.chmod(tmp, _file_mode(path))
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
 
 
 def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) -> str:
@@ -123,28 +155,14 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
         ds = ds.to_dataset(name=ds.name or "data")
     if not isinstance(ds, xr.Dataset):
         raise XtopoError(f"to_netcdf expects an xarray Dataset, got {type(ds).__name__}")
-    engine = engine or _default_engine()
-    if engine not in ENGINES:
-        raise XtopoError(f"engine must be one of {ENGINES}, got {engine!r}")
-    out = _prepare(ds)
+    engine = check_engine(engine)
+    out = prepare_for_netcdf(ds)
     encoding = {}
     if compress:
         key = "zlib" if engine == "netcdf4" else "compression"
         val = True if engine == "netcdf4" else "gzip"
         encoding = {v: {key: val} for v in out.data_vars if out[v].dtype.kind == "f"}
-    path = os.fspath(path)
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
-    os.close(fd)
-    try:
-        out.to_netcdf(tmp, engine=engine, encoding=encoding)
-        os.chmod(tmp, _file_mode(path))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine, encoding=encoding))
 
 
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:

@@ -1,0 +1,59 @@
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+
+from xtopo.datasets import example_twin, fractal_surface
+
+
+@pytest.mark.parametrize("engine", ["netcdf4", "h5netcdf"])
+def test_archive_round_trip_is_identical(tmp_path, engine):
+    tree = example_twin()
+    path = tmp_path / "twin.nc"
+    tree.topo.to_netcdf(path, engine=engine)
+    back = xtopo.open_twin(path)
+    assert set(back.children) == set(tree.children)
+    for name in tree.children:
+        xr.testing.assert_identical(back[name].to_dataset(), tree[name].to_dataset())
+    assert back.attrs["title"] == tree.attrs["title"]
+    assert back.attrs["Conventions"] == "CF-1.12, ACDD-1.3"
+    assert back.attrs["xtopo_version"] == xtopo.__version__
+
+
+def test_twin_from_datasets_and_files(tmp_path):
+    a = fractal_surface((32, 32), 1e-6, hurst=0.7, seed=1)
+    b = fractal_surface(256, 1e-4, hurst=0.7, seed=2, units="um")
+    path = tmp_path / "b.nc"
+    xtopo.to_netcdf(b, path)
+    tree = xtopo.twin({"afm": a, "profile": path}, name="steel", material="AISI 52100")
+    assert tree.attrs["title"] == "steel" and tree.attrs["material"] == "AISI 52100"
+    assert set(tree.children) == {"afm", "profile"}
+    # files written by xtopo are opened lazily
+    import dask.array as dsa
+
+    assert isinstance(tree["profile"].dataset["height"].data, dsa.Array)
+    np.testing.assert_array_equal(tree["profile"].dataset["height"].values, b.height.values)
+    # names from titles; duplicates get a suffix
+    t2 = xtopo.twin([a, a])
+    assert len(t2.children) == 2
+    with pytest.raises(xtopo.XtopoError):
+        xtopo.twin([])
+
+
+def test_archive_checksums_listed(tmp_path):
+    a = fractal_surface((16, 16), 1.0, hurst=0.5)
+    a.attrs["source_sha256"] = "ab" * 32
+    tree = xtopo.twin({"a": a})
+    tree.topo.to_netcdf(tmp_path / "t.nc")
+    back = xtopo.open_twin(tmp_path / "t.nc")
+    assert "a: " + "ab" * 32 in back.attrs["source_checksums"]
+    tree.topo.to_netcdf(tmp_path / "u.nc", checksums=False)
+    assert "source_sha256" not in xtopo.open_twin(tmp_path / "u.nc")["a"].attrs
+
+
+def test_open_twin_on_garbage_names_file(tmp_path):
+    p = tmp_path / "junk.nc"
+    p.write_bytes(b"not netcdf at all")
+    with pytest.raises(xtopo.ReaderError, match="junk.nc"):
+        xtopo.open_twin(p)

@@ -1,0 +1,138 @@
+"""Digital surface twins: all measurements of one physical surface in an ``xarray.DataTree``.
+
+A twin has one child node per measurement (any mix of line and area scans,
+sizes, instruments and units) and the surface's description in the root's attrs.
+Scale-dependent averages over a twin are in :mod:`xtopo.twin_average`; this
+module builds, stores and restores twins.
+"""
+
+from __future__ import annotations
+
+import os
+
+import xarray as xr
+
+from .conventions import CONVENTIONS, safe_name, validate
+from .errors import XtopoError
+from .io.netcdf import atomic_write, check_engine, prepare_for_netcdf, read_netcdf
+
+__all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
+
+
+def _open_lazily(path) -> xr.Dataset:
+    """Open a file for a twin: xtopo NetCDF stays lazy (dask), other formats are read now."""
+    from .io.open import open_topography
+    from .io.registry import detect
+
+    fmt = detect(path)[0]
+    if fmt.name == "netcdf":
+        ds = read_netcdf(path, lazy=True)
+        if "xtopo_version" in ds.attrs and "height" in ds:
+            return validate(ds.chunk())
+        ds.close()
+    return open_topography(path)
+
+
+def _name_of(ds: xr.Dataset, index: int) -> str:
+    for key in ("title", "source_file", "instrument"):
+        if ds.attrs.get(key):
+            return safe_name(os.path.splitext(str(ds.attrs[key]))[0] if key == "source_file" else ds.attrs[key])
+    return f"measurement_{index}"
+
+
+def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
+    """Build a digital surface twin from measurements.
+
+    Parameters
+    ----------
+    measurements : mapping of str to Dataset/path, or iterable of Dataset/path
+        The measurements of one surface. Paths are opened with
+        :func:`xtopo.open_topography` (xtopo NetCDF files lazily, as dask arrays).
+        Node names come from the mapping keys, else from ``title``/``source_file``.
+    name : str, optional
+        Name of the surface (root attr ``title``).
+    **attrs
+        Further root attributes (``description``, ``material``, ...).
+
+    Returns
+    -------
+    xarray.DataTree
+    """
+    if isinstance(measurements, xr.DataTree):
+        return measurements
+    items = measurements.items() if isinstance(measurements, dict) else enumerate(measurements)
+    nodes: dict[str, xr.Dataset] = {}
+    for key, m in items:
+        ds = m if isinstance(m, xr.Dataset) else _open_lazily(os.fspath(m))
+        validate(ds)
+        node = safe_name(key) if isinstance(key, str) else _name_of(ds, key)
+        base, k = node, 1
+        while node in nodes:
+            k += 1
+            node = f"{base}_{k}"
+        nodes[node] = ds
+    if not nodes:
+        raise XtopoError("a twin needs at least one measurement")
+    root = {"Conventions": CONVENTIONS, **attrs}
+    if name is not None:
+        root["title"] = name
+    return xr.DataTree.from_dict({"/": xr.Dataset(attrs=root), **{f"/{k}": v for k, v in nodes.items()}})
+
+
+def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
+    """The measurement Datasets of a twin by node name (children holding a ``height``)."""
+    return {name: node.to_dataset() for name, node in tree.children.items() if "height" in node.dataset}
+
+
+def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: bool = True) -> str:
+    """Archive a twin as one NetCDF file: a group per measurement, CF/ACDD and provenance on the root.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        The twin.
+    path : str or os.PathLike
+        Target file, written atomically.
+    engine : {"netcdf4", "h5netcdf"}, optional
+    checksums : bool
+        Keep the measurements' ``source_sha256`` attrs (checksums of the original files)
+        and list them on the root as ``source_checksums``.
+
+    Returns
+    -------
+    str
+    """
+    engine = check_engine(engine)
+    groups = {"/": prepare_for_netcdf(tree.to_dataset())}
+    sums = []
+    for name, ds in measurements(tree).items():
+        ds = ds.copy(deep=False)
+        if checksums and ds.attrs.get("source_sha256"):
+            sums.append(f"{name}: {ds.attrs['source_sha256']}")
+        elif not checksums:
+            ds.attrs.pop("source_sha256", None)
+        groups[f"/{name}"] = prepare_for_netcdf(ds, provenance=False)
+    if sums:
+        groups["/"].attrs["source_checksums"] = "\n".join(sums)
+    out = xr.DataTree.from_dict(groups)
+    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine))
+
+
+def open_twin(path, engine: str | None = None) -> xr.DataTree:
+    """Restore a twin archived with :func:`to_netcdf` (data loaded into memory)."""
+    try:
+        tree = xr.open_datatree(path, engine=engine)
+    except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:
+        from .errors import ReaderError
+
+        raise ReaderError(path, f"not a readable twin archive: {exc}") from None
+    with tree:
+        loaded = tree.load()
+    out = {}
+    for node in loaded.subtree:
+        ds = node.to_dataset(inherit=False)
+        ds.encoding = {}
+        for v in ds.variables.values():
+            v.encoding = {}
+        out[node.path] = ds
+    return xr.DataTree.from_dict(out)
