@@ -1,0 +1,44 @@
+"""Interpolation of positive curves in log-log space onto collocation points."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["interp_loglog", "collocation_points"]
+
+
+def collocation_points(lo: float, hi: float, per_decade: int) -> np.ndarray:
+    """Log-spaced points from ``lo`` to ``hi`` (inclusive), ``per_decade`` per decade."""
+    if not (0 < lo < hi) or not np.isfinite(hi):
+        return np.array([lo]) if lo > 0 else np.array([])
+    n = max(2, int(np.ceil(per_decade * np.log10(hi / lo))) + 1)
+    return np.geomspace(lo, hi, n)
+
+
+def interp_loglog(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
+    """Interpolate ``y[..., n]`` given at ``x[n]`` onto ``xnew`` in log-log space.
+
+    Per row, only finite, positive samples at positive ``x`` are used; points of
+    ``xnew`` outside their range (or in a gap wider than one sample where the row is
+    NaN) are NaN. Returns ``[..., len(xnew)]``.
+    """
+    y = np.asarray(y, dtype=float)
+    x = np.asarray(x, dtype=float)
+    xnew = np.asarray(xnew, dtype=float)
+    out = np.full(y.shape[:-1] + (xnew.size,), np.nan)
+    lx_all = np.log(np.where(x > 0, x, np.nan))
+    lxn = np.log(xnew)
+    flat_y = y.reshape(-1, y.shape[-1])
+    flat_o = out.reshape(-1, xnew.size)
+    for i in range(flat_y.shape[0]):
+        row = flat_y[i]
+        ok = np.isfinite(row) & (row > 0) & np.isfinite(lx_all)
+        if ok.sum() < 2:
+            if ok.sum() == 1:
+                j = np.flatnonzero(ok)[0]
+                flat_o[i, np.isclose(xnew, x[j], rtol=1e-9)] = row[j]
+            continue
+        lx, ly = lx_all[ok], np.log(row[ok])
+        inside = (lxn >= lx[0] - 1e-12) & (lxn <= lx[-1] + 1e-12)
+        flat_o[i, inside] = np.exp(np.interp(lxn[inside], lx, ly))
+    return out
