@@ -14,6 +14,7 @@ from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
 from .io import netcdf as _netcdf
+from . import stitching as _stitching
 from . import twins as _twin
 
 
@@ -74,3 +75,8 @@ class TopoTreeAccessor:
 
     to_netcdf = _delegate(_twin.to_netcdf)
     measurements = _delegate(_twin.measurements)
+    # twin averages (issue 6)
+    psd = _delegate(_stitching.twin_psd)
+    acf = _delegate(_stitching.twin_acf)
+    vbm = _delegate(_stitching.twin_vbm)
+    sdrp = _delegate(_stitching.twin_sdrp)

@@ -93,6 +93,27 @@ class FractalPSD:
             out[i] = np.sum(w * vals * jac) / np.pi
         return out
 
+    def acf(self, distance, *, q_max: float | None = None, nodes: int = 4000):
+        """Height-difference ACF of profiles, ``A(ℓ) = (1/π) ∫_0^∞ C1D(q) (1 - cos qℓ) dq`` (paper eq. 11).
+
+        ``q_max`` truncates the integral (e.g. at the Nyquist wavevector of the grid the
+        surface was synthesised on); default: the short cutoff or 10⁴/min(ℓ).
+        """
+        ell = np.atleast_1d(np.asarray(distance, dtype=float))
+        top = q_max if q_max is not None else (self.q_short if np.isfinite(self.q_short) else 1e4 / ell.min())
+        bottom = min(self.q_long if self.q_long > 0 else np.inf, 1.0 / ell.max()) * 1e-4
+        lq = np.linspace(np.log(bottom), np.log(top), nodes)
+        q = np.exp(lq)
+        c = self.c1d(np.geomspace(bottom, top, 300))
+        c = np.exp(np.interp(lq, np.log(np.geomspace(bottom, top, 300)), np.log(np.maximum(c, 1e-300))))
+        integrand = c[None, :] * (1 - np.cos(q[None, :] * ell[:, None])) * q[None, :]
+        return np.trapezoid(integrand, lq, axis=-1) / np.pi
+
+    def slope(self, distance, **kw):
+        """Scale-dependent RMS slope of profiles, ``sqrt(2 A(ℓ))/ℓ`` (paper §4.7)."""
+        ell = np.atleast_1d(np.asarray(distance, dtype=float))
+        return np.sqrt(2 * self.acf(ell, **kw)) / ell
+
     def __call__(self, q, kind: str = "native"):
         return {"native": self.c_native, "iso": self.c_iso, "1d": self.c1d}[kind](q)
 
