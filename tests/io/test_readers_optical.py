@@ -240,22 +240,36 @@ def test_bcrf(real_data):
     nx, ny = int(header["xpixels"]), int(header["ypixels"])
     assert (header["xunit"], header["zunit"]) == ("nm", "um")
     ds = _open(real_data, "bcrf-1.bcrf")
-    _check_grid(ds, (ny, nx), (float(header["ylength"]) * 1e-3 / ny, float(header["xlength"]) * 1e-3 / nx), "um")
+    # x/ylength is the scan range from the first to the last pixel: (n - 1) spacings
+    _check_grid(ds, (ny, nx), (float(header["ylength"]) * 1e-3 / (ny - 1), float(header["xlength"]) * 1e-3 / (nx - 1)),
+                "um")
     np.testing.assert_allclose(float(ds.height.min()), float(header["zmin"]), rtol=1e-6)  # stated in the header
     z = np.frombuffer(raw, "<f4", nx * ny, 2 * int(header["headersize"]))
     assert _masked(ds) == int((z > 1.7e38).sum())
 
 
-def test_mnt(real_data):
+def test_mnt_matches_the_bcrf_export_of_the_same_measurement(real_data):
     ds = _open(real_data, "mnt-1.mnt")
-    bcr = _open(real_data, "bcrf-1.bcrf")
-    # the manifest says both files hold the same measurement: same grid and physical size
-    assert ds.height.shape == (600, 960)
+    bcr = _open(real_data, "bcrf-1.bcrf")  # an independent export (different format, different writer)
+    assert ds.height.shape == bcr.height.shape == (600, 960)
+    assert ds.height.attrs["units"] == "um"
     for dim in ("x", "y"):
-        np.testing.assert_allclose(xtopo.conventions.physical_size(ds, dim) * xtopo.conventions.length_factor(
-            ds[dim].attrs["units"], "um"), xtopo.conventions.physical_size(bcr, dim), rtol=1e-5)
-    assert ds.attrs["vendor"] == "Digital Surf"
-    assert np.isfinite(float(ds.height.std())) and float(ds.height.std()) > 0
+        np.testing.assert_allclose(xtopo.conventions.spacing(ds, dim), xtopo.conventions.spacing(bcr, dim), rtol=1e-6)
+    np.testing.assert_allclose(ds.height.values, bcr.height.values, rtol=0, atol=1e-6)  # µm; float32 in the BCRF
+    assert ds.attrs["vendor"] == "Digital Surf" and ds.attrs["title"]
+
+
+def test_ole_reader_matches_olefile(real_data):
+    olefile = pytest.importorskip("olefile")
+    from xtopo.io._ole import OleFile
+
+    ours, ref = OleFile(real_data / "mnt-1.mnt"), olefile.OleFileIO(str(real_data / "mnt-1.mnt"))
+    try:
+        assert sorted(ours.listdir()) == sorted("/".join(p) for p in ref.listdir())
+        for name in ours.listdir():
+            assert ours.read_stream(name) == ref.openstream(name).read()
+    finally:
+        ref.close()
 
 
 @pytest.mark.parametrize("name", ["opd-1.opd", "sur-3.sur", "plu-1.plu", "x3p-2.x3p", "frt-2.frt", "mnt-1.mnt"])

@@ -5,7 +5,9 @@ for the ``*_unicode`` variants, i.e. 2 bytes per character) with lines
 ``key = value`` (``%``/``#`` start comments), followed by the raster, row by
 row: int16 for ``bcrstm`` (height ``= raw * bit2nm`` nm-scaled, 32767 = void),
 float32 for ``bcrf`` (values above 1.7e38, or ``voidpixels``, are void).
-``xlength``/``ylength`` are the image size in ``xunit``/``yunit`` (default nm),
+``xlength``/``ylength`` are the scanning range in ``xunit``/``yunit`` (default nm),
+measured from the first to the last pixel, i.e. ``(n - 1) Δ`` (verified with a
+Mountains document of the same measurement that stores the step explicitly);
 heights are in ``zunit`` (default nm); ``intelmode = 1`` means little endian.
 """
 
@@ -70,7 +72,8 @@ def _channels(path):
     with reading(path, "BCR"):
         _r, h, _s, nx, ny = _parse(path)
         xu, yu, zu = _units(h)
-        size = (float(h["ylength"]) * length_factor(yu, zu), float(h["xlength"]) * length_factor(xu, zu))
+        span = [(float(h[k]) * length_factor(u, zu), n) for k, u, n in (("ylength", yu, ny), ("xlength", xu, nx))]
+        size = tuple(length * n / (n - 1) if n > 1 else length for length, n in span)
         return [ChannelInfo(0, "Height", (ny, nx), size, zu, zu)]
 
 
