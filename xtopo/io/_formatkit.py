@@ -30,8 +30,10 @@ def reading(path, what: str):
     """
     try:
         yield
-    except XtopoError:
+    except ReaderError:
         raise
+    except XtopoError as exc:  # e.g. a unit or grid the header states that makes no sense
+        raise ReaderError(path, f"invalid {what} header: {exc}") from None
     except (MemoryError, RecursionError) as exc:
         raise ReaderError(path, f"{what} reader gave up: {type(exc).__name__}") from None
     except Exception as exc:  # any parse failure of untrusted content
