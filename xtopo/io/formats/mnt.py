@@ -37,6 +37,8 @@ from ..registry import ChannelInfo, Format, register
 
 _SURFACE, _SURFACE_DATA, _MASK, _HEIGHTS = 9012, 9062, 9056, 9049
 _MEASURED = 9
+#: zlib cannot compress better than about 1032:1
+_MAX_RATIO = 1100
 _HEAD = struct.Struct("<HQ")
 
 
@@ -107,6 +109,9 @@ def _blocks(path, data, count, max_bytes):
     nbytes = struct.unpack_from("<Q", data, 0)[0]
     if nbytes % count or nbytes // count not in (1, 2, 4, 8) or nbytes > max_bytes:
         raise ReaderError(path, f"data array of {nbytes} bytes does not fit {count} elements")
+    if nbytes > _MAX_RATIO * len(data) + (1 << 16):
+        raise ReaderError(path, f"data array claims {nbytes} bytes from {len(data)} compressed bytes, more "
+                                "than zlib can produce (corrupt file or decompression bomb)")
     esize = nbytes // count
     out = bytearray(nbytes)
     done, pos = 0, 8
