@@ -3,7 +3,7 @@
 * :func:`reading` turns any failure while parsing a file into a
   :class:`~xtopo.errors.ReaderError` that names the file,
 * :func:`pick_channel` resolves the ``channel=`` argument of a reader,
-* :func:`iso_time` formats acquisition times as ISO 8601,
+* :func:`iso_time`, :func:`parse_time`, :func:`unix_time` give acquisition times as ISO 8601,
 * :func:`clean_text` decodes fixed-size, NUL-padded header strings.
 """
 
@@ -12,9 +12,11 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 
+import numpy as np
+
 from ..errors import ReaderError, UnsupportedFormatError, XtopoError
 
-__all__ = ["reading", "pick_channel", "iso_time", "clean_text"]
+__all__ = ["reading", "pick_channel", "iso_time", "parse_time", "unix_time", "clean_text"]
 
 
 @contextlib.contextmanager
@@ -29,7 +31,8 @@ def reading(path, what: str):
         The format, e.g. ``"Wyko OPD"``, used in the message.
     """
     try:
-        yield
+        with np.errstate(all="ignore"):  # overflow from absurd scale factors yields inf, which is masked
+            yield
     except ReaderError:
         raise
     except XtopoError as exc:  # e.g. a unit or grid the header states that makes no sense
