@@ -1,0 +1,81 @@
+"""Alicona Imaging AL3D files (InfiniteFocus focus-variation microscopes).
+
+Layout: the 17-byte magic ``"AliconaImaging\\0\\r\\n"``, then 52-byte tags
+``key[20] value[30] "\\r\\n"`` (``Version``, ``TagCount`` and ``TagCount`` more),
+a 256-byte comment, and at the absolute offset ``DepthImageOffset`` the depth
+image: ``Rows`` rows of ``Cols`` float32 heights in metres, each row padded to
+a multiple of 8 bytes.  ``PixelSizeXMeter``/``PixelSizeYMeter`` give the
+spacing; NaN or ``InvalidPixelValue`` marks invalid pixels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...conventions import make_measurement
+from .._binary import BinaryReader, read_bytes
+from .._formatkit import clean_text, pick_channel, reading
+from ..registry import ChannelInfo, Format, register
+
+_MAGIC = b"AliconaImaging\x00\r\n"
+_TAG = 52
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head.startswith(_MAGIC)
+
+
+def _parse(path):
+    data = read_bytes(path)
+    r = BinaryReader(data, path, "<")
+    if not data.startswith(_MAGIC):
+        raise r.error("not an Alicona AL3D file")
+    r.seek(len(_MAGIC))
+
+    def tag():
+        raw = r.read(_TAG, "AL3D tag")
+        if raw[50:52] != b"\r\n":
+            raise r.error(f"malformed AL3D tag at offset {r.pos - _TAG}")
+        return clean_text(raw[:20]), clean_text(raw[20:50])
+
+    tags = dict([tag(), tag()])
+    if "TagCount" not in tags:
+        raise r.error("AL3D header has no TagCount")
+    count = int(tags["TagCount"])
+    r.need(count * _TAG, "AL3D tag list")
+    tags.update(tag() for _ in range(count))
+    tags["Comment"] = clean_text(r.read(256, "AL3D comment")) if r.pos + 256 <= len(r) else ""
+    try:
+        nx, ny = int(tags["Cols"]), int(tags["Rows"])
+        dx, dy = float(tags["PixelSizeXMeter"]), float(tags["PixelSizeYMeter"])
+        offset = int(tags["DepthImageOffset"])
+    except KeyError as exc:
+        raise r.error(f"AL3D header lacks the tag {exc.args[0]!r}") from None
+    if nx <= 0 or ny <= 0 or not (dx > 0 and dy > 0):
+        raise r.error(f"invalid AL3D grid {nx} x {ny} with pixel size {dx} x {dy} m")
+    return r, tags, nx, ny, dx, dy, offset
+
+
+def _channels(path):
+    with reading(path, "Alicona AL3D"):
+        _r, _t, nx, ny, dx, dy, _o = _parse(path)
+        return [ChannelInfo(0, "Depth", (ny, nx), (ny * dy, nx * dx), "m", "m")]
+
+
+def _read(path, *, channel=None):
+    with reading(path, "Alicona AL3D"):
+        r, tags, nx, ny, dx, dy, offset = _parse(path)
+        pick_channel(path, ["Depth"], channel)
+        row = (nx * 4 + 7) // 8 * 8 // 4  # row length with padding, in floats
+        z = r.array("f4", row * ny, "AL3D depth image", at=offset).reshape(ny, row)[:, :nx].astype(np.float64)
+        undefined = ~np.isfinite(z)
+        invalid = float(tags.get("InvalidPixelValue", "nan"))
+        if np.isfinite(invalid):
+            undefined |= np.abs(z - invalid) <= 1e-6 * abs(invalid)
+        return make_measurement(z, spacing=(dy, dx), units="m", mask=undefined, vendor="Alicona Imaging",
+                                instrument="Alicona InfiniteFocus", software=tags.get("CreatingApplication"),
+                                comment=tags["Comment"] or None, original_units="m")
+
+
+FORMAT = register(Format("al3d", "Alicona Imaging AL3D depth image", (".al3d",), _sniff, _read, _channels,
+                         priority=10))

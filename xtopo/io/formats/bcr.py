@@ -1,0 +1,102 @@
+"""BCR-STM / BCRF files (SPIP / Image Metrology interchange format).
+
+A text header of ``headersize`` characters (default 2048; latin-1, or UTF-16 LE
+for the ``*_unicode`` variants, i.e. 2 bytes per character) with lines
+``key = value`` (``%``/``#`` start comments), followed by the raster, row by
+row: int16 for ``bcrstm`` (height ``= raw * bit2nm`` nm-scaled, 32767 = void),
+float32 for ``bcrf`` (values above 1.7e38, or ``voidpixels``, are void).
+``xlength``/``ylength`` are the scanning range in ``xunit``/``yunit`` (default nm),
+measured from the first to the last pixel, i.e. ``(n - 1) Δ`` (verified with a
+Mountains document of the same measurement that stores the step explicitly);
+heights are in ``zunit`` (default nm); ``intelmode = 1`` means little endian.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...conventions import length_factor, make_measurement, normalize_units
+from .._binary import BinaryReader, read_bytes
+from .._formatkit import pick_channel, reading
+from ..registry import ChannelInfo, Format, register
+
+_MAGIC = "fileformat = bcr"
+_FORMATS = ("bcrstm", "bcrf", "bcrstm_unicode", "bcrf_unicode")
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head.startswith(_MAGIC.encode("latin-1")) or head.startswith(_MAGIC.encode("utf-16-le"))
+
+
+def _header(text: str) -> dict:
+    out = {}
+    for line in text.split("\n"):
+        line = line.strip().strip("\0")
+        if not line or line[0] in "%#" or "=" not in line:
+            continue
+        key, _, value = line.partition("=")
+        out[key.strip().lower()] = value.strip()
+    return out
+
+
+def _parse(path):
+    data = read_bytes(path)
+    r = BinaryReader(data, path, "<")
+    if data.startswith(_MAGIC.encode("utf-16-le")):
+        encoding, width = "utf-16-le", 2
+    elif data.startswith(_MAGIC.encode("latin-1")):
+        encoding, width = "latin-1", 1
+    else:
+        raise r.error("not a BCR-STM/BCRF file")
+    probe = _header(data[:2048 * width].decode(encoding, errors="replace"))
+    size = int(probe.get("headersize", "2048")) * width
+    r.need(size, "BCR header")
+    h = _header(data[:size].decode(encoding, errors="replace"))
+    if h.get("fileformat") not in _FORMATS:
+        raise r.error(f"unknown BCR file format {h.get('fileformat')!r}")
+    r.endian = "<" if int(h.get("intelmode", "1")) else ">"
+    nx, ny = int(h["xpixels"]), int(h["ypixels"])
+    if nx <= 0 or ny <= 0:
+        raise r.error(f"invalid BCR grid {nx} x {ny}")
+    return r, h, size, nx, ny
+
+
+def _units(h):
+    xu = normalize_units(h.get("xunit", "nm"))
+    yu = normalize_units(h.get("yunit", "nm"))
+    zu = normalize_units(h.get("zunit", "nm"))
+    return xu, yu, zu
+
+
+def _channels(path):
+    with reading(path, "BCR"):
+        _r, h, _s, nx, ny = _parse(path)
+        xu, yu, zu = _units(h)
+        span = [(float(h[k]) * length_factor(u, zu), n) for k, u, n in (("ylength", yu, ny), ("xlength", xu, nx))]
+        size = tuple(length * n / (n - 1) if n > 1 else length for length, n in span)
+        return [ChannelInfo(0, "Height", (ny, nx), size, zu, zu)]
+
+
+def _read(path, *, channel=None):
+    with reading(path, "BCR"):
+        r, h, start, nx, ny = _parse(path)
+        info = _channels(path)[0]
+        pick_channel(path, [info.name], channel)
+        stm = h["fileformat"].startswith("bcrstm")
+        raw = r.array("i2" if stm else "f4", nx * ny, "BCR height data", at=start).astype(np.float64)
+        if stm:
+            undefined = raw == 32767
+            z = raw * float(h.get("bit2nm", "1"))
+        else:
+            undefined = ~np.isfinite(raw) | (raw > 1.7e38)
+            if "voidpixels" in h:
+                void = float(h["voidpixels"])
+                undefined |= np.isclose(raw, void, rtol=1e-6)
+            z = raw
+        xu, yu, zu = _units(h)
+        return make_measurement(z.reshape(ny, nx), size=info.size, units=zu, mask=undefined.reshape(ny, nx),
+                                original_units=f"x {xu}, y {yu}, z {zu}", bcr_format=h["fileformat"])
+
+
+FORMAT = register(Format("bcr", "BCR-STM / BCRF image (SPIP interchange)", (".bcr", ".bcrf"), _sniff, _read,
+                         _channels, priority=10))

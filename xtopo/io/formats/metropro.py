@@ -1,0 +1,87 @@
+"""Zygo MetroPro DAT files (interferometers).
+
+Layout (big endian; Zygo MetroPro reference guide): magic ``88 1B 03 6F/70/71``,
+header format (uint16) at 4, header size (uint32, 834 or 4096) at 6; intensity
+origin/size ``ac_org_width, ac_org_height, ac_n_buckets`` (uint16) at 52/54/56,
+``ac_n_bytes`` at 60; phase (height) raster ``cn_org_width, cn_org_height``
+(uint16) at 68/70, ``cn_n_bytes`` at 72; ``time_stamp`` (int32, POSIX) at 76,
+comment[82] at 80, ``intf_scale_factor S``, ``wavelength_in λ`` (m),
+``obliquity_factor O``, ``magnification``, ``lateral_res`` (m/pixel) as float32
+at 164/168/176/180/184, ``phase_res`` (int16) at 218, objective name[12] at 246,
+part name[40] at 258.  After the header come the intensity data
+(``ac_n_bytes``) and the phase data, int32 row by row; values ≥ 2147483640
+are invalid.  ``h = raw * S * O * λ / R`` with ``R`` = 4096, 32768, 131072 for
+``phase_res`` 0, 1, 2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...conventions import make_measurement
+from .._binary import BinaryReader, read_bytes
+from .._formatkit import clean_text, pick_channel, reading, unix_time
+from ..registry import ChannelInfo, Format, register
+
+_MAGICS = (b"\x88\x1b\x03\x6f", b"\x88\x1b\x03\x70", b"\x88\x1b\x03\x71")
+_PHASE_RES = {0: 4096, 1: 32768, 2: 131072}
+_INVALID = 2147483640
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head[:4] in _MAGICS
+
+
+def _parse(path):
+    data = read_bytes(path)
+    r = BinaryReader(data, path, ">")
+    if data[:4] not in _MAGICS:
+        raise r.error("not a Zygo MetroPro DAT file")
+    h = {"header_size": r.unpack("I", "header size", at=6)}
+    h["ac_w"], h["ac_h"], h["ac_buckets"] = r.unpack("3H", "intensity size", at=52)
+    h["ac_bytes"] = r.unpack("I", "intensity size", at=60)
+    h["nx"], h["ny"], h["cn_bytes"], h["time"] = r.unpack("2HIi", "phase size", at=68)
+    h["comment"] = clean_text(r.read(82, "comment"))
+    h["S"], h["wavelength"], _na, h["O"], h["magnification"], h["lateral_res"] = r.unpack("6f", "scales", at=164)
+    h["phase_res"] = r.unpack("h", "phase_res", at=218)
+    h["objective"] = clean_text(r.read(12, "objective name") if r.seek(246) is None else b"")
+    h["part"] = clean_text(r.read(40, "part name"))
+    h["serial"] = r.unpack("H", "serial", at=242)
+    if h["phase_res"] not in _PHASE_RES:
+        raise r.error(f"unknown MetroPro phase resolution code {h['phase_res']}")
+    if h["nx"] == 0 or h["ny"] == 0:
+        raise r.error("the MetroPro file holds no phase (height) data")
+    return r, h
+
+
+def _size(h):
+    d = h["lateral_res"]
+    return (h["ny"] * d, h["nx"] * d) if d > 0 else None
+
+
+def _channels(path):
+    with reading(path, "Zygo MetroPro"):
+        _r, h = _parse(path)
+        return [ChannelInfo(0, "Height", (h["ny"], h["nx"]), _size(h), "m", "m")]
+
+
+def _read(path, *, channel=None):
+    with reading(path, "Zygo MetroPro"):
+        r, h = _parse(path)
+        pick_channel(path, ["Height"], channel)
+        if _size(h) is None:
+            raise r.error("lateral_res is zero: the lateral calibration of this MetroPro file is unknown")
+        start = h["header_size"] + h["ac_bytes"]
+        raw = r.array("i4", h["nx"] * h["ny"], "MetroPro phase data", at=start).reshape(h["ny"], h["nx"])
+        undefined = raw >= _INVALID
+        scale = h["S"] * h["O"] * h["wavelength"] / _PHASE_RES[h["phase_res"]]
+        z = np.where(undefined, np.nan, raw.astype(np.float64) * scale)
+        return make_measurement(
+            z, size=_size(h), units="m", mask=undefined, vendor="Zygo", instrument="Zygo interferometer (MetroPro)",
+            acquisition_time=unix_time(h["time"]), wavelength=h["wavelength"], wavelength_units="m",
+            magnification=h["magnification"], objective=h["objective"] or None, part_name=h["part"] or None,
+            comment=h["comment"] or None, serial=str(h["serial"]) if h["serial"] else None, original_units="m")
+
+
+FORMAT = register(Format("metropro", "Zygo MetroPro DAT interferometer data", (".dat",), _sniff, _read,
+                         _channels, priority=10))

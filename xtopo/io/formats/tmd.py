@@ -1,0 +1,55 @@
+"""TrueMap TMD v2.0 files (TrueGage TrueMap software).
+
+Layout (little endian): the 32-byte magic ``"Binary TrueMap Data File v2.0\\r\\n\\0"``,
+a NUL-terminated comment, then ``nx, ny`` (uint32), ``Lx, Ly, x0, y0`` (float32,
+mm) and ``nx*ny`` float32 heights in mm, row by row.
+"""
+
+from __future__ import annotations
+
+from ...conventions import make_measurement
+from .._binary import BinaryReader, read_bytes
+from .._formatkit import clean_text, pick_channel, reading
+from ..registry import ChannelInfo, Format, register
+
+_MAGIC = b"Binary TrueMap Data File v2.0"
+_MAX_COMMENT = 4096
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head.startswith(_MAGIC)
+
+
+def _parse(path):
+    data = read_bytes(path)
+    r = BinaryReader(data, path, "<")
+    if not data.startswith(_MAGIC):
+        raise r.error("not a TrueMap TMD v2.0 file")
+    end = data.find(b"\0", 32, 32 + _MAX_COMMENT)
+    if end < 0:
+        raise r.error("unterminated comment in TMD header")
+    comment = clean_text(data[32:end])
+    r.seek(end + 1)
+    nx, ny, lx, ly, x0, y0 = r.unpack("2I4f", "TMD header")
+    if nx == 0 or ny == 0 or not (lx > 0 and ly > 0):
+        raise r.error(f"invalid TMD grid {nx} x {ny} over {lx} x {ly} mm")
+    return r, dict(nx=nx, ny=ny, lx=lx, ly=ly, x0=x0, y0=y0, comment=comment)
+
+
+def _channels(path):
+    with reading(path, "TrueMap TMD"):
+        _r, h = _parse(path)
+        return [ChannelInfo(0, "Height", (h["ny"], h["nx"]), (h["ly"], h["lx"]), "mm", "mm")]
+
+
+def _read(path, *, channel=None):
+    with reading(path, "TrueMap TMD"):
+        r, h = _parse(path)
+        pick_channel(path, ["Height"], channel)
+        z = r.array("f4", h["nx"] * h["ny"], "TMD height data").reshape(h["ny"], h["nx"])
+        return make_measurement(z, size=(h["ly"], h["lx"]), units="mm", vendor="TrueGage (TrueMap)",
+                                comment=h["comment"] or None, x_offset=h["x0"], y_offset=h["y0"],
+                                original_units="mm")
+
+
+FORMAT = register(Format("tmd", "TrueMap TMD v2.0 surface", (".tmd",), _sniff, _read, _channels, priority=10))

@@ -1,0 +1,216 @@
+"""ISO 25178-72 X3P files (formerly ISO 5436-2): a zip archive with ``main.xml``.
+
+``main.xml`` (namespace ``http://www.opengps.eu/2008/ISO5436_2``) holds
+``Record1`` (revision, feature type ``SUR``/``PRF``, axes ``CX``/``CY``/``CZ``
+with ``AxisType`` I(ncremental)/A(bsolute), ``DataType`` I=int16, L=int32,
+F=float32, D=float64, ``Increment`` and ``Offset`` in metres), ``Record2``
+(date, creator, instrument manufacturer/model/serial/version, probing
+system), ``Record3`` (``MatrixDimension`` ``SizeX/SizeY/SizeZ`` and either a
+``DataLink`` to a little-endian binary member ``PointDataLink`` plus an
+optional ``ValidPointsLink`` bit mask (one bit per point, LSB first, 1 =
+valid), or an inline ``DataList`` of ``<Datum>`` values).  Points are stored
+with x fastest.  Height ``= raw * CZ.Increment + CZ.Offset`` in metres; NaN
+marks invalid float points.
+
+The archive is untrusted input: member names with absolute paths or ``..``
+components are refused, each member's declared size is checked against what
+the header needs and against the compressed size (zip bombs), decompression
+is capped, and ``main.xml`` is parsed without DTDs or entities.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import posixpath
+import re
+import zipfile
+
+import numpy as np
+
+from ...conventions import make_measurement
+from ...errors import ReaderError
+from .._binary import MAX_PIXELS, check_count
+from .._formatkit import pick_channel, reading
+from .._xml import child, child_text, local_name, parse_xml
+from ..registry import ChannelInfo, Format, register
+
+_DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
+#: deflate cannot compress better than about 1032:1; a member claiming more is a bomb
+_MAX_RATIO = 1100
+_MAX_MEMBER = 1 << 30  # bytes decompressed per member
+_MAX_MAIN_XML = 16 << 20
+_DRIVE = re.compile(r"^[A-Za-z]:")
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    if not head.startswith(b"PK\x03\x04"):
+        return False
+    if b"main.xml" in head:
+        return True
+    try:
+        with zipfile.ZipFile(path) as zf:
+            return any(posixpath.basename(n) == "main.xml" for n in zf.namelist())
+    except Exception:
+        return False
+
+
+def _unsafe(name: str) -> bool:
+    n = name.replace("\\", "/")
+    return n.startswith("/") or bool(_DRIVE.match(n)) or ".." in n.split("/") or "\0" in n
+
+
+def _member(path, zf, name):
+    try:
+        return zf.getinfo(name)
+    except KeyError:
+        raise ReaderError(path, f"the X3P archive lacks the member {name!r} named in main.xml") from None
+
+
+def _read_member(path, zf, info, expected=None, limit=_MAX_MEMBER):
+    """Bytes of ``info``, refusing bombs and size mismatches; decompression is capped."""
+    declared = info.file_size
+    if declared > limit:
+        raise ReaderError(path, f"X3P member {info.filename!r} declares {declared} bytes, more than the "
+                                f"{limit} accepted (zip bomb?)")
+    if declared > max(_MAX_RATIO * info.compress_size, 1 << 16):
+        raise ReaderError(path, f"X3P member {info.filename!r} declares {declared} bytes from "
+                                f"{info.compress_size} compressed bytes, an impossible ratio (zip bomb)")
+    if expected is not None and declared != expected:
+        raise ReaderError(path, f"X3P member {info.filename!r} has {declared} bytes but main.xml implies "
+                                f"{expected}")
+    cap = declared if expected is None else expected
+    with zf.open(info) as f:
+        data = f.read(cap + 1)
+    if len(data) != cap:
+        raise ReaderError(path, f"X3P member {info.filename!r} decompresses to {len(data)} bytes, "
+                                f"not the declared {cap}")
+    return data
+
+
+def _open(path):
+    try:
+        zf = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError) as exc:
+        raise ReaderError(path, f"not a readable X3P (zip) archive: {exc}") from None
+    names = zf.namelist()
+    bad = [n for n in names if _unsafe(n)]
+    if bad:
+        zf.close()
+        raise ReaderError(path, f"X3P archive member name {bad[0]!r} is absolute or leaves the archive "
+                                "(path traversal); refused")
+    mains = sorted((n for n in names if posixpath.basename(n) == "main.xml" and not n.startswith("__MACOSX/")),
+                   key=lambda n: (n.count("/"), n))
+    if not mains:
+        zf.close()
+        raise ReaderError(path, "the zip archive has no main.xml, so it is not an X3P file")
+    root = parse_xml(_read_member(path, zf, zf.getinfo(mains[0]), limit=_MAX_MAIN_XML), path, "X3P main.xml")
+    return zf, posixpath.dirname(mains[0]), root
+
+
+def _float(text, default):
+    return default if text is None else float(text)
+
+
+def _header(path, root):
+    rec1, rec3 = child(root, "Record1"), child(root, "Record3")
+    if rec1 is None or rec3 is None:
+        raise ReaderError(path, "X3P main.xml lacks Record1 or Record3")
+    axes = {}
+    for ax in ("CX", "CY", "CZ"):
+        a = child(rec1, "Axes", ax)
+        if a is None:
+            raise ReaderError(path, f"X3P main.xml lacks the axis {ax}")
+        axes[ax] = {"type": child_text(a, "AxisType", default="I"), "dtype": child_text(a, "DataType"),
+                    "inc": _float(child_text(a, "Increment"), 1.0), "off": _float(child_text(a, "Offset"), 0.0)}
+    for ax in ("CX", "CY"):
+        if axes[ax]["type"] != "I":
+            raise ReaderError(path, f"X3P axis {ax} is absolute (AxisType A); only gridded (incremental) "
+                                    "lateral axes are supported")
+    if axes["CZ"]["dtype"] not in _DTYPES:
+        raise ReaderError(path, f"X3P CZ DataType {axes['CZ']['dtype']!r} is not one of I, L, F, D")
+    nx, ny, nz = (int(child_text(rec3, "MatrixDimension", k, default="1")) for k in ("SizeX", "SizeY", "SizeZ"))
+    if nz != 1:
+        raise ReaderError(path, f"X3P SizeZ = {nz}: volumetric (multi-layer) data are not supported")
+    if nx <= 0 or ny <= 0 or nx * ny > MAX_PIXELS:
+        raise ReaderError(path, f"implausible X3P matrix dimension {nx} x {ny}")
+    if not (axes["CX"]["inc"] > 0 and axes["CY"]["inc"] > 0):
+        raise ReaderError(path, "X3P lateral increments must be positive")
+    return axes, nx, ny, rec3
+
+
+def _channels(path):
+    with reading(path, "X3P"):
+        zf, _base, root = _open(path)
+        zf.close()
+        axes, nx, ny, _r = _header(path, root)
+        if ny == 1:
+            return [ChannelInfo(0, "Height", (nx,), (nx * axes["CX"]["inc"],), "m", "m")]
+        return [ChannelInfo(0, "Height", (ny, nx), (ny * axes["CY"]["inc"], nx * axes["CX"]["inc"]), "m", "m")]
+
+
+def _iso(text):
+    if not text:
+        return None
+    try:
+        t = _dt.datetime.fromisoformat(text.strip())
+    except ValueError:
+        return text.strip()
+    return None if t.year <= 1970 else t.isoformat()
+
+
+def _known(text):
+    return None if text in (None, "", "unknown", "not available") else text
+
+
+def _read(path, *, channel=None):
+    with reading(path, "X3P"):
+        zf, base, root = _open(path)
+        with zf:
+            axes, nx, ny, rec3 = _header(path, root)
+            pick_channel(path, ["Height"], channel)
+            dtype = np.dtype(_DTYPES[axes["CZ"]["dtype"]])
+            n = nx * ny
+            link = child_text(rec3, "DataLink", "PointDataLink")
+            valid = None
+            if link is not None:
+                if _unsafe(link):
+                    raise ReaderError(path, f"X3P PointDataLink {link!r} leaves the archive (path traversal)")
+                info = _member(path, zf, posixpath.join(base, link.replace("\\", "/")))
+                check_count(path, n, dtype.itemsize, _MAX_MEMBER, "X3P point data")
+                raw = np.frombuffer(_read_member(path, zf, info, expected=n * dtype.itemsize), dtype=dtype)
+                vlink = child_text(rec3, "DataLink", "ValidPointsLink")
+                if vlink is not None:
+                    if _unsafe(vlink):
+                        raise ReaderError(path, f"X3P ValidPointsLink {vlink!r} leaves the archive")
+                    vinfo = _member(path, zf, posixpath.join(base, vlink.replace("\\", "/")))
+                    bits = np.frombuffer(_read_member(path, zf, vinfo, expected=(n + 7) // 8), dtype=np.uint8)
+                    valid = np.unpackbits(bits, bitorder="little")[:n].astype(bool)
+            else:
+                dlist = child(rec3, "DataList")
+                if dlist is None:
+                    raise ReaderError(path, "X3P Record3 has neither a DataLink nor a DataList")
+                data = [d.text for d in dlist if local_name(d.tag) == "Datum"]
+                if len(data) != n:
+                    raise ReaderError(path, f"X3P DataList has {len(data)} points, expected {nx} x {ny}")
+                raw = np.array([np.nan if not (t or "").strip() else float(t.split(";")[-1]) for t in data])
+            z = raw.astype(np.float64) * axes["CZ"]["inc"] + axes["CZ"]["off"]
+            undefined = ~np.isfinite(z) if valid is None else (~valid | ~np.isfinite(z))
+        rec2 = child(root, "Record2")
+        inst = child(rec2, "Instrument") if rec2 is not None else None
+        manu, model = _known(child_text(inst, "Manufacturer")), _known(child_text(inst, "Model"))
+        shape = (ny, nx) if ny > 1 else (nx,)
+        sp = (axes["CY"]["inc"], axes["CX"]["inc"]) if ny > 1 else axes["CX"]["inc"]
+        return make_measurement(
+            z.reshape(shape), spacing=sp, units="m", mask=undefined.reshape(shape), vendor=manu,
+            instrument=" ".join(t for t in (manu, model) if t) or None,
+            instrument_serial=_known(child_text(inst, "Serial")),
+            instrument_version=_known(child_text(inst, "Version")),
+            acquisition_time=_iso(child_text(rec2, "Date")) if rec2 is not None else None,
+            creator=child_text(rec2, "Creator") if rec2 is not None else None,
+            probing_system=_known(child_text(rec2, "ProbingSystem", "Type")) if rec2 is not None else None,
+            comment=child_text(rec2, "Comment") if rec2 is not None else None,
+            x_offset=axes["CX"]["off"], y_offset=axes["CY"]["off"], original_units="m")
+
+
+FORMAT = register(Format("x3p", "ISO 25178-72 X3P (zip + main.xml)", (".x3p",), _sniff, _read, _channels,
+                         priority=5))
