@@ -84,7 +84,8 @@ def _load_all() -> None:
     global _LOADED
     if _LOADED:
         return
-    from . import formats as pkg
+    # not `from . import formats`: the package attribute of that name is the function below
+    pkg = importlib.import_module(f"{__package__}.formats")
 
     for mod in pkgutil.iter_modules(pkg.__path__):
         if not mod.name.startswith("_"):
