@@ -72,7 +72,8 @@ def _parse(path):
     wh = 64
     npnts = r.unpack("i", "npnts", at=wh + 12)
     typ = r.unpack("h", "wave type", at=wh + 16)
-    name = _text(r.read(32, "wave name") if r.seek(wh + 28) is None else b"")
+    r.seek(wh + 28)
+    name = _text(r.read(32, "wave name"))
     ndim = list(r.unpack("4i", "nDim", at=wh + 68))
     sfa = list(r.unpack("4d", "sfA", at=wh + 84))
     r.seek(wh + 148)
