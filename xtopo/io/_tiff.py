@@ -13,12 +13,14 @@ the chain).  A value is stored inline when it fits into 4 bytes.
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
 from ..errors import ReaderError
 from ._binary import BinaryReader, check_count
 
-__all__ = ["TiffFile", "is_tiff", "MAX_IFDS"]
+__all__ = ["TiffFile", "is_tiff", "head_tags", "MAX_IFDS"]
 
 #: Refuse files with more directories than this (loops and corrupt chains).
 MAX_IFDS = 4096
@@ -32,6 +34,26 @@ _TYPES = {1: ("u1", 1), 2: ("S1", 1), 3: ("u2", 2), 4: ("u4", 4), 5: ("u4", 8), 
 def is_tiff(head: bytes) -> bool:
     """True if ``head`` starts with a classic TIFF signature."""
     return head[:4] in (b"II*\x00", b"MM\x00*")
+
+
+def head_tags(head: bytes) -> dict[int, tuple[int, int, bytes]]:
+    """Tags of the first directory found in ``head`` (for sniffing): ``tag -> (type, count, 4 value bytes)``.
+
+    Returns an empty dict when ``head`` is not a TIFF or the directory lies beyond it.
+    """
+    if not is_tiff(head):
+        return {}
+    e = "<" if head[:2] == b"II" else ">"
+    try:
+        (off,) = struct.unpack_from(e + "I", head, 4)
+        (n,) = struct.unpack_from(e + "H", head, off)
+        out = {}
+        for i in range(n):
+            tag, typ, count, val = struct.unpack_from(e + "HHI4s", head, off + 2 + 12 * i)
+            out[tag] = (typ, count, val)
+        return out
+    except struct.error:
+        return {}
 
 
 class TiffFile:

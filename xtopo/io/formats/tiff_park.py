@@ -26,7 +26,7 @@ import struct
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from .._tiff import TiffFile, is_tiff
+from .._tiff import TiffFile, head_tags
 from ..registry import Format, register
 from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, parse_time,
                       pick_channel, value_unit)
@@ -36,18 +36,8 @@ _DTYPES = {0: "<i2", 1: "<i4", 2: "<f4"}
 
 
 def _sniff(head: bytes, path: str) -> bool:
-    if not is_tiff(head) or head[:2] != b"II":
-        return False
-    try:
-        (off,) = struct.unpack_from("<I", head, 4)
-        (n,) = struct.unpack_from("<H", head, off)
-        for i in range(n):
-            tag, typ, count, val = struct.unpack_from("<HHII", head, off + 2 + 12 * i)
-            if tag == 50432:
-                return val == MAGIC
-    except struct.error:
-        return False
-    return False
+    tag = head_tags(head).get(50432)
+    return tag is not None and head[:2] == b"II" and struct.unpack("<I", tag[2])[0] == MAGIC
 
 
 def _parse(path):
