@@ -32,7 +32,7 @@ HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|
 _UNIT_SPELLINGS = {
     "~m": "um", "µm": "um", "μm": "um", "um": "um", "micron": "um", "microns": "um",
     "nm": "nm", "m": "m", "mm": "mm", "pm": "pm", "cm": "cm", "å": "angstrom", "Å": "angstrom",
-    "angstrom": "angstrom", "a": "angstrom", "º": "deg", "°": "deg", "deg": "deg", "degree": "deg",
+    "angstrom": "angstrom", "º": "deg", "°": "deg", "deg": "deg", "degree": "deg",
     "degrees": "deg",
 }
 
@@ -93,7 +93,7 @@ def value_unit(text) -> str:
 def length_unit(text) -> str | None:
     """The normalised length unit of ``text``, or ``None`` if it is not a length."""
     u = value_unit(text)
-    if not u:
+    if not u or u == "A":  # instrument files spell angstrom "Å"; a bare "A" is ampere
         return None
     try:
         return normalize_units(u)
