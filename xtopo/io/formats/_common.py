@@ -38,13 +38,20 @@ _UNIT_SPELLINGS = {
 
 
 def guarded(fmt_name: str):
-    """Decorate ``func(path, ...)`` so that only :class:`XtopoError` subclasses escape."""
+    """Decorate ``func(path, ...)`` so that only :class:`XtopoError` subclasses escape.
+
+    Floating-point warnings are silenced inside: casting raw data that hold signalling
+    NaNs or huge values is not an error of the reader.
+    """
 
     def deco(func):
         @functools.wraps(func)
         def wrapper(path, *args, **kwargs):
             try:
-                return func(path, *args, **kwargs)
+                # raw instrument data may hold signalling NaNs and extreme values: casting them is
+                # not an error of the reader (scale overflows are checked in `measurement`)
+                with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+                    return func(path, *args, **kwargs)
             except XtopoError:
                 raise
             except (MemoryError, RecursionError) as exc:
