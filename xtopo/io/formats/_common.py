@@ -24,7 +24,8 @@ from ...errors import ReaderError, UnitsError, UnsupportedFormatError, XtopoErro
 from ..registry import ChannelInfo
 
 __all__ = ["guarded", "pick_channel", "to_float", "to_int", "length_unit", "value_unit",
-           "unit_factor", "measurement", "iso", "ChannelInfo", "HEIGHT_NAME_RE"]
+           "unit_factor", "channel_info", "measurement", "iso", "unique_name", "parse_time", "ChannelInfo",
+           "HEIGHT_NAME_RE"]
 
 #: Channel names that denote topography (heights) rather than an auxiliary signal.
 HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|^z[ _(]", re.IGNORECASE)
@@ -120,6 +121,16 @@ def unit_factor(from_unit: str, to_unit: str) -> float | None:
         return None
 
 
+def channel_info(index: int, name: str, shape, size, units: str, value_units: str, hint: str | None = None,
+                 height: bool | None = None) -> ChannelInfo:
+    """A :class:`ChannelInfo`; a channel is a height channel when its values are lengths and
+    its name (or ``hint``) looks like topography (``height=True`` skips the name test)."""
+    lu = length_unit(value_units)
+    looks = bool(HEIGHT_NAME_RE.search(hint if hint is not None else name)) if height is None else height
+    return ChannelInfo(index=index, name=name, shape=tuple(shape), size=tuple(size), units=units,
+                       height_units=lu or value_units, is_height=bool(lu) and looks)
+
+
 def pick_channel(path, infos: list[ChannelInfo], channel) -> int:
     """Index into ``infos`` for ``channel`` (``None``: first height channel, then the first one).
 
@@ -142,6 +153,15 @@ def pick_channel(path, infos: list[ChannelInfo], channel) -> int:
         if c.name.lower() == want:
             return i
     raise UnsupportedFormatError(path, f"no channel named {channel!r}; channels are {listing}")
+
+
+def unique_name(label: str, seen: set) -> str:
+    """``label``, or ``label #2``, ``#3``, ... if already in ``seen`` (case-insensitive); adds it to ``seen``."""
+    name, k = label, 2
+    while name.lower() in seen:
+        name, k = f"{label} #{k}", k + 1
+    seen.add(name.lower())
+    return name
 
 
 def iso(dt: datetime.datetime | None) -> str | None:

@@ -25,8 +25,7 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count, read_bytes
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, pick_channel,
-                      value_unit)
+from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, value_unit)
 
 _MAGIC = b"GWYP"
 _MAX_DEPTH = 64
@@ -128,10 +127,8 @@ def _parse(path):
         title = root.get(f"/{n}/data/title")
         title = title if isinstance(title, str) and title else f"channel {n}"
         lx, ly = float(f.get("xreal", nx)), float(f.get("yreal", ny))
-        infos.append(ChannelInfo(index=len(infos), name=title, shape=(ny, nx), size=(ly, lx), units=lunit,
-                                 height_units=length_unit(zunit) or zunit,
-                                 is_height=bool(length_unit(zunit)) and (len(keys) == 1
-                                                                        or bool(HEIGHT_NAME_RE.search(title)))))
+        only = True if len(keys) == 1 else None  # a lone channel is the topography
+        infos.append(channel_info(len(infos), title, (ny, nx), (ly, lx), lunit, zunit, height=only))
         fields.append(dict(key=key, number=n, data=arr, lunit=lunit, zunit=zunit, assumed=assumed,
                            meta=root.get(f"/{n}/meta")))
     if not infos:

@@ -31,8 +31,7 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, parse_time,
-                      pick_channel)
+from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel)
 
 _TYPES = {2: "f4", 4: "f8", 8: "i1", 16: "i2", 32: "i4", 8 | 64: "u1", 16 | 64: "u2", 32 | 64: "u4"}
 #: Value units of Asylum channels whose wave unit (usually "m") does not apply.
@@ -126,7 +125,6 @@ def _parse(path):
     assumed = lunit is None
     lunit = lunit or "m"
     size = (abs(sfa[1]) * ny, abs(sfa[0]) * nx)
-    names_type = [notes.get(f"Channel{i + 1}DataType", "") for i in range(nchan)]
     infos = []
     for i in range(nchan):
         cname = chan_names[i] if i < len(chan_names) and chan_names[i] else ""
@@ -136,10 +134,7 @@ def _parse(path):
             if rx.search(cname):
                 unit = u
                 break
-        is_h = bool(length_unit(unit)) and (bool(HEIGHT_NAME_RE.search(cname)) or nchan == 1
-                                             or bool(HEIGHT_NAME_RE.search(names_type[i] or "")))
-        infos.append(ChannelInfo(index=i, name=cname, shape=(ny, nx), size=size, units=lunit,
-                                 height_units=length_unit(unit) or unit, is_height=is_h))
+        infos.append(channel_info(i, cname, (ny, nx), size, lunit, unit, height=True if nchan == 1 else None))
     return dict(r=r, dtype=dtype, npnts=npnts, start=data_start, shape=shape, infos=infos, notes=notes,
                 lunit=lunit, assumed=assumed, wave=name)
 

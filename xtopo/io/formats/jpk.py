@@ -21,8 +21,8 @@ from ...errors import ReaderError
 from .._binary import read_bytes
 from .._tiff import TiffFile, head_tags
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, parse_time,
-                      pick_channel, to_float, value_unit)
+from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, to_float, unique_name,
+                      value_unit)
 
 _GRID = (32832, 32833, 32834, 32835, 32838, 32839)
 _MAX_SLOTS = 64
@@ -84,14 +84,9 @@ def _parse(path):
         label = tif.value(ifd, 32850, "") or ident
         if tif.value(ifd, 32849, 0):
             label += " (retrace)"
-        name, k = label, 2
-        while name.lower() in seen:
-            name, k = f"{label} #{k}", k + 1
-        seen.add(name.lower())
+        name = unique_name(label, seen)
         slot, unit, mult, off = _slot(tif, ifd, path)
-        infos.append(ChannelInfo(index=len(infos), name=name, shape=(ny, nx), size=(ly, lx), units="m",
-                                 height_units=length_unit(unit) or unit,
-                                 is_height=bool(length_unit(unit)) and bool(HEIGHT_NAME_RE.search(ident))))
+        infos.append(channel_info(len(infos), name, (ny, nx), (ly, lx), "m", unit, hint=ident))
         chans.append(dict(ifd=ifd, ident=ident, slot=slot, unit=unit, mult=mult, off=off))
     return tif, infos, chans, (nx, ny)
 

@@ -19,8 +19,8 @@ import re
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, parse_time,
-                      pick_channel, to_float, to_int, value_unit)
+from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, to_float, to_int, unique_name,
+                      value_unit)
 
 _DATA_RE = re.compile(rb"\ndata {2,}(BINARY_32|BINARY|ASCII\w*)\r?\n")
 
@@ -60,15 +60,10 @@ def _parse(path):
         label = b.get("bufferLabel") or f"buffer {i}"
         if b.get("direction", "").lower() == "retrace":
             label += " (retrace)"
-        name, k = label, 2
-        while name.lower() in seen:
-            name, k = f"{label} #{k}", k + 1
-        seen.add(name.lower())
+        name = unique_name(label, seen)
         unit = value_unit(b.get("bufferUnit", ""))
         rng = to_float(path, b.get("bufferRange"), f"bufferRange of buffer {i}")
-        infos.append(ChannelInfo(index=i, name=name, shape=(ny, nx), size=(ly, lx), units="m",
-                                 height_units=length_unit(unit) or unit,
-                                 is_height=bool(length_unit(unit)) and bool(HEIGHT_NAME_RE.search(name))))
+        infos.append(channel_info(i, name, (ny, nx), (ly, lx), "m", unit))
         scales.append((rng / float(1 << (bits - 1)), unit))
     return dict(data=data, start=m.end(), bits=bits, glob=glob, infos=infos, scales=scales, nx=nx, ny=ny)
 

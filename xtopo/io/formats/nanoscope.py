@@ -34,8 +34,8 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, parse_time,
-                      pick_channel, to_float, to_int, unit_factor, value_unit)
+from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel, to_float, to_int,
+                      unique_name, unit_factor, value_unit)
 
 _END = b"\\*File list end"
 _VALUE_RE = re.compile(r"^([VCS])\s+(?:\[([^\]]*)\]\s*)?(?:\(([^)]*)\)\s*)?(.*)$")
@@ -150,12 +150,7 @@ def _parse(path):
         label = label or ident or f"channel {i}"
         if sec.get("line direction", "").lower() == "retrace":
             label += " (retrace)"
-        name = label
-        k = 2
-        while name.lower() in names_seen:
-            name = f"{label} #{k}"
-            k += 1
-        names_seen.add(name.lower())
+        name = unique_name(label, names_seen)
         zkey = "@2:z scale" if "@2:z scale" in sec else "@4:z scale"
         if zkey not in sec:
             raise ReaderError(path, f"NanoScope {what} has no '@2:Z scale' (files before version 4.3 "
@@ -179,9 +174,7 @@ def _parse(path):
                     scale *= f
                     unit = value_unit(num)
         channels.append(dict(
-            info=ChannelInfo(index=i, name=name, shape=(ny, nx), size=(sy, sx), units=lunit,
-                             height_units=length_unit(unit) or unit,
-                             is_height=bool(length_unit(unit)) and bool(HEIGHT_NAME_RE.search(ident + " " + label))),
+            info=channel_info(i, name, (ny, nx), (sy, sx), lunit, unit, hint=f"{ident} {label}"),
             ident=ident, nx=nx, ny=ny, bpp=bpp, offset=offset, scale=scale, unit=unit, lunit=lunit))
     return data, globals_, channels
 

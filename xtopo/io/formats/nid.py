@@ -23,8 +23,7 @@ import re
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, pick_channel,
-                      to_float, to_int, value_unit)
+from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit)
 
 _MARK = b"#!"
 
@@ -87,9 +86,7 @@ def _parse(path):
             vrange = to_float(path, sec.get("Dim2Range"), f"Dim2Range of {ref}")
             unit = value_unit(sec.get("Dim2Unit", ""))
             label = f"{sec.get('Dim2Name') or ref} ({gname})"
-            infos.append(ChannelInfo(index=len(infos), name=label, shape=(ny, nx), size=(ly, lx), units=xu,
-                                     height_units=length_unit(unit) or unit,
-                                     is_height=bool(length_unit(unit)) and bool(HEIGHT_NAME_RE.search(label))))
+            infos.append(channel_info(len(infos), label, (ny, nx), (ly, lx), xu, unit))
             dtype = f"{endian}{'i' if signed else 'u'}{bits // 8}"
             raw_min = -(1 << (bits - 1)) if signed else 0
             blocks.append(dict(offset=offset, dtype=dtype, nx=nx, ny=ny, scale=vrange / float(1 << bits),

@@ -26,8 +26,7 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, parse_time,
-                      pick_channel, to_float, to_int, value_unit)
+from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, to_float, to_int, value_unit)
 
 _END = b":SCANIT_END:"
 _TYPES = {"FLOAT": "f4", "INT": "i4", "UINT": "u4", "DOUBLE": "f8"}
@@ -83,9 +82,7 @@ def _parse(path):
         dirs = ["forward", "backward"] if direction == "both" else [direction]
         for d in dirs:
             name = f"{sig} ({d})"
-            infos.append(ChannelInfo(index=len(infos), name=name, shape=(ny, nx), size=(ly, lx), units="m",
-                                     height_units=length_unit(unit) or unit,
-                                     is_height=bool(length_unit(unit)) and bool(HEIGHT_NAME_RE.search(sig))))
+            infos.append(channel_info(len(infos), name, (ny, nx), (ly, lx), "m", unit, hint=sig))
             images.append(dict(unit=unit, backward=d == "backward"))
     return dict(data=data, start=mark + 2, dtype=dtype, nx=nx, ny=ny, infos=infos, images=images,
                 one=one, down=one("SCAN_DIR").lower() == "down")

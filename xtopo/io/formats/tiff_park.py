@@ -28,8 +28,7 @@ from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from .._tiff import TiffFile, head_tags
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, parse_time,
-                      pick_channel, value_unit)
+from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, value_unit)
 
 MAGIC = 0x0E031301
 _DTYPES = {0: "<i2", 1: "<i4", 2: "<f4"}
@@ -70,9 +69,7 @@ def _parse(path):
         raise ReaderError(path, f"unknown Park data type {hdr['dtype']}")
     name = hdr["source"] or "Z Height"
     unit = hdr["zunit"] or "um"
-    info = ChannelInfo(index=0, name=name, shape=(hdr["ny"], hdr["nx"]), size=(hdr["ly"], hdr["lx"]), units="um",
-                       height_units=length_unit(unit) or unit,
-                       is_height=bool(length_unit(unit)) and bool(HEIGHT_NAME_RE.search(name)))
+    info = channel_info(0, name, (hdr["ny"], hdr["nx"]), (hdr["ly"], hdr["lx"]), "um", unit)
     return tif, hdr, info
 
 

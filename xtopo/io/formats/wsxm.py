@@ -24,8 +24,7 @@ import re
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (HEIGHT_NAME_RE, ChannelInfo, guarded, length_unit, measurement, pick_channel,
-                      to_float, to_int, value_unit)
+from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit)
 
 _DTYPES = {"short": "<i2", "integer": "<i4", "int": "<i4", "float": "<f4", "double": "<f8",
            "unsigned char": "u1", "char": "i1"}
@@ -78,9 +77,7 @@ def _parse(path):
     if kind not in _DTYPES:
         raise ReaderError(path, f"unsupported WSxM Image Data Type {kind!r}")
     name = fields.get("General Info/Acquisition channel") or "Topography"
-    info = ChannelInfo(index=0, name=name, shape=(ny, nx), size=(ly, lx), units=lunit,
-                       height_units=length_unit(zunit) or zunit,
-                       is_height=bool(length_unit(zunit)) and bool(HEIGHT_NAME_RE.search(name)))
+    info = channel_info(0, name, (ny, nx), (ly, lx), lunit, zunit)
     if _DTYPES[kind][-2] == "f":
         scale = 1.0
     else:
