@@ -108,8 +108,8 @@ def test_nanoscope_phase_channel_keeps_its_unit(real_data):
     # Z scale 359.9945 º over the int16 range, sensitivity 1 (no unit)
     raw = np.frombuffer(_bytes(real_data, "di-1.di"), "<i2", 512 * 512, 1089536)
     assert float(ds.height.mean()) == pytest.approx(raw.mean() / 65536 * 359.9945, rel=1e-9)
-    # a phase map is not a topography: open_topography refuses it with an xtopo error
-    with pytest.raises(XtopoError):
+    # a phase map is not a topography: open_topography refuses it, naming the file and the unit
+    with pytest.raises(UnsupportedFormatError, match=r"di-1\.di.*'deg'"):
         open_topography(real_data / "di-1.di", channel="Phase")
 
 

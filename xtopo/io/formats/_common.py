@@ -187,8 +187,9 @@ def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, va
     Height channels (``value_units`` a length) are converted to ``lateral_units`` so that the
     Dataset has one length unit.  Other channels (phase, amplitude, current, ...) keep their
     values in ``value_units``: the ``height`` variable then carries that unit (and
-    ``quantity="signal"``); such a Dataset is not a topography and
-    :func:`xtopo.open_topography` refuses it in its validation.
+    ``quantity="signal"``); such a Dataset is not a topography:
+    :func:`xtopo.open_topography` refuses it with an :class:`UnsupportedFormatError` that
+    names the file, while the format's own ``read`` returns it.
     """
     lat = normalize_units(lateral_units)
     vlen = length_unit(value_units)
