@@ -8,7 +8,7 @@ import os
 import numpy as np
 
 from ..conventions import append_history, convert_length, normalize_units, validate
-from ..errors import ReaderError, XtopoError
+from ..errors import ReaderError, UnsupportedFormatError, XtopoError
 from .registry import detect
 
 __all__ = ["open_topography", "sha256"]
@@ -71,6 +71,11 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
                                     f"{type(exc).__name__}: {exc}") from exc
     else:
         raise errors[0]
+    if "height" in ds and ds["height"].attrs.get("quantity") == "signal":  # e.g. phase, amplitude, current
+        raise UnsupportedFormatError(
+            path, f"channel {ds.attrs.get('channel')!r} holds {ds['height'].attrs.get('units')!r} values, not "
+                  f"heights; pick a height channel, or read the signal with "
+                  f"xtopo.io.list_formats()[{fmt.name!r}].read(path, channel=...)")
     own = fmt.name == "netcdf" and "xtopo_version" in ds.attrs  # an archive written by xtopo: keep as is
     if not own:
         ds.attrs.setdefault("source_file", os.path.basename(path))

@@ -1,0 +1,124 @@
+"""WSxM images (Nanotec Electronica / UAM): ``.top``, ``.stp``, ``.ch1``, ``.cur``, ...
+
+Layout: a text header that starts ``WSxM file copyright ...`` / ``SxM Image file`` /
+``Image header size: N`` (N = header bytes, the data start), with ``[Section]``
+blocks of indented ``Key: value`` lines, ending with ``[Header end]``.  Fields used
+(``[General Info]`` and ``[Control]``):
+
+* ``Number of columns`` (x pixels), ``Number of rows`` (y pixels);
+* ``X Amplitude``/``Y Amplitude`` with unit (physical size);
+* ``Z Amplitude`` with unit: the height range of the image;
+* ``Image Data Type`` (``short`` when absent, ``integer``, ``float``, ``double``);
+* ``[Miscellaneous] Maximum``/``Minimum``: the extreme stored values.
+
+Stored values are little-endian.  Floating-point data are heights in the unit of
+``Z Amplitude``; integer data are scaled so that the stored range maps to the
+height range: ``height = raw · Z Amplitude / (Maximum − Minimum)``.
+Rows are kept in file order.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ...errors import ReaderError
+from .._binary import BinaryReader, read_bytes
+from ..registry import Format, register
+from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit)
+
+_DTYPES = {"short": "<i2", "integer": "<i4", "int": "<i4", "float": "<f4", "double": "<f8",
+           "unsigned char": "u1", "char": "i1"}
+_SIZE_RE = re.compile(r"^\s*([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s*(\S*)\s*$")
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head.startswith(b"WSxM file copyright") and b"SxM Image file" in head[:200]
+
+
+def _quantity(path, text, what):
+    m = _SIZE_RE.match(text or "")
+    if not m:
+        raise ReaderError(path, f"cannot parse WSxM {what} {text!r}")
+    return to_float(path, m.group(1), what), value_unit(m.group(2))
+
+
+def _parse(path):
+    data = read_bytes(path)
+    m = re.search(rb"Image header size:\s*(\d+)", data[:512])
+    if not m:
+        raise ReaderError(path, "WSxM file without 'Image header size'")
+    start = to_int(path, m.group(1).decode(), "Image header size")
+    if start > len(data):
+        raise ReaderError(path, f"WSxM header size {start} exceeds the file size {len(data)} (truncated)")
+    text = data[:start].decode("latin-1", errors="replace")
+    if "[Header end]" not in text:
+        raise ReaderError(path, "WSxM header has no '[Header end]' line (truncated or corrupt)")
+    fields: dict[str, str] = {}
+    section = ""
+    for line in re.split(r"\r\n|\n|\r", text):
+        s = line.strip()
+        if s.startswith("[") and s.endswith("]"):
+            section = s[1:-1]
+            continue
+        key, sep, val = s.partition(": ")
+        if sep:
+            fields.setdefault(f"{section}/{key.strip()}", val.strip())
+            fields.setdefault(key.strip(), val.strip())
+    nx = to_int(path, fields.get("General Info/Number of columns"), "Number of columns", minimum=1)
+    ny = to_int(path, fields.get("General Info/Number of rows"), "Number of rows", minimum=1)
+    lx, ux = _quantity(path, fields.get("Control/X Amplitude"), "X Amplitude")
+    ly, uy = _quantity(path, fields.get("Control/Y Amplitude"), "Y Amplitude")
+    lunit = length_unit(ux)
+    if lunit is None:
+        raise ReaderError(path, f"WSxM X Amplitude unit {ux!r} is not a length")
+    ly *= _factor(path, uy, lunit)
+    zamp, zunit = _quantity(path, fields.get("General Info/Z Amplitude"), "Z Amplitude")
+    kind = fields.get("General Info/Image Data Type", "short").lower()
+    if kind not in _DTYPES:
+        raise ReaderError(path, f"unsupported WSxM Image Data Type {kind!r}")
+    name = fields.get("General Info/Acquisition channel") or "Topography"
+    info = channel_info(0, name, (ny, nx), (ly, lx), lunit, zunit)
+    if _DTYPES[kind][-2] == "f":
+        scale = 1.0
+    else:
+        vmax = to_float(path, fields.get("Miscellaneous/Maximum"), "Maximum")
+        vmin = to_float(path, fields.get("Miscellaneous/Minimum"), "Minimum")
+        if vmax == vmin:
+            raise ReaderError(path, "WSxM Maximum equals Minimum: the integer height scale is undefined")
+        scale = zamp / (vmax - vmin)
+    return data, start, _DTYPES[kind], info, scale, zunit, lunit, fields
+
+
+def _factor(path, unit, to):
+    from ._common import unit_factor
+
+    f = unit_factor(length_unit(unit) or "?", to) if length_unit(unit) else None
+    if f is None:
+        raise ReaderError(path, f"WSxM Y Amplitude unit {unit!r} is not a length")
+    return f
+
+
+@guarded("WSxM")
+def _channels(path):
+    return [_parse(path)[3]]
+
+
+@guarded("WSxM")
+def _read(path, *, channel=None):
+    data, start, dtype, info, scale, zunit, lunit, fields = _parse(path)
+    pick_channel(path, [info], channel)
+    ny, nx = info.shape
+    raw = BinaryReader(data, path).array(dtype, nx * ny, what="WSxM image data", at=start).reshape(ny, nx)
+    attrs = dict(
+        instrument=fields.get("General Info/Head type") or fields.get("Head Settings/Head Name"),
+        vendor="Nanotec Electronica (WSxM)",
+        acquisition_date=fields.get("General Info/Acquisition time"),
+        software_version=fields.get("Miscellaneous/Saved with version"),
+        comment=fields.get("Miscellaneous/Comments") or None,
+    )
+    return measurement(path, raw, info, size=info.size, lateral_units=lunit, value_units=zunit,
+                       height_scale=scale, **attrs)
+
+
+FORMAT = register(Format("wsxm", "WSxM image (Nanotec Electronica)", (".top", ".stp", ".ch1", ".ch2", ".cur"),
+                         _sniff, _read, _channels, priority=10))
