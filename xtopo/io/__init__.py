@@ -1,7 +1,7 @@
 """Reading and writing measurements."""
 
 from .netcdf import to_netcdf
-from .open import open_topography
+from .open import channels, open_topography
 from .registry import ChannelInfo, Format, formats
 
-__all__ = ["open_topography", "to_netcdf", "formats", "Format", "ChannelInfo"]
+__all__ = ["open_topography", "channels", "to_netcdf", "formats", "Format", "ChannelInfo"]
