@@ -82,3 +82,71 @@ def generic_measurement(path, heights, *, physical_size=None, found_size=None, f
         raise ReaderError(path, f"physical size must be positive and finite, got {tuple(sz)}")
     return make_measurement(h, size=tuple(sz), units=lateral, mask=mask,
                             height_scale=scale, **attrs)
+
+
+#: Refuse arrays larger than this many bytes (a corrupt or hostile shape field).
+MAX_ARRAY_BYTES = 1 << 31
+#: Preferred variable names when a container holds several arrays and no channel is given.
+PREFERRED_NAMES = ("heights", "height", "topography", "data", "z", "Z", "h")
+
+
+def pick_array(path, entries, channel=None):
+    """Choose one array among ``entries`` (a list of ``(name, shape)``) of a container file.
+
+    ``channel`` is a name or an index into the 1D/2D numeric entries; by default the first
+    entry with a :data:`PREFERRED_NAMES` name, else the first 1D/2D entry.
+
+    Returns
+    -------
+    (int, str)
+        Index among the candidates and name.
+
+    Raises
+    ------
+    UnsupportedFormatError
+        No 1D/2D array, or ``channel`` does not exist.
+    """
+    from ..errors import UnsupportedFormatError
+
+    cands = [(n, s) for n, s in entries if len(s) in (1, 2) and int(np.prod(s)) > 1]
+    if not cands:
+        raise UnsupportedFormatError(path, "contains no 1D or 2D array of heights")
+    names = [n for n, _ in cands]
+    if channel is None:
+        for pref in PREFERRED_NAMES:
+            if pref in names:
+                return names.index(pref), pref
+        return 0, names[0]
+    if isinstance(channel, (int, np.integer)) and not isinstance(channel, bool):
+        if 0 <= channel < len(names):
+            return int(channel), names[channel]
+    elif str(channel) in names:
+        return names.index(str(channel)), str(channel)
+    raise UnsupportedFormatError(path, f"channel {channel!r} does not exist; arrays: {names}")
+
+
+def check_array_bytes(path, shape, itemsize: int, available: int | None, what: str) -> None:
+    """Refuse an array whose ``shape`` would need more bytes than the file can hold (or than 2 GiB)."""
+    try:
+        n = int(np.prod([int(s) for s in shape], dtype=object)) * int(itemsize)
+    except (TypeError, ValueError, OverflowError):
+        raise ReaderError(path, f"invalid shape {shape!r} for {what}") from None
+    if n > MAX_ARRAY_BYTES or (available is not None and n > available):
+        raise ReaderError(path, f"{what} of shape {tuple(shape)} needs {n} bytes, more than the file holds "
+                                "(truncated or corrupt)")
+
+
+def channel_infos(path, entries, *, physical_size=None, file_units=None, height_units=None, found_units=None):
+    """:class:`ChannelInfo` list for the 1D/2D arrays among ``entries`` ``(name, shape)``."""
+    from .registry import ChannelInfo
+
+    units = found_units or file_units
+    out = []
+    for name, shape in entries:
+        if len(shape) in (1, 2) and int(np.prod(shape)) > 1:
+            size = None
+            if physical_size is not None:
+                size = tuple(np.broadcast_to(np.asarray(physical_size, dtype=float), (len(shape),)).tolist())
+            out.append(ChannelInfo(index=len(out), name=str(name), shape=tuple(int(s) for s in shape), size=size,
+                                   units=units, height_units=height_units or units))
+    return out

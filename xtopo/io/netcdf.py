@@ -19,7 +19,7 @@ from .._version import __version__
 from ..conventions import CONVENTIONS
 from ..errors import ReaderError, XtopoError
 
-__all__ = ["to_netcdf", "read_netcdf", "sanitize_attrs", "provenance_attrs", "ENGINES"]
+__all__ = ["to_netcdf", "read_netcdf", "sanitize_attrs", "provenance_attrs", "atomic_write", "ENGINES"]
 
 ENGINES = ("netcdf4", "h5netcdf")
 #: Attributes the writer sets; they describe the file, not the data.
@@ -122,12 +122,20 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
         key = "zlib" if engine == "netcdf4" else "compression"
         val = True if engine == "netcdf4" else "gzip"
         encoding = {v: {key: val} for v in out.data_vars if out[v].dtype.kind == "f"}
+    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine, encoding=encoding))
+
+
+def atomic_write(path, write) -> str:
+    """Call ``write(tmp)`` on a temporary file next to ``path``, then move it into place with ``os.replace``.
+
+    A write that fails midway leaves ``path`` untouched and removes the temporary file.
+    """
     path = os.fspath(path)
     directory = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
     os.close(fd)
     try:
-        out.to_netcdf(tmp, engine=engine, encoding=encoding)
+        write(tmp)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
