@@ -7,7 +7,7 @@ import os
 
 import numpy as np
 
-from ..conventions import append_history, convert_length, lateral_dims, length_factor, normalize_units, validate
+from ..conventions import append_history, convert_length, lateral_dims, normalize_units, validate
 from ..conventions import physical_size as _physical_size
 from ..errors import ReaderError, XtopoError
 from .registry import READ_OPTIONS, ChannelInfo, detect
@@ -44,9 +44,10 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
     format : str, optional
         Force a format by name (see :func:`xtopo.io.registry.formats`).
     physical_size : float or tuple of float, optional
-        Physical size ``(Ly, Lx)`` (area) or ``Lx`` (line) in ``file_units`` (or the file's own length
-        unit). Required for generic files that store none (plain text matrix, npy, MATLAB, HDF5);
-        for files that do store one it replaces the stored size (recorded in ``history``).
+        Physical size ``(Ly, Lx)`` (area) or ``Lx`` (line) in ``file_units`` for generic files, in the
+        file's own length unit otherwise. Required for generic files that store none (plain text matrix,
+        npy, MATLAB, HDF5); for files that do store one it replaces the stored size (recorded in
+        ``history``).
     file_units : str, optional
         Length unit of positions and heights for generic files that store no unit (plain text,
         npy, MATLAB, HDF5). Files that state their unit refuse this option.
@@ -69,7 +70,7 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
     options = {"physical_size": physical_size, "file_units": file_units, "height_units": height_units}
     fmt, ds = _first_success(path, format, "read", channel=channel, **options)
     if physical_size is not None and "physical_size" not in fmt.options:
-        ds = _override_size(ds, physical_size, file_units, path)
+        ds = _override_size(ds, physical_size, path)
     own = fmt.name == "netcdf" and "xtopo_version" in ds.attrs  # an archive written by xtopo: keep as is
     if not own:
         ds.attrs.setdefault("source_file", os.path.basename(path))
@@ -144,8 +145,8 @@ def _first_success(path, format, method: str, channel=None, **options):
     raise (specific or errors)[0]
 
 
-def _override_size(ds, physical_size, file_units, path):
-    """Replace the physical size of a uniform measurement (``physical_size`` in ``file_units``)."""
+def _override_size(ds, physical_size, path):
+    """Replace the physical size of a uniform measurement (``physical_size`` in the reader's length unit)."""
     if ds.attrs.get("grid") == "nonuniform":
         raise ReaderError(path, "physical_size= cannot be given for a nonuniform line scan (its positions are stored)")
     dims = lateral_dims(ds["height"])
@@ -153,8 +154,6 @@ def _override_size(ds, physical_size, file_units, path):
     if not np.all(np.isfinite(size)) or np.any(size <= 0):
         raise XtopoError(f"physical_size must be positive and finite, got {physical_size!r}")
     u = ds["height"].attrs["units"]
-    if file_units is not None:
-        size = size * length_factor(file_units, u)
     for dim, L in zip(dims, size):
         n = ds.sizes[dim]
         c = ds.coords[dim]

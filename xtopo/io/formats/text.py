@@ -40,10 +40,10 @@ _OPTIONS = ("physical_size", "file_units", "height_units")
 def _is_data_line(line: str) -> bool:
     if not _NUMBER_START.match(line):
         return False
-    tok = line.split()
     try:
-        for t in tok:
-            float(t.rstrip(",;"))
+        for t in re.split(r"[\s,;]+", line.strip()):
+            if t:
+                float(t)
     except ValueError:
         return False
     return True
