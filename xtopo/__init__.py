@@ -9,11 +9,12 @@ from .conventions import make_measurement, validate
 from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, ReaderError, UnitsError,
                      UnsupportedFormatError, ValidationError, XtopoError)
 from .io import open_topography, to_netcdf
+from . import io, preprocess
 from . import accessors as _accessors  # noqa: F401  (registers .topo)
 
 __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
-    "open_topography", "to_netcdf",
+    "open_topography", "to_netcdf", "io", "preprocess",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
     "ValidationError", "ContactError", "ConvergenceWarning",
 ]
