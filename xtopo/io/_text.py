@@ -12,7 +12,7 @@ import re
 import numpy as np
 
 from ..conventions import make_measurement, normalize_units
-from ..errors import ReaderError, UnitsError
+from ..errors import ReaderError, UnitsError, UnsupportedFormatError
 
 __all__ = [
     "MAX_TEXT_BYTES", "looks_like_text", "read_text", "split_lines", "parse_table", "parse_quantity",
@@ -55,7 +55,7 @@ def read_text(path, limit: int = MAX_TEXT_BYTES) -> str:
     except OSError as exc:
         raise ReaderError(path, f"cannot be read: {exc}") from None
     if b"\0" in data:
-        raise ReaderError(path, "contains NUL bytes; it is not a text file")
+        raise UnsupportedFormatError(path, "contains NUL bytes; it is not a text file")
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     try:
@@ -88,29 +88,48 @@ def parse_table(path, lines, sep: str | None = None, what: str = "data", ncols: 
     ReaderError
         On ragged rows or tokens that are not numbers.
     """
-    rows = []
-    for ln in lines:
-        if sep is None:
-            toks = ln.split()
-        else:
-            toks = [t.strip() for t in ln.split(sep)]
-            while toks and toks[-1] == "":
-                toks.pop()
-        if toks:
-            rows.append(toks)
+    rows = [ln for ln in lines if ln and not ln.isspace()]
     if not rows:
         raise ReaderError(path, f"no {what} found")
-    n = len(rows[0]) if ncols is None else ncols
-    for i, r in enumerate(rows):
-        if len(r) != n:
-            raise ReaderError(path, f"{what} row {i + 1} has {len(r)} values, expected {n} (ragged or corrupt table)")
-    flat = [t for r in rows for t in r]
-    try:
-        arr = np.array(flat, dtype=float)
-    except (ValueError, OverflowError):
-        bad = next((t for t in flat if not _is_number(t)), "?")
-        raise ReaderError(path, f"{what} contains a token that is not a number: {bad[:40]!r}") from None
+    body = "\n".join(rows)
+    if sep is not None:
+        body = _TRAILING_SEPS[sep].sub("", body)  # trailing empty fields ("1,2,,")
+    counts = _fields_per_line(body, sep, len(rows))
+    if sep is not None:
+        body = body.replace(sep, " ")
+    n = counts[0] if ncols is None else ncols
+    for i, c in enumerate(counts):
+        if c != n:
+            raise ReaderError(path, f"{what} row {i + 1} has {c} values, expected {n} (ragged or corrupt table)")
+    try:  # numpy's C parser; exact token accounting below catches anything it skipped
+        arr = np.fromstring(body, dtype=float, sep=" ")
+    except ValueError:
+        arr = None
+    if arr is None or arr.size != n * len(rows):
+        toks = body.split()
+        bad = next((t for t in toks if not _is_number(t)), None)
+        if bad is not None:
+            raise ReaderError(path, f"{what} contains a token that is not a number: {bad[:40]!r}")
+        if len(toks) != n * len(rows):
+            raise ReaderError(path, f"{what} has empty fields (expected {n} values per row)")
+        arr = np.array(toks, dtype=float)
     return arr.reshape(len(rows), n)
+
+
+_TRAILING_SEPS = {c: re.compile(rf"[{re.escape(c)} \t]+$", re.M) for c in ",;\t"}
+_WHITESPACE = np.zeros(256, dtype=bool)
+_WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
+
+
+def _fields_per_line(body: str, sep, n_lines: int) -> np.ndarray:
+    """Number of fields on each line of ``body`` (vectorised; ``sep=None``: whitespace-separated tokens)."""
+    b = np.frombuffer(body.encode("utf-8", "surrogateescape"), dtype=np.uint8)
+    line = np.concatenate([[0], np.cumsum(b == 10)[:-1]]) if b.size else b
+    if sep is None:
+        space = _WHITESPACE[b]
+        starts = ~space & np.concatenate([[True], space[:-1]])
+        return np.bincount(line[starts], minlength=n_lines)
+    return np.bincount(line[b == ord(sep)], minlength=n_lines) + 1
 
 
 def _is_number(tok: str) -> bool:

@@ -48,8 +48,9 @@ def read_hfm(path, *, channel=None):
         if not np.all((v == 0) | (v == 1)):
             raise ReaderError(path, "the 'valid' column must contain only 0 and 1")
         mask = v == 0
-    data = [ln for ln in lines[2:] if ln.strip()]
-    tol = max(token_ulp(data[0].split(";")[0]), token_ulp(data[-1].split(";")[0]))
+    first = next(ln for ln in lines[2:] if ln.strip())
+    last = next(ln for ln in reversed(lines) if ln.strip())
+    tol = max(token_ulp(first.split(";")[0]), token_ulp(last.split(";")[0]))
     return line_measurement(path, table[:, 0], table[:, 1] * length_factor(hu, xu), xu, tolerance=tol,
                             mask=mask, columns=";".join(names))
 
