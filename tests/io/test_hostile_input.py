@@ -94,6 +94,11 @@ def worker_main() -> None:
     from xtopo.errors import XtopoError
 
     jobs = json.loads(sys.stdin.readline())
+    with tempfile.TemporaryDirectory() as warm:  # first-use costs (format modules, unit registry) before timing
+        probe = os.path.join(warm, "warm-up.txt")
+        with open(probe, "w") as f:
+            f.write("# Width: 1 um\n# Height: 1 um\n# Value units: nm\n1 2\n3 4\n")
+        xtopo.open_topography(probe)
     print(json.dumps({"ready": True}), flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         for job in jobs:
