@@ -124,12 +124,14 @@ _WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
 def _fields_per_line(body: str, sep, n_lines: int) -> np.ndarray:
     """Number of fields on each line of ``body`` (vectorised; ``sep=None``: whitespace-separated tokens)."""
     b = np.frombuffer(body.encode("utf-8", "surrogateescape"), dtype=np.uint8)
-    line = np.concatenate([[0], np.cumsum(b == 10)[:-1]]) if b.size else b
+    newlines = np.flatnonzero(b == 10)
     if sep is None:
         space = _WHITESPACE[b]
-        starts = ~space & np.concatenate([[True], space[:-1]])
-        return np.bincount(line[starts], minlength=n_lines)
-    return np.bincount(line[b == ord(sep)], minlength=n_lines) + 1
+        starts = np.flatnonzero(~space[1:] & space[:-1]) + 1
+        if b.size and not space[0]:
+            starts = np.concatenate([[0], starts])
+        return np.bincount(np.searchsorted(newlines, starts), minlength=n_lines)
+    return np.bincount(np.searchsorted(newlines, np.flatnonzero(b == ord(sep))), minlength=n_lines) + 1
 
 
 def _is_number(tok: str) -> bool:
