@@ -238,3 +238,10 @@ def test_binary_content_is_not_text(tmp_path):
     p.write_bytes(bytes(range(256)) * 20)
     with pytest.raises(UnsupportedFormatError):
         _open(p)
+
+
+def test_xarray_backend_passes_generic_options(tmp_path, heights):
+    np.save(tmp_path / "a.npy", heights)
+    ds = xr.open_dataset(tmp_path / "a.npy", engine="xtopo", physical_size=(5.0, 7.0), file_units="nm", units="nm")
+    np.testing.assert_array_equal(ds.height.values, heights)
+    assert physical_size(ds, "x") == pytest.approx(7.0)
