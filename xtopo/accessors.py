@@ -13,9 +13,11 @@ import xarray as xr
 from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
+from . import preprocess as _preprocess
 from .io import netcdf as _netcdf
 from . import stitching as _stitching
 from . import twins as _twin
+from .io.formats import st_netcdf as _st_netcdf
 
 
 def _delegate(func):
@@ -38,6 +40,11 @@ class _TopoAccessor:
     scalars = _delegate(_scalars.scalars)
     distribution = _delegate(_distribution.distribution)
     to_netcdf = _delegate(_netcdf.to_netcdf)
+
+    # io and preprocessing (issue 4)
+    detrend = _delegate(_preprocess.detrend)
+    fill_missing = _delegate(_preprocess.fill_missing)
+    to_surfacetopography_netcdf = _delegate(_st_netcdf.to_surfacetopography_netcdf)
 
     @property
     def height(self):

@@ -24,8 +24,7 @@ def _open_lazily(path) -> xr.Dataset:
     from .io.open import open_topography
     from .io.registry import detect
 
-    fmt = detect(path)[0]
-    if fmt.name == "netcdf":
+    if any(fmt.name == "netcdf" for fmt in detect(path)):
         ds = read_netcdf(path, lazy=True)
         if "xtopo_version" in ds.attrs and "height" in ds:
             return validate(ds.chunk())

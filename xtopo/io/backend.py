@@ -14,11 +14,13 @@ class XtopoBackendEntrypoint(BackendEntrypoint):
 
     description = "Surface topography files (AFM, profilometers, X3P, ...) via xtopo"
     url = "https://github.com/xtopo/xtopo"
-    open_dataset_parameters = ("filename_or_obj", "drop_variables", "channel", "units", "periodic", "format")
+    open_dataset_parameters = ("filename_or_obj", "drop_variables", "channel", "units", "periodic", "format",
+                               "physical_size", "file_units", "height_units")
 
     def open_dataset(self, filename_or_obj, *, drop_variables=None, channel=None, units="m", periodic=None,
-                     format=None):
-        ds = open_topography(filename_or_obj, channel=channel, units=units, periodic=periodic, format=format)
+                     format=None, physical_size=None, file_units=None, height_units=None):
+        ds = open_topography(filename_or_obj, channel=channel, units=units, periodic=periodic, format=format,
+                             physical_size=physical_size, file_units=file_units, height_units=height_units)
         if drop_variables:
             ds = ds.drop_vars(drop_variables, errors="ignore")
         return ds

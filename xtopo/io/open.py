@@ -7,11 +7,12 @@ import os
 
 import numpy as np
 
-from ..conventions import append_history, convert_length, normalize_units, validate
+from ..conventions import append_history, convert_length, lateral_dims, normalize_units, validate
+from ..conventions import physical_size as _physical_size
 from ..errors import ReaderError, UnsupportedFormatError, XtopoError
-from .registry import detect
+from .registry import READ_OPTIONS, ChannelInfo, detect
 
-__all__ = ["open_topography", "sha256"]
+__all__ = ["open_topography", "channels", "sha256"]
 
 
 def sha256(path) -> str:
@@ -24,7 +25,8 @@ def sha256(path) -> str:
 
 
 def open_topography(path, *, channel=None, units: str | None = "m", periodic: bool | None = None,
-                    tip_radius: float | None = None, resolution: float | None = None, format: str | None = None):
+                    tip_radius: float | None = None, resolution: float | None = None, format: str | None = None,
+                    physical_size=None, file_units: str | None = None, height_units: str | None = None):
     """Read a measurement file into an xtopo measurement Dataset.
 
     Parameters
@@ -41,6 +43,17 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         Probe tip radius / lateral resolution **in the result's units**.
     format : str, optional
         Force a format by name (see :func:`xtopo.io.registry.formats`).
+    physical_size : float or tuple of float, optional
+        Physical size ``(Ly, Lx)`` (area) or ``Lx`` (line) in ``file_units`` for generic files, in the
+        file's own length unit otherwise. Required for generic files that store none (plain text matrix,
+        npy, MATLAB, HDF5); for files that do store one it replaces the stored size (recorded in
+        ``history``).
+    file_units : str, optional
+        Length unit of positions and heights for generic files that store no unit (plain text,
+        npy, MATLAB, HDF5). Files that state their unit refuse this option.
+    height_units : str, optional
+        Length unit of the stored height values when it differs from ``file_units``
+        (e.g. positions in ``"mm"``, heights in ``"um"``).
 
     Returns
     -------
@@ -54,23 +67,10 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         No reader recognises the content.
     """
     path = os.fspath(path)
-    candidates = detect(path, format)
-    errors = []
-    for fmt in candidates:
-        try:
-            ds = fmt.read(path, channel=channel)
-            break
-        except XtopoError as exc:
-            errors.append(exc)
-            if len(candidates) == 1:
-                raise
-        except (MemoryError, RecursionError) as exc:
-            raise ReaderError(path, f"{fmt.name} reader gave up: {type(exc).__name__}") from None
-        except Exception as exc:  # defensive: a reader bug must not escape as a random type
-            raise ReaderError(path, f"{fmt.name} reader failed on malformed content: "
-                                    f"{type(exc).__name__}: {exc}") from exc
-    else:
-        raise errors[0]
+    options = {"physical_size": physical_size, "file_units": file_units, "height_units": height_units}
+    fmt, ds = _first_success(path, format, "read", channel=channel, **options)
+    if physical_size is not None and "physical_size" not in fmt.options:
+        ds = _override_size(ds, physical_size, path)
     if "height" in ds and ds["height"].attrs.get("quantity") == "signal":  # e.g. phase, amplitude, current
         raise UnsupportedFormatError(
             path, f"channel {ds.attrs.get('channel')!r} holds {ds['height'].attrs.get('units')!r} values, not "
@@ -82,7 +82,11 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         ds.attrs.setdefault("source_format", fmt.name)
         ds.attrs.setdefault("source_sha256", sha256(path))
     if units is not None:
-        ds = convert_length(ds, normalize_units(units))
+        to = normalize_units(units)
+        try:
+            ds = convert_length(ds, to)
+        except XtopoError as exc:
+            raise ReaderError(path, f"cannot convert the {fmt.name} reader's result to {units!r}: {exc}") from exc
     if periodic is not None:
         ds.attrs["periodic"] = int(bool(periodic))
     u = ds["height"].attrs.get("units")
@@ -95,4 +99,99 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
             ds.attrs[f"{key}_units"] = u
     if not own:
         ds = append_history(ds, f"open_topography({os.path.basename(path)!r}, format={fmt.name!r}, channel={channel!r})")
-    return validate(ds)
+    try:
+        return validate(ds)
+    except XtopoError as exc:
+        raise ReaderError(path, f"the {fmt.name} reader produced an invalid measurement: {exc}") from exc
+
+
+def _call(path, fmt, method: str, channel, options: dict):
+    """Call ``fmt.read``/``fmt.channels`` with the options the format declares; refuse the others."""
+    given = {k: v for k, v in options.items() if v is not None}
+    refused = [k for k in given if k not in fmt.options and k != "physical_size"]
+    if refused:
+        raise ReaderError(path, f"the {fmt.name} format stores its own units; the option(s) {', '.join(refused)} "
+                                "apply only to generic formats without units (text, npy, MATLAB, HDF5)")
+    kwargs = {k: v for k, v in given.items() if k in fmt.options}
+    if method == "read":
+        return fmt.read(path, channel=channel, **kwargs)
+    if fmt.channels is None:
+        return [_describe(fmt.read(path, channel=None, **kwargs))]
+    return fmt.channels(path, **kwargs)
+
+
+def _first_success(path, format, method: str, channel=None, **options):
+    """Try the candidate formats best first; return ``(format, result)`` of the first that works.
+
+    Errors that say "not this format" (:class:`UnsupportedFormatError`) give way to a later
+    candidate; if all fail, the most specific error (a corrupt-file error before a
+    not-this-format one) is raised. Non-xtopo exceptions of a reader become :class:`ReaderError`.
+    """
+    from ..errors import UnsupportedFormatError
+
+    unknown = set(options) - set(READ_OPTIONS)
+    if unknown:
+        raise XtopoError(f"unknown reader option(s): {sorted(unknown)}")
+    candidates = detect(path, format)
+    errors = []
+    for fmt in candidates:
+        try:
+            return fmt, _call(path, fmt, method, channel, options)
+        except ReaderError as exc:
+            errors.append(exc)
+        except XtopoError as exc:  # e.g. a GridError from make_measurement: name the file
+            errors.append(ReaderError(path, f"{fmt.name}: {exc}"))
+        except (MemoryError, RecursionError) as exc:
+            raise ReaderError(path, f"{fmt.name} reader gave up: {type(exc).__name__}") from None
+        except Exception as exc:  # defensive: a reader bug must not escape as a random type
+            raise ReaderError(path, f"{fmt.name} reader failed on malformed content: "
+                                    f"{type(exc).__name__}: {exc}") from exc
+    specific = [e for e in errors if not isinstance(e, UnsupportedFormatError)]
+    raise (specific or errors)[0]
+
+
+def _override_size(ds, physical_size, path):
+    """Replace the physical size of a uniform measurement (``physical_size`` in the reader's length unit)."""
+    if ds.attrs.get("grid") == "nonuniform":
+        raise ReaderError(path, "physical_size= cannot be given for a nonuniform line scan (its positions are stored)")
+    dims = lateral_dims(ds["height"])
+    size = np.broadcast_to(np.asarray(physical_size, dtype=float), (len(dims),))
+    if not np.all(np.isfinite(size)) or np.any(size <= 0):
+        raise XtopoError(f"physical_size must be positive and finite, got {physical_size!r}")
+    u = ds["height"].attrs["units"]
+    for dim, L in zip(dims, size):
+        n = ds.sizes[dim]
+        c = ds.coords[dim]
+        ds = ds.assign_coords({dim: (dim, np.arange(n) * (L / n), {**c.attrs, "spacing": float(L / n)})})
+    return append_history(ds, f"physical size set to {tuple(float(v) for v in size)} {u} by the caller")
+
+
+def _describe(ds) -> ChannelInfo:
+    """A :class:`ChannelInfo` for a measurement Dataset (formats without a ``channels`` function)."""
+    h = ds["height"]
+    dims = lateral_dims(h)
+    u = h.attrs.get("units")
+    if ds.attrs.get("grid") == "nonuniform":
+        x = np.asarray(ds["x"].values, dtype=float)
+        size = (float(x[-1] - x[0]),)
+    else:
+        size = tuple(_physical_size(ds, d) for d in dims)
+    return ChannelInfo(index=0, name=str(ds.attrs.get("channel", ds.attrs.get("title", "height"))),
+                       shape=tuple(ds.sizes[d] for d in dims), size=size, units=u, height_units=u)
+
+
+def channels(path, *, format: str | None = None, physical_size=None, file_units: str | None = None,
+             height_units: str | None = None) -> list[ChannelInfo]:
+    """The channels of a measurement file, as :class:`~xtopo.io.registry.ChannelInfo` (one per channel).
+
+    Formats with a single channel return one entry. Options as in :func:`open_topography`.
+
+    Raises
+    ------
+    ReaderError, UnsupportedFormatError
+        As :func:`open_topography`.
+    """
+    path = os.fspath(path)
+    _, out = _first_success(path, format, "channels", physical_size=physical_size, file_units=file_units,
+                            height_units=height_units)
+    return list(out)

@@ -15,7 +15,7 @@ from typing import Callable
 
 from ..errors import ReaderError, UnsupportedFormatError
 
-__all__ = ["Format", "ChannelInfo", "register", "formats", "detect", "HEADER_BYTES"]
+__all__ = ["Format", "ChannelInfo", "register", "formats", "detect", "HEADER_BYTES", "READ_OPTIONS"]
 
 #: Bytes handed to ``sniff`` functions.
 HEADER_BYTES = 4096
@@ -59,6 +59,9 @@ class Format:
     channels : callable(path) -> list of ChannelInfo, optional
     priority : int
         Higher is tried first among formats that sniff positive (specific before generic).
+    options : tuple of str
+        Extra keyword options ``read`` (and ``channels``) accept, from :data:`READ_OPTIONS`:
+        generic formats that may lack a physical size or units take them from the caller.
     """
 
     name: str
@@ -68,6 +71,11 @@ class Format:
     read: Callable
     channels: Callable | None = None
     priority: int = 0
+    options: tuple = ()
+
+
+#: Keyword options of :func:`xtopo.open_topography` that are handed to readers declaring them.
+READ_OPTIONS = ("physical_size", "file_units", "height_units")
 
 
 _REGISTRY: dict[str, Format] = {}

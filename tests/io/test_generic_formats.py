@@ -1,0 +1,247 @@
+"""Generic formats: text, npy/npz, MATLAB v5/v7.3, HDF5, both NetCDF layouts; size/unit options."""
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+from xtopo.conventions import make_measurement, physical_size, spacing
+from xtopo.errors import ReaderError, UnsupportedFormatError, XtopoError
+from xtopo.io.registry import detect
+
+
+@pytest.fixture
+def heights():
+    rng = np.random.default_rng(0)
+    return rng.standard_normal((5, 7))
+
+
+def _open(path, **kw):
+    return xtopo.open_topography(path, units=None, **kw)
+
+
+def test_text_matrix_without_header_needs_size(tmp_path, heights):
+    p = tmp_path / "m.txt"
+    np.savetxt(p, heights)
+    assert detect(p)[0].name == "text"
+    with pytest.raises(ReaderError, match="physical_size") as err:
+        _open(p, file_units="um")
+    assert str(p) in str(err.value)
+    ds = _open(p, physical_size=(1.0, 1.4), file_units="um")
+    np.testing.assert_allclose(ds.height.values, heights, rtol=1e-12)
+    assert ds.height.attrs["units"] == "um" and spacing(ds, "x") == pytest.approx(0.2)
+    assert physical_size(ds, "y") == pytest.approx(1.0)
+    nm = _open(p, physical_size=(1.0, 1.4), file_units="um", height_units="nm")
+    np.testing.assert_allclose(nm.height.values, heights * 1e-3, rtol=1e-12)
+
+
+def test_text_header_in_gwyddion_style(tmp_path, heights):
+    p = tmp_path / "g.txt"
+    p.write_text("# Channel: Height\n# Width: 2.0 mm\n# Height: 500 um\n# Value units: nm\n"
+                 + "\n".join("\t".join(f"{v:.17g}" for v in row) for row in heights) + "\n", encoding="utf-8")
+    assert detect(p)[0].name == "gwyddion-text"
+    ds = _open(p)
+    assert ds.height.attrs["units"] == "mm"
+    assert physical_size(ds, "x") == pytest.approx(2.0) and physical_size(ds, "y") == pytest.approx(0.5)
+    np.testing.assert_allclose(ds.height.values, heights * 1e-6, rtol=1e-12)
+    with pytest.raises(ReaderError, match="states its length unit"):
+        _open(p, file_units="m")
+
+
+def test_two_column_text_nonuniform(tmp_path):
+    x = np.cumsum(np.random.default_rng(1).uniform(0.5, 1.5, 50))
+    h = np.sin(x)
+    p = tmp_path / "xy.txt"
+    np.savetxt(p, np.column_stack([x, h]))
+    ds = _open(p, file_units="um")
+    assert ds.attrs["grid"] == "nonuniform"
+    np.testing.assert_allclose(ds.x.values, x, rtol=1e-14)
+    np.testing.assert_allclose(ds.height.values, h, rtol=1e-14)
+    xtopo.conventions.validate(ds)
+
+
+def test_two_column_text_uniform_within_print_precision(tmp_path):
+    x = np.arange(200) * 0.15625
+    p = tmp_path / "xy.csv"
+    p.write_text("\n".join(f"{a:.1f},{np.cos(a):.5f}" for a in x))  # positions rounded to 0.1
+    ds = _open(p, file_units="um")
+    assert "grid" not in ds.attrs
+    assert spacing(ds) == pytest.approx(0.15625, rel=1e-3)
+
+
+def test_npy_and_npz(tmp_path, heights):
+    np.save(tmp_path / "a.npy", heights)
+    np.savez(tmp_path / "b.npz", profile=heights[0], heights=heights)
+    a = _open(tmp_path / "a.npy", physical_size=(5.0, 7.0), file_units="nm")
+    np.testing.assert_array_equal(a.height.values, heights)
+    b = _open(tmp_path / "b.npz", physical_size=(5.0, 7.0), file_units="nm")
+    np.testing.assert_array_equal(b.height.values, heights)
+    prof = _open(tmp_path / "b.npz", channel="profile", physical_size=7.0, file_units="nm")
+    assert prof.height.dims == ("x",)
+    assert [c.name for c in xtopo.io.channels(tmp_path / "b.npz")] == ["profile", "heights"]
+    with pytest.raises(UnsupportedFormatError, match="nope"):
+        _open(tmp_path / "b.npz", channel="nope", physical_size=1.0, file_units="nm")
+    with pytest.raises(ReaderError, match="file_units"):
+        _open(tmp_path / "a.npy", physical_size=(5.0, 7.0))
+
+
+def test_npy_never_unpickles(tmp_path):
+    np.save(tmp_path / "o.npy", np.array([{"a": 1}, None], dtype=object), allow_pickle=True)
+    with pytest.raises(ReaderError, match="no pickles"):
+        _open(tmp_path / "o.npy", physical_size=1.0, file_units="m")
+
+
+def test_npy_header_larger_than_file(tmp_path, heights):
+    p = tmp_path / "big.npy"
+    np.save(p, heights)
+    raw = p.read_bytes()
+    assert b"(5, 7)" in raw
+    p.write_bytes(raw.replace(b"(5, 7)", b"(9, 9)"))  # same header length, 81 values promised, 35 present
+    with pytest.raises(ReaderError):
+        _open(p, physical_size=(1.0, 1.0), file_units="m")
+
+
+def test_matlab_v5(tmp_path, heights):
+    scipy_io = pytest.importorskip("scipy.io")
+    p = tmp_path / "a.mat"
+    scipy_io.savemat(p, {"note": "text", "line": np.arange(4.0), "heights": heights})
+    ds = _open(p, physical_size=(1.0, 1.4), file_units="um")
+    np.testing.assert_array_equal(ds.height.values, heights)
+    assert {c.name for c in xtopo.io.channels(p)} == {"line", "heights"}
+
+
+def _write_v73(path, arrays):
+    h5py = pytest.importorskip("h5py")
+    with h5py.File(path, "w", userblock_size=512) as f:
+        for name, a in arrays.items():
+            f[name] = np.asarray(a).T  # MATLAB stores column-major
+            f[name].attrs["MATLAB_class"] = np.bytes_("double")
+    with open(path, "r+b") as f:
+        f.write(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5 schema 1.00 .")
+
+
+def test_matlab_v73(tmp_path, heights):
+    p = tmp_path / "b.mat"
+    _write_v73(p, {"heights": heights})
+    assert detect(p)[0].name == "matlab"
+    ds = _open(p, physical_size=(1.0, 1.4), file_units="um")
+    np.testing.assert_array_equal(ds.height.values, heights)
+
+
+def test_generic_hdf5(tmp_path, heights):
+    h5py = pytest.importorskip("h5py")
+    p = tmp_path / "a.h5"
+    with h5py.File(p, "w") as f:
+        f["meta/counts"] = np.arange(3)
+        f["scan/topography"] = heights
+        f["scan/topography"].attrs["units"] = "nm"
+    ds = _open(p, channel="scan/topography", physical_size=(50.0, 70.0))
+    assert ds.height.attrs["units"] == "nm"
+    np.testing.assert_array_equal(ds.height.values, heights)
+    assert [c.name for c in xtopo.io.channels(p)] == ["meta/counts", "scan/topography"]
+
+
+def test_xtopo_netcdf_round_trip(tmp_path, heights):
+    ds = make_measurement(heights, size=(1.0, 1.4), units="um", periodic=True)
+    xtopo.io.to_netcdf(ds, tmp_path / "x.nc")
+    back = _open(tmp_path / "x.nc")
+    assert back.attrs["source_format"] if "source_format" in back.attrs else "netcdf"
+    xr.testing.assert_allclose(back.height, ds.height)
+
+
+@pytest.mark.parametrize("kind", ["area", "line", "nonuniform", "masked"])
+def test_surfacetopography_netcdf_round_trip(tmp_path, heights, kind):
+    if kind == "area":
+        ds = make_measurement(heights, size=(1.0, 1.4), units="um", periodic=True)
+    elif kind == "masked":
+        h = heights.copy()
+        h[1, 2] = np.nan
+        ds = make_measurement(h, size=(1.0, 1.4), units="um")
+    elif kind == "line":
+        ds = make_measurement(heights[0], size=3.0, units="nm")
+    else:
+        ds = make_measurement(heights[0], x=np.cumsum(np.arange(1.0, 8.0)), units="mm")
+    p = tmp_path / "st.nc"
+    xtopo.io.to_surfacetopography_netcdf(ds, p)
+    assert detect(p)[0].name == "st-netcdf"
+    back = _open(p)
+    assert back.attrs["source_format"] == "st-netcdf"
+    xr.testing.assert_allclose(back.topo.height, ds.topo.height)
+    assert back.attrs["periodic"] == ds.attrs["periodic"]
+    with xr.open_dataset(p, engine="scipy") as raw:  # the layout itself: heights(x, y), length/unit attrs
+        if kind in ("area", "masked"):
+            assert raw.heights.dims == ("x", "y")
+            assert float(raw.x.attrs["length"]) == pytest.approx(1.4) and raw.x.attrs["unit"] == "um"
+            assert ("mask" in raw) == (kind == "masked")
+        elif kind == "nonuniform":
+            assert raw.heights.dims == ("n",) and raw.x.dims == ("n",)
+
+
+def test_surfacetopography_reads_our_export(tmp_path, heights):
+    st = pytest.importorskip("SurfaceTopography")
+    ds = make_measurement(heights, size=(1.0, 1.4), units="um", periodic=True)
+    p = tmp_path / "st.nc"
+    xtopo.io.to_surfacetopography_netcdf(ds, p)
+    reader = st.open_topography(str(p))
+    topo = reader.topography()
+    np.testing.assert_allclose(topo.heights().T, heights)
+    assert tuple(topo.physical_sizes) == pytest.approx((1.4, 1.0))
+    assert topo.is_periodic
+    reader.close()
+
+
+def test_read_surfacetopography_written_file(tmp_path):
+    st = pytest.importorskip("SurfaceTopography")
+    h = np.random.default_rng(2).standard_normal((8, 5))  # ST: first index is x
+    st.Topography(h, (2.0, 1.0), unit="nm", periodic=False).to_netcdf(str(tmp_path / "w.nc"))
+    ds = _open(tmp_path / "w.nc")
+    assert ds.height.dims == ("y", "x") and ds.height.shape == (5, 8)
+    np.testing.assert_allclose(ds.height.values, h.T)
+    assert physical_size(ds, "x") == pytest.approx(2.0) and ds.height.attrs["units"] == "nm"
+
+
+def test_size_override_and_refused_units_for_native_formats(tmp_path, heights):
+    ds = make_measurement(heights, size=(1.0, 1.4), units="um")
+    xtopo.io.to_surfacetopography_netcdf(ds, tmp_path / "st.nc")
+    over = _open(tmp_path / "st.nc", physical_size=(2.0, 2.8))
+    assert physical_size(over, "x") == pytest.approx(2.8)
+    sdf = tmp_path / "a.sdf"
+    sdf.write_text("aISO-1.0\nNumPoints = 2\nNumProfiles = 2\nXscale = 1e-6\nYscale = 1e-6\nZscale = 1e-9\n"
+                   "DataType = 7\n*\n1 2\n3 BAD\n*\n")
+    out = _open(sdf)
+    assert bool(out.mask[1, 1]) and float(out.height[0, 1]) == pytest.approx(2e-9)
+    over = _open(sdf, physical_size=(4e-6, 8e-6))  # in the file's own unit (m)
+    assert physical_size(over, "x") == pytest.approx(8e-6)
+    with pytest.raises(XtopoError, match="own units"):
+        _open(sdf, height_units="nm")
+
+
+def test_binary_sdf(tmp_path):
+    import struct
+
+    vals = np.array([[1, 2, 3], [4, -(2 ** 15), 6]], dtype="<i2")
+    head = (b"bISO-1.0" + b"TEST".ljust(10) + b"0" * 12 + b"0" * 12 + struct.pack("<HH", 3, 2)
+            + struct.pack("<dddd", 1e-6, 2e-6, 1e-9, 1e-9) + bytes([0, 5, 0]))
+    assert len(head) == 81
+    (tmp_path / "b.sdf").write_bytes(head + vals.tobytes())
+    ds = _open(tmp_path / "b.sdf")
+    assert ds.height.shape == (2, 3) and bool(ds.mask[1, 1])
+    assert physical_size(ds, "y") == pytest.approx(4e-6)
+    assert float(ds.height[1, 2]) == pytest.approx(6e-9)
+    (tmp_path / "t.sdf").write_bytes(head + vals.tobytes()[:-2])
+    with pytest.raises(ReaderError, match="t.sdf"):
+        _open(tmp_path / "t.sdf")
+
+
+def test_binary_content_is_not_text(tmp_path):
+    p = tmp_path / "noise.txt"
+    p.write_bytes(bytes(range(256)) * 20)
+    with pytest.raises(UnsupportedFormatError):
+        _open(p)
+
+
+def test_xarray_backend_passes_generic_options(tmp_path, heights):
+    np.save(tmp_path / "a.npy", heights)
+    ds = xr.open_dataset(tmp_path / "a.npy", engine="xtopo", physical_size=(5.0, 7.0), file_units="nm", units="nm")
+    np.testing.assert_array_equal(ds.height.values, heights)
+    assert physical_size(ds, "x") == pytest.approx(7.0)

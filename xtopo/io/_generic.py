@@ -1,0 +1,152 @@
+"""Units and physical size for generic formats (text, npy, MATLAB, HDF5) that may not store them.
+
+The caller's options (see :func:`xtopo.open_topography`) fill what the file lacks:
+``physical_size`` (in the lateral unit), ``file_units`` (lateral unit, and height unit
+unless ``height_units`` differs). A file that states a unit refuses ``file_units``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..conventions import length_factor, make_measurement
+from ..errors import ReaderError
+from ._text import length_unit
+
+__all__ = ["resolve_units", "generic_measurement"]
+
+
+def resolve_units(path, *, found_units=None, found_height_units=None, file_units=None, height_units=None):
+    """Return ``(lateral_unit, height_factor)``: the dataset's length unit and the factor that converts
+    the stored height values into it.
+
+    Raises
+    ------
+    ReaderError
+        If no unit is known (pass ``file_units``), or the file states one and ``file_units`` is given too.
+    """
+    if found_units is not None and file_units is not None:
+        raise ReaderError(path, f"the file states its length unit ({found_units!r}); do not pass file_units")
+    lateral = found_units or file_units
+    if lateral is None:
+        raise ReaderError(path, "the file stores no length unit; pass file_units= (e.g. file_units='m' or 'um') "
+                                "to open_topography")
+    lateral = length_unit(path, lateral, "length unit")
+    if found_height_units is not None and height_units is not None:
+        raise ReaderError(path, f"the file states the unit of its values ({found_height_units!r}); "
+                                "do not pass height_units")
+    hu = found_height_units or height_units or lateral
+    hu = length_unit(path, hu, "height unit")
+    return lateral, length_factor(hu, lateral)
+
+
+def generic_measurement(path, heights, *, physical_size=None, found_size=None, file_units=None, height_units=None,
+                        found_units=None, found_height_units=None, x=None, mask=None, height_scale: float = 1.0,
+                        **attrs):
+    """A measurement from an array whose metadata come partly from the file, partly from the caller.
+
+    Parameters
+    ----------
+    heights : numpy.ndarray, 1D or 2D (rows are ``y``)
+    physical_size, file_units, height_units
+        The caller's options; ``physical_size`` (in the lateral unit) wins over ``found_size``.
+    found_size, found_units, found_height_units
+        What the file itself states (``None`` where it says nothing).
+    x : array_like, optional
+        Positions of a line scan (then no size is needed).
+    height_scale : float
+        Extra factor applied to the values (e.g. a phase-to-height conversion).
+    """
+    h = np.asarray(heights)
+    if h.ndim not in (1, 2) or h.size == 0:
+        raise ReaderError(path, f"expected a 1D or 2D array of heights, got shape {h.shape}")
+    if h.dtype.kind not in "fiu":
+        raise ReaderError(path, f"heights must be numeric, got dtype {h.dtype}")
+    lateral, factor = resolve_units(path, found_units=found_units, found_height_units=found_height_units,
+                                    file_units=file_units, height_units=height_units)
+    scale = factor * height_scale
+    if x is not None:
+        from ._text import line_measurement
+
+        return line_measurement(path, x, h.astype(float) * scale, lateral, mask=mask, **attrs)
+    size = physical_size if physical_size is not None else found_size
+    if size is None:
+        shape = "(Ly, Lx)" if h.ndim == 2 else "Lx"
+        raise ReaderError(path, f"the file stores no physical size; pass physical_size={shape} "
+                                f"(in {lateral}) to open_topography")
+    try:
+        sz = np.broadcast_to(np.asarray(size, dtype=float), (h.ndim,))
+    except ValueError:
+        raise ReaderError(path, f"physical_size {size!r} does not match a {h.ndim}D measurement") from None
+    if not np.all(np.isfinite(sz)) or np.any(sz <= 0):
+        raise ReaderError(path, f"physical size must be positive and finite, got {tuple(sz)}")
+    return make_measurement(h, size=tuple(sz), units=lateral, mask=mask,
+                            height_scale=scale, **attrs)
+
+
+#: Refuse arrays larger than this many bytes (a corrupt or hostile shape field).
+MAX_ARRAY_BYTES = 1 << 31
+#: Preferred variable names when a container holds several arrays and no channel is given.
+PREFERRED_NAMES = ("heights", "height", "topography", "data", "z", "Z", "h")
+
+
+def pick_array(path, entries, channel=None):
+    """Choose one array among ``entries`` (a list of ``(name, shape)``) of a container file.
+
+    ``channel`` is a name or an index into the 1D/2D numeric entries; by default the first
+    entry with a :data:`PREFERRED_NAMES` name, else the first 1D/2D entry.
+
+    Returns
+    -------
+    (int, str)
+        Index among the candidates and name.
+
+    Raises
+    ------
+    UnsupportedFormatError
+        No 1D/2D array, or ``channel`` does not exist.
+    """
+    from ..errors import UnsupportedFormatError
+
+    cands = [(n, s) for n, s in entries if len(s) in (1, 2) and int(np.prod(s)) > 1]
+    if not cands:
+        raise UnsupportedFormatError(path, "contains no 1D or 2D array of heights")
+    names = [n for n, _ in cands]
+    if channel is None:
+        for pref in PREFERRED_NAMES:
+            if pref in names:
+                return names.index(pref), pref
+        return 0, names[0]
+    if isinstance(channel, (int, np.integer)) and not isinstance(channel, bool):
+        if 0 <= channel < len(names):
+            return int(channel), names[channel]
+    elif str(channel) in names:
+        return names.index(str(channel)), str(channel)
+    raise UnsupportedFormatError(path, f"channel {channel!r} does not exist; arrays: {names}")
+
+
+def check_array_bytes(path, shape, itemsize: int, available: int | None, what: str) -> None:
+    """Refuse an array whose ``shape`` would need more bytes than the file can hold (or than 2 GiB)."""
+    try:
+        n = int(np.prod([int(s) for s in shape], dtype=object)) * int(itemsize)
+    except (TypeError, ValueError, OverflowError):
+        raise ReaderError(path, f"invalid shape {shape!r} for {what}") from None
+    if n > MAX_ARRAY_BYTES or (available is not None and n > available):
+        raise ReaderError(path, f"{what} of shape {tuple(shape)} needs {n} bytes, more than the file holds "
+                                "(truncated or corrupt)")
+
+
+def channel_infos(path, entries, *, physical_size=None, file_units=None, height_units=None, found_units=None):
+    """:class:`ChannelInfo` list for the 1D/2D arrays among ``entries`` ``(name, shape)``."""
+    from .registry import ChannelInfo
+
+    units = found_units or file_units
+    out = []
+    for name, shape in entries:
+        if len(shape) in (1, 2) and int(np.prod(shape)) > 1:
+            size = None
+            if physical_size is not None:
+                size = tuple(np.broadcast_to(np.asarray(physical_size, dtype=float), (len(shape),)).tolist())
+            out.append(ChannelInfo(index=len(out), name=str(name), shape=tuple(int(s) for s in shape), size=size,
+                                   units=units, height_units=height_units or units))
+    return out

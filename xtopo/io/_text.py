@@ -1,0 +1,236 @@
+"""Defensive helpers shared by the text-based readers.
+
+Text files are untrusted like binary ones: every helper turns malformed content into a
+:class:`~xtopo.errors.ReaderError` naming the file, never a bare ``ValueError``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+
+from ..conventions import make_measurement, normalize_units
+from ..errors import ReaderError, UnitsError, UnsupportedFormatError
+
+__all__ = [
+    "MAX_TEXT_BYTES", "looks_like_text", "read_text", "split_lines", "parse_table", "parse_quantity",
+    "length_unit", "token_ulp", "uniform_spacing", "line_measurement", "header_value",
+]
+
+#: Refuse text files larger than this (a text matrix of 2e7 values).
+MAX_TEXT_BYTES = 512 * 1024 * 1024
+
+_CONTROL = bytes(range(0, 9)) + bytes(range(14, 32))
+
+
+def looks_like_text(head: bytes) -> bool:
+    """True if ``head`` (the start of a file) is plausibly text: no NUL byte, few control characters.
+
+    UTF-8 or Latin-1 (one byte per character) encodings are accepted.
+    """
+    if not head or b"\0" in head:
+        return False
+    n_control = len(head) - len(head.translate(None, _CONTROL))
+    if n_control > max(2, len(head) // 100):
+        return False
+    try:
+        head.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        if exc.start < len(head) - 4:  # not just a multi-byte sequence cut at the end of the head
+            # Latin-1 text: bytes >= 0x80 must be rare
+            return sum(b >= 0x80 for b in head) <= max(4, len(head) // 50)
+    return True
+
+
+def read_text(path, limit: int = MAX_TEXT_BYTES) -> str:
+    """Decode the whole file as UTF-8 (BOM stripped) or, failing that, Latin-1."""
+    try:
+        size = os.path.getsize(path)
+        if size > limit:
+            raise ReaderError(path, f"text file of {size} bytes exceeds the limit of {limit} bytes")
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as exc:
+        raise ReaderError(path, f"cannot be read: {exc}") from None
+    if b"\0" in data:
+        raise UnsupportedFormatError(path, "contains NUL bytes; it is not a text file")
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def split_lines(text: str) -> list[str]:
+    """Lines of ``text`` without line terminators (``\\n``, ``\\r\\n``, lone ``\\r``)."""
+    return text.splitlines()
+
+
+def parse_table(path, lines, sep: str | None = None, what: str = "data", ncols: int | None = None) -> np.ndarray:
+    """Parse lines of numbers into a 2D float array (rows × columns).
+
+    Parameters
+    ----------
+    path : str
+        For error messages.
+    lines : sequence of str
+        Data lines; blank lines are skipped, trailing empty fields (``"1,2,,"``) dropped.
+    sep : str, optional
+        Field separator; ``None`` splits on whitespace.
+    ncols : int, optional
+        Expected number of columns.
+
+    Raises
+    ------
+    ReaderError
+        On ragged rows or tokens that are not numbers.
+    """
+    rows = [ln for ln in lines if ln and not ln.isspace()]
+    if not rows:
+        raise ReaderError(path, f"no {what} found")
+    body = "\n".join(rows)
+    if sep is not None:
+        body = _TRAILING_SEPS[sep].sub("", body)  # trailing empty fields ("1,2,,")
+    counts = _fields_per_line(body, sep, len(rows))
+    if sep is not None:
+        body = body.replace(sep, " ")
+    n = counts[0] if ncols is None else ncols
+    for i, c in enumerate(counts):
+        if c != n:
+            raise ReaderError(path, f"{what} row {i + 1} has {c} values, expected {n} (ragged or corrupt table)")
+    try:  # numpy's C parser; exact token accounting below catches anything it skipped
+        arr = np.fromstring(body, dtype=float, sep=" ")
+    except ValueError:
+        arr = None
+    if arr is None or arr.size != n * len(rows):
+        toks = body.split()
+        bad = next((t for t in toks if not _is_number(t)), None)
+        if bad is not None:
+            raise ReaderError(path, f"{what} contains a token that is not a number: {bad[:40]!r}")
+        if len(toks) != n * len(rows):
+            raise ReaderError(path, f"{what} has empty fields (expected {n} values per row)")
+        arr = np.array(toks, dtype=float)
+    return arr.reshape(len(rows), n)
+
+
+_TRAILING_SEPS = {c: re.compile(rf"[{re.escape(c)} \t]+$", re.M) for c in ",;\t"}
+_WHITESPACE = np.zeros(256, dtype=bool)
+_WHITESPACE[[9, 10, 11, 12, 13, 32]] = True
+
+
+def _fields_per_line(body: str, sep, n_lines: int) -> np.ndarray:
+    """Number of fields on each line of ``body`` (vectorised; ``sep=None``: whitespace-separated tokens)."""
+    b = np.frombuffer(body.encode("utf-8", "surrogateescape"), dtype=np.uint8)
+    newlines = np.flatnonzero(b == 10)
+    if sep is None:
+        space = _WHITESPACE[b]
+        starts = np.flatnonzero(~space[1:] & space[:-1]) + 1
+        if b.size and not space[0]:
+            starts = np.concatenate([[0], starts])
+        return np.bincount(np.searchsorted(newlines, starts), minlength=n_lines)
+    return np.bincount(np.searchsorted(newlines, np.flatnonzero(b == ord(sep))), minlength=n_lines) + 1
+
+
+def _is_number(tok: str) -> bool:
+    try:
+        float(tok)
+        return True
+    except ValueError:
+        return False
+
+
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(\S.*?)?\s*$")
+
+
+def length_unit(path, unit: str, what: str) -> str:
+    """``unit`` normalised as a length unit; a :class:`ReaderError` naming ``what`` otherwise."""
+    try:
+        return normalize_units(unit)
+    except UnitsError as exc:
+        raise ReaderError(path, f"{what}: {exc}") from None
+
+
+def parse_quantity(path, text: str, what: str) -> tuple[float, str | None]:
+    """Split ``"10.00 µm"`` into ``(10.0, "um")``; the unit is ``None`` when absent."""
+    m = _QUANTITY.match(text)
+    if not m:
+        raise ReaderError(path, f"{what} is not a number with unit: {text[:60]!r}")
+    value = float(m.group(1))
+    unit = m.group(2)
+    if unit is not None:
+        unit = length_unit(path, unit, what)
+    return value, unit
+
+
+def header_value(path, header: dict, key: str, kind=float, what: str | None = None):
+    """``kind(header[key])`` with a :class:`ReaderError` if missing or malformed."""
+    if key not in header:
+        raise ReaderError(path, f"header field {key!r} is missing")
+    try:
+        val = kind(str(header[key]).strip())
+    except (ValueError, OverflowError):
+        raise ReaderError(path, f"header field {key!r} is not a valid {kind.__name__}: {header[key]!r}") from None
+    if kind is float and not np.isfinite(val):
+        raise ReaderError(path, f"header field {key!r} is not finite: {header[key]!r}")
+    return val
+
+
+_TOKEN = re.compile(r"^\s*[-+]?(\d*)(?:\.(\d*))?(?:[eE]([-+]?\d+))?\s*$")
+
+
+def token_ulp(tok: str) -> float:
+    """Unit in the last printed place of a number token (``"1.25e-3"`` → ``1e-5``); 0 if unknown."""
+    m = _TOKEN.match(tok)
+    if not m:
+        return 0.0
+    decimals = len(m.group(2) or "")
+    exp = int(m.group(3) or 0)
+    if abs(exp) > 300:
+        return 0.0
+    return 10.0 ** (exp - decimals)
+
+
+def uniform_spacing(x: np.ndarray, tolerance: float = 0.0) -> float | None:
+    """Spacing of ``x`` if it is a uniform grid within ``tolerance`` (e.g. the print precision), else None.
+
+    A straight line ``x_0 + m Δ`` is fitted to the positions by least squares; residuals up to
+    ``max(tolerance, 1e-9 |Δ| N)`` count as rounding (printed positions are rounded to their last
+    digit). Tolerances of a whole step or more cannot tell a grid from scattered points and are
+    capped below ``Δ``.
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    if n < 2:
+        return None
+    m = np.arange(n, dtype=float)
+    mc = m - m.mean()
+    d = float(np.dot(mc, x - x.mean()) / np.dot(mc, mc))
+    if not (np.isfinite(d) and d > 0):
+        return None
+    dev = np.abs(x - x.mean() - d * mc)
+    tol = min(max(tolerance, 1e-9 * d * n, 1e-12 * float(np.max(np.abs(x)))), 0.75 * d)
+    return d if float(np.max(dev)) <= tol else None
+
+
+def line_measurement(path, x, h, units: str, *, tolerance: float = 0.0, mask=None, **attrs):
+    """A line scan from positions and heights: uniform (``size=N Δ``) when ``x`` is a grid within
+    ``tolerance``, nonuniform (``x=``, ``grid="nonuniform"``) otherwise.
+
+    Raises
+    ------
+    ReaderError
+        If the positions are not finite and strictly increasing.
+    """
+    x = np.asarray(x, dtype=float)
+    h = np.asarray(h, dtype=float)
+    if x.size < 2:
+        raise ReaderError(path, f"a line scan needs at least 2 points, found {x.size}")
+    if not np.all(np.isfinite(x)) or np.any(np.diff(x) <= 0):
+        raise ReaderError(path, "the positions (first column) must be finite and strictly increasing")
+    d = uniform_spacing(x, tolerance)
+    if d is not None:
+        return make_measurement(h, size=x.size * d, units=units, mask=mask, **attrs)
+    return make_measurement(h, x=x, units=units, mask=mask, **attrs)

@@ -1,0 +1,109 @@
+"""Generic HDF5 files (read with h5py): any 1D or 2D numeric dataset.
+
+``channel`` is the dataset's path (``"group/heights"``) or its index among the 1D/2D numeric
+datasets in file order (default: a dataset named ``heights``/``height``/... or the first).
+A dataset attribute ``units`` or ``unit`` holding a length unit is used; otherwise pass
+``file_units=``. The physical size always comes from ``physical_size=``. Shapes are checked
+against the file size before reading (uncompressed data) or against 2 GiB (compressed).
+
+Files written as NetCDF-4 are HDF5 too: the ``st-netcdf`` and ``netcdf`` readers are tried
+first, this one last.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ...errors import ReaderError
+from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array
+from ..registry import Format, register
+
+__all__ = ["read_hdf5", "h5_datasets", "open_h5"]
+
+_MAGIC = b"\x89HDF\r\n\x1a\n"
+_OPTIONS = ("physical_size", "file_units", "height_units")
+_H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
+
+
+def open_h5(path):
+    """An ``h5py.File`` opened read-only; failures become :class:`ReaderError`."""
+    try:
+        import h5py
+    except ImportError:
+        raise ReaderError(path, "reading HDF5 needs h5py (pip install h5py)") from None
+    try:
+        return h5py.File(path, "r")
+    except _H5_ERRORS as exc:
+        raise ReaderError(path, f"not a readable HDF5 file: {exc}") from None
+
+
+def h5_datasets(f, skip=("#refs#", "#subsystem#")):
+    """``[(path, dataset)]`` of the numeric datasets of an open HDF5 file, in file order."""
+    import h5py
+
+    out = []
+
+    def visit(name, obj):
+        if isinstance(obj, h5py.Dataset) and not any(name.startswith(s) for s in skip):
+            if obj.dtype.kind in "biuf" and obj.shape is not None:
+                out.append((name, obj))
+
+    f.visititems(visit)
+    return out
+
+
+def read_dataset(path, dset, what: str) -> np.ndarray:
+    """All values of ``dset`` after checking its size against the file."""
+    available = None if (dset.compression or dset.chunks) else os.path.getsize(path)
+    check_array_bytes(path, dset.shape, dset.dtype.itemsize, available, what)
+    try:
+        return np.asarray(dset[()])
+    except _H5_ERRORS as exc:
+        raise ReaderError(path, f"cannot read dataset {what!r}: {exc}") from None
+
+
+def _units_attr(dset):
+    for key in ("units", "unit"):
+        if key in dset.attrs:
+            val = dset.attrs[key]
+            val = val.decode("utf-8", "replace") if isinstance(val, bytes) else str(val)
+            try:
+                from ...conventions import normalize_units
+
+                return normalize_units(val)
+            except Exception:
+                return None
+    return None
+
+
+def read_hdf5(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
+    """Read one dataset of an HDF5 file (see the module docstring)."""
+    with open_h5(path) as f:
+        try:
+            dsets = h5_datasets(f)
+            _, name = pick_array(path, [(n, d.shape) for n, d in dsets], channel)
+            dset = dict(dsets)[name]
+            arr = read_dataset(path, dset, name)
+            found = _units_attr(dset)
+        except _H5_ERRORS as exc:
+            raise ReaderError(path, f"corrupt HDF5 file: {exc}") from None
+    return generic_measurement(path, arr, physical_size=physical_size, file_units=file_units,
+                               height_units=height_units, found_units=found, channel=name)
+
+
+def _channels(path, **options):
+    with open_h5(path) as f:
+        try:
+            return channel_infos(path, [(n, d.shape) for n, d in h5_datasets(f)], **options)
+        except _H5_ERRORS as exc:
+            raise ReaderError(path, f"corrupt HDF5 file: {exc}") from None
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head.startswith(_MAGIC)
+
+
+register(Format("hdf5", "generic HDF5 file (one 1D/2D dataset)", (".h5", ".hdf5", ".hdf"), _sniff, read_hdf5,
+                channels=_channels, priority=-5, options=_OPTIONS))

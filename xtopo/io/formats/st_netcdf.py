@@ -1,0 +1,167 @@
+"""The NetCDF layout of SurfaceTopography / contact.engineering: read and write.
+
+Layout (as documented by SurfaceTopography's NetCDF reader):
+
+* a variable ``heights``; dims ``(x, y)`` for a map — note the order, the first index is
+  ``x`` — ``(x,)`` for a uniform line scan, ``(n,)`` for a nonuniform line scan whose
+  positions are the variable ``x(n)``;
+* optional variables ``x(x)``, ``y(y)`` with attributes ``length`` (physical size),
+  ``periodic`` (0/1) and ``unit`` (length unit; ``heights`` may carry the same ``unit``);
+* an optional variable ``mask`` (same dims as ``heights``, nonzero = undefined);
+* an optional global attribute ``json`` holding the ``info`` dictionary as JSON.
+
+:func:`to_surfacetopography_netcdf` writes this layout (NetCDF-3 64-bit offset, as
+SurfaceTopography does), so files can be uploaded to contact.engineering.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import xarray as xr
+
+from ...conventions import height_of, is_nonuniform, is_periodic, lateral_dims, physical_size
+from ...errors import ReaderError, UnsupportedFormatError, ValidationError
+from .._generic import check_array_bytes, generic_measurement
+from ..netcdf import atomic_write
+from ..registry import Format, register
+
+__all__ = ["read_st_netcdf", "to_surfacetopography_netcdf"]
+
+_OPTIONS = ("physical_size", "file_units", "height_units")
+_OPEN_ERRORS = (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError, AttributeError, OverflowError)
+
+
+def _open(path):
+    for engine in ("scipy", "netcdf4", "h5netcdf"):
+        try:
+            return xr.open_dataset(path, engine=engine, mask_and_scale=True, decode_times=False)
+        except _OPEN_ERRORS:
+            continue
+        except ImportError:
+            continue
+    raise UnsupportedFormatError(path, "not a NetCDF file any installed engine can open")
+
+
+def _attr(var, key, default=None):
+    val = var.attrs.get(key, default) if var is not None else default
+    if isinstance(val, bytes):
+        val = val.decode("utf-8", "replace")
+    if isinstance(val, np.ndarray) and val.size == 1:
+        val = val.item()
+    return val
+
+
+def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
+    """Read a SurfaceTopography NetCDF file (see the module docstring)."""
+    if channel not in (None, 0):
+        raise UnsupportedFormatError(path, f"has a single channel; channel {channel!r} does not exist")
+    nc = _open(path)
+    with nc:
+        if "heights" not in nc.variables:
+            raise UnsupportedFormatError(path, "NetCDF file has no 'heights' variable (not the SurfaceTopography "
+                                               "layout)")
+        hv = nc["heights"]
+        dims = hv.dims
+        if dims not in (("x", "y"), ("x",), ("n",)):
+            raise ReaderError(path, f"'heights' has dims {dims}; expected ('x', 'y'), ('x',) or ('n',)")
+        try:
+            check_array_bytes(path, hv.shape, 8, None, "heights")
+            h = np.asarray(hv.values, dtype=float)
+            mask = np.asarray(nc["mask"].values) != 0 if "mask" in nc.variables else None
+            xv = nc["x"] if "x" in nc.variables else None
+            yv = nc["y"] if "y" in nc.variables else None
+            xpos = np.asarray(xv.values, dtype=float) if dims == ("n",) and xv is not None else None
+        except _OPEN_ERRORS as exc:
+            raise ReaderError(path, f"cannot read the data: {exc}") from None
+        unit = _attr(xv, "unit") or _attr(hv, "unit")
+        hunit = _attr(hv, "unit")
+        periodic = bool(int(_attr(xv, "periodic", 0) or 0))
+        info = nc.attrs.get("json")
+    if mask is not None and mask.shape != h.shape:
+        raise ReaderError(path, f"'mask' has shape {mask.shape}, 'heights' {h.shape}")
+    attrs = {"periodic": periodic}
+    if isinstance(info, str):
+        try:
+            json.loads(info)
+            attrs["st_info"] = info
+        except ValueError:
+            pass
+    common = dict(physical_size=physical_size, file_units=file_units, height_units=height_units,
+                  found_units=unit, found_height_units=hunit if hunit and hunit != unit else None, mask=None, **attrs)
+    if dims == ("n",):
+        if xpos is None:
+            raise ReaderError(path, "nonuniform line scan without the position variable 'x'")
+        if periodic:
+            raise ReaderError(path, "a nonuniform line scan cannot be periodic")
+        common.pop("periodic")
+        return generic_measurement(path, np.where(mask, np.nan, h) if mask is not None else h, x=xpos, **common)
+    lengths = [_attr(v, "length") for v in ((xv, yv) if dims == ("x", "y") else (xv,))]
+    found = None
+    if all(v is not None for v in lengths):
+        found = tuple(float(v) for v in lengths[::-1])  # (Ly, Lx) / (Lx,)
+    common["mask"] = mask.T if mask is not None else None
+    return generic_measurement(path, h.T, found_size=found, **common)
+
+
+def to_surfacetopography_netcdf(ds, path, *, info: dict | None = None) -> str:
+    """Write a measurement in the SurfaceTopography/contact.engineering NetCDF layout.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A single measurement (no batch dims): area scan, uniform or nonuniform line scan.
+    path : str or os.PathLike
+        Target file (NetCDF-3 64-bit offset), written atomically.
+    info : dict, optional
+        Stored as the global ``json`` attribute (default: the dataset's string/number attrs).
+
+    Returns
+    -------
+    str
+        The path written.
+    """
+    h = height_of(ds)
+    extra = [d for d in h.dims if d not in ("x", "y")]
+    if extra:
+        raise ValidationError(f"to_surfacetopography_netcdf writes one measurement; select along {extra} first")
+    dims = lateral_dims(h)
+    unit = h.attrs.get("units") or ds["x"].attrs.get("units")
+    values = np.asarray(h.values, dtype=np.float64)
+    missing = ~np.isfinite(values)
+    periodic = int(is_periodic(ds))
+    if info is None:
+        info = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in ds.attrs.items()
+                if isinstance(v, (str, int, float, np.integer, np.floating))}
+    variables = {}
+    if is_nonuniform(ds):
+        if missing.any():
+            raise ValidationError("a nonuniform line scan with missing data cannot be written in the "
+                                  "SurfaceTopography layout; fill or drop the missing points first")
+        variables["x"] = xr.Variable(("n",), np.asarray(ds["x"].values, dtype=np.float64), {"unit": unit})
+        variables["heights"] = xr.Variable(("n",), values, {"unit": unit})
+    else:
+        st_dims = ("x", "y") if dims == ("y", "x") else ("x",)
+        data = values.T if dims == ("y", "x") else values
+        variables["heights"] = xr.Variable(st_dims, data, {"unit": unit})
+        if missing.any():
+            variables["mask"] = xr.Variable(st_dims, (missing.T if dims == ("y", "x") else missing).astype(np.int8))
+        for d in st_dims:
+            n = ds.sizes[d]
+            L = physical_size(ds, d)
+            variables[d] = xr.Variable((d,), np.arange(n) * (L / n),
+                                       {"length": float(L), "periodic": periodic, "unit": unit})
+    out = xr.Dataset(variables, attrs={"json": json.dumps(info, default=str)})
+    encoding = {name: {"_FillValue": None} for name in out.variables}
+    return atomic_write(os.fspath(path), lambda tmp: out.to_netcdf(tmp, format="NETCDF3_64BIT", engine="scipy",
+                                                                   encoding=encoding))
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head[:3] == b"CDF" or head[:8] == b"\x89HDF\r\n\x1a\n"
+
+
+register(Format("st-netcdf", "SurfaceTopography / contact.engineering NetCDF layout", (".nc",), _sniff,
+                read_st_netcdf, priority=1, options=_OPTIONS))

@@ -1,0 +1,134 @@
+"""Preprocessing of measurements (paper §3.2): detrending and filling missing data.
+
+Both functions take a measurement Dataset (or a height DataArray), never modify it, and
+return a new object whose ``history`` records the step. Extra (batch) dims broadcast and
+dask-backed inputs stay lazy; the lateral dims must each be a single chunk.
+
+``fill_missing`` replaces the ``mask`` variable by ``filled`` (``True`` where a value was
+interpolated): after filling nothing is missing, and keeping the record under ``mask``
+would make :func:`xtopo.conventions.height_of` hide the filled values again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from ._apply import apply_lateral
+from ._kernels import laplace_fill as _fill
+from ._kernels import polyfit as _poly
+from .conventions import MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
+from .errors import GridError
+
+__all__ = ["detrend", "fill_missing"]
+
+_FILLED = "filled"
+
+
+def _positions(h, dim):
+    return np.asarray(h.coords[dim].values, dtype=float) if dim in h.coords else np.arange(h.sizes[dim], dtype=float)
+
+
+def _finish(obj, h_in, result, line: str):
+    """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``."""
+    result = result.transpose(*h_in.dims)
+    result.attrs = dict(obj[h_in.name].attrs if isinstance(obj, xr.Dataset) else obj.attrs)
+    result.name = h_in.name
+    if isinstance(obj, xr.Dataset):
+        out = obj.copy(deep=False)
+        out[h_in.name] = result
+        return append_history(out, line)
+    return append_history(result, line)
+
+
+def detrend(obj, mode: str = "plane", per_line: bool = False):
+    """Subtract the least-squares polynomial background that minimises the RMS height.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement (heights in any length unit) or a height DataArray with coordinates.
+    mode : {"mean", "plane", "curvature"}
+        Polynomial of degree 0 (mean), 1 (tilt) or 2 (tilt and curvature, incl. the ``xy`` term)
+        in the lateral positions.
+    per_line : bool
+        Fit every profile along ``x`` (every row of a map) separately.
+
+    Returns
+    -------
+    Same type as ``obj``
+        Detrended heights (same units); missing data stay missing and are ignored by the fit.
+        Nonuniform line scans are fitted at their positions.
+    """
+    if mode not in _poly.DEGREES:
+        raise ValueError(f"mode must be one of {sorted(_poly.DEGREES)}, got {mode!r}")
+    degree = _poly.DEGREES[mode]
+    h = height_of(obj)
+    dims = lateral_dims(h)
+    if dims == (Y, X):
+        out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], what="detrend",
+                            kwargs={"y": _positions(h, Y), "x": _positions(h, X), "degree": degree,
+                                    "per_line": bool(per_line)})
+    else:
+        out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], what="detrend",
+                            kwargs={"x": _positions(h, X), "degree": degree})
+    return _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
+                   f"detrend(mode={mode!r}, per_line={bool(per_line)})")
+
+
+def fill_missing(obj):
+    """Fill missing data: harmonic (Laplace) interpolation for maps, linear for line scans (paper §3.2).
+
+    Each island of missing pixels gets the solution of the discrete Laplace equation with the
+    surrounding measured heights as Dirichlet values (spacing-weighted, so anisotropic pixels
+    are handled); periodic maps wrap around, at a nonperiodic border the fill has zero normal
+    slope. The fill is exact for linear fields (holes away from nonperiodic borders) and its mean
+    over a hole equals the mean over the hole's edge (mean-value property).
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        Missing data are NaN in ``height`` or ``True`` in ``mask``.
+
+    Returns
+    -------
+    Same type as ``obj``
+        Heights without missing data. For a Dataset the ``mask`` variable is replaced by
+        ``filled`` (``True`` where a value was interpolated).
+
+    Raises
+    ------
+    GridError
+        If a measurement has no valid data at all.
+    """
+    h = height_of(obj)
+    dims = lateral_dims(h)
+    periodic = is_periodic(obj)
+    if dims == (Y, X):
+        kwargs = {"periodic": periodic, "dy": spacing(h, Y), "dx": spacing(h, X)}
+        out = apply_lateral(_checked(_fill.harmonic_fill_2d), h, output_core_dims=[dims], kwargs=kwargs,
+                            what="fill_missing")
+    else:
+        period = None
+        if periodic and not is_nonuniform(obj):
+            period = h.sizes[X] * spacing(h, X)
+        out = apply_lateral(_checked(_fill.linear_fill_1d), h, output_core_dims=[dims], what="fill_missing",
+                            kwargs={"x": _positions(h, X), "periodic": period is not None, "period": period})
+    res = _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
+                  "fill_missing(harmonic)" if dims == (Y, X) else "fill_missing(linear)")
+    if isinstance(obj, xr.Dataset):
+        filled = h.isnull()
+        res = res.drop_vars(MASK, errors="ignore")
+        res[_FILLED] = filled.assign_attrs(long_name="interpolated by fill_missing", flag_meanings="filled")
+    return res
+
+
+def _checked(kernel):
+    """Turn the kernels' "nothing to fill from" ValueError into a GridError (also inside dask tasks)."""
+    def run(*args, **kwargs):
+        try:
+            return kernel(*args, **kwargs)
+        except ValueError as exc:
+            raise GridError(f"fill_missing: {exc}") from None
+
+    return run
