@@ -13,6 +13,12 @@ import xarray as xr
 from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
+from .analysis import acf as _acf
+from .analysis import hurst as _hurst
+from .analysis import psd as _psd
+from .analysis import reliability as _reliability
+from .analysis import sdrp as _sdrp
+from .analysis import vbm as _vbm
 from .io import netcdf as _netcdf
 
 
@@ -36,6 +42,14 @@ class _TopoAccessor:
     scalars = _delegate(_scalars.scalars)
     distribution = _delegate(_distribution.distribution)
     to_netcdf = _delegate(_netcdf.to_netcdf)
+
+    # scale-dependent analyses (issue 3)
+    psd = _delegate(_psd.psd)
+    acf = _delegate(_acf.acf)
+    vbm = _delegate(_vbm.vbm)
+    sdrp = _delegate(_sdrp.sdrp)
+    reliability_cutoff = _delegate(_reliability.reliability_cutoff)
+    hurst = _delegate(_hurst.hurst)
 
     @property
     def height(self):

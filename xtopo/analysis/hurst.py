@@ -1,0 +1,2 @@
+def hurst(obj, **kw):
+    raise NotImplementedError
