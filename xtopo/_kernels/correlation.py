@@ -11,6 +11,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from . import fft as _fft
+from .spectra import BACKEND as _BACKEND
 from .spectra import check_finite
 
 __all__ = ["acf_profiles", "acf_offsets", "acf_map"]
@@ -34,10 +35,10 @@ def acf_profiles(h: np.ndarray, dx: float, *, periodic: bool, rows: int) -> np.n
     nrows = int(np.prod([h.shape[a] for a in raxes])) if rows else 1
     d = h - h.mean(axis=-1, keepdims=True)
     size = n if periodic else sfft.next_fast_len(2 * n - 1, real=True)
-    p = _power(_fft.rfftn(d, s=(size,), axes=(-1,)))
+    p = _power(_fft.rfftn(d, s=(size,), axes=(-1,), backend=_BACKEND))
     if rows:
         p = p.sum(axis=raxes)
-    c = _fft.irfftn(p, s=(size,), axes=(-1,))
+    c = _fft.irfftn(p, s=(size,), axes=(-1,), backend=_BACKEND)
     sq = d * d
     if rows:
         sq = sq.sum(axis=raxes)
@@ -83,31 +84,30 @@ def acf_map(h: np.ndarray, *, periodic: bool) -> np.ndarray:
     d = h - h.mean(axis=(-2, -1), keepdims=True)
     sq = d * d
     if periodic:
-        p = _power(_fft.rfftn(d, axes=(-2, -1)))
-        c = _fft.irfftn(p, s=(ny, nx), axes=(-2, -1))
+        p = _power(_fft.rfftn(d, axes=(-2, -1), backend=_BACKEND))
+        c = _fft.irfftn(p, s=(ny, nx), axes=(-2, -1), backend=_BACKEND)
         return sq.mean(axis=(-2, -1), keepdims=True) - c / (nx * ny)
     py = sfft.next_fast_len(2 * ny - 1, real=True)
     px = sfft.next_fast_len(2 * nx - 1, real=True)
-    p = _power(_fft.rfftn(d, s=(py, px), axes=(-2, -1)))
-    c = _fft.irfftn(p, s=(py, px), axes=(-2, -1))
+    p = _power(_fft.rfftn(d, s=(py, px), axes=(-2, -1), backend=_BACKEND))
+    c = _fft.irfftn(p, s=(py, px), axes=(-2, -1), backend=_BACKEND)
     del p
-    jx = np.arange(-(nx - 1), nx)
     c = np.concatenate([c[..., :ny, px - (nx - 1):], c[..., :ny, :nx]], axis=-1)
-    cum = np.zeros(sq.shape[:-2] + (ny + 1, nx + 1))
-    np.cumsum(np.cumsum(sq, axis=-2), axis=-1, out=cum[..., 1:, 1:])
-    dy = np.arange(ny)
-    adx = np.abs(jx)
-    pos = jx >= 0
-
-    def rect(r0, r1, c0, c1):
-        r0, r1 = r0[:, None], r1[:, None]
-        c0, c1 = c0[None, :], c1[None, :]
-        return cum[..., r1, c1] - cum[..., r0, c1] - cum[..., r1, c0] + cum[..., r0, c0]
-
-    zero_y = np.zeros_like(dy)
-    # first point r: rows [0, ny-Δy), cols [0, nx-Δx) for Δx >= 0 else [-Δx, nx)
-    t1 = rect(zero_y, ny - dy, np.where(pos, 0, adx), np.where(pos, nx - adx, nx))
-    # second point r + Δr: rows [Δy, ny), cols [Δx, nx) for Δx >= 0 else [0, nx+Δx)
-    t2 = rect(dy, np.full_like(dy, ny), np.where(pos, adx, 0), np.where(pos, nx, nx - adx))
-    npairs = (ny - dy)[:, None] * (nx - adx)[None, :]
-    return (t1 + t2 - 2 * c) / (2 * npairs)
+    # Σ of h² over the rows a pair's first point (rows < ny-Δy) or second point (rows ≥ Δy) can take,
+    # then prefix sums over columns: every rectangle sum below is a difference of two column views.
+    head = np.cumsum(sq[..., ::-1, :], axis=-2)[..., ::-1, :]  # head[i] = Σ_{rows ≥ i}
+    tail = np.cumsum(sq, axis=-2)[..., ::-1, :]                # tail[i] = Σ_{rows ≤ ny-1-i}
+    p1 = np.zeros(sq.shape[:-1] + (nx + 1,))
+    p2 = np.zeros_like(p1)
+    np.cumsum(tail, axis=-1, out=p1[..., 1:])   # first point: rows [0, ny-Δy)
+    np.cumsum(head, axis=-1, out=p2[..., 1:])   # second point: rows [Δy, ny)
+    # Δx < 0 (|Δx| = nx-1..1): first point cols [|Δx|, nx), second [0, nx-|Δx|)
+    neg = (p1[..., nx:] - p1[..., nx - 1:0:-1]) + p2[..., 1:nx]
+    # Δx ≥ 0 (0..nx-1): first point cols [0, nx-Δx), second [Δx, nx)
+    pos = p1[..., nx:0:-1] + (p2[..., nx:] - p2[..., :nx])
+    t = np.concatenate([neg, pos], axis=-1)
+    jx = np.arange(-(nx - 1), nx)
+    npairs = (ny - np.arange(ny))[:, None] * (nx - np.abs(jx))[None, :]
+    t -= 2 * c
+    t /= 2 * npairs
+    return t
