@@ -2,8 +2,8 @@
 
 Usage::
 
-    python benchmarks/bench_analysis.py               # 1024² (default, about a minute)
-    python benchmarks/bench_analysis.py --sizes 1024 4096 --repeats 3
+    PYTHONPATH=. python benchmarks/bench_analysis.py   # 1024² (default, about a minute)
+    PYTHONPATH=. python benchmarks/bench_analysis.py --sizes 1024 4096 --repeats 3
 
 Both packages analyse the same nonperiodic fractal surface (Hann window where a
 window applies, reliability analysis off, comparable log binning). Each timing is
