@@ -14,6 +14,12 @@ from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
 from . import preprocess as _preprocess
+from .analysis import acf as _acf
+from .analysis import hurst as _hurst
+from .analysis import psd as _psd
+from .analysis import reliability as _reliability
+from .analysis import sdrp as _sdrp
+from .analysis import vbm as _vbm
 from .io import netcdf as _netcdf
 from . import stitching as _stitching
 from . import twins as _twin
@@ -45,6 +51,13 @@ class _TopoAccessor:
     detrend = _delegate(_preprocess.detrend)
     fill_missing = _delegate(_preprocess.fill_missing)
     to_surfacetopography_netcdf = _delegate(_st_netcdf.to_surfacetopography_netcdf)
+    # scale-dependent analyses (issue 3)
+    psd = _delegate(_psd.psd)
+    acf = _delegate(_acf.acf)
+    vbm = _delegate(_vbm.vbm)
+    sdrp = _delegate(_sdrp.sdrp)
+    reliability_cutoff = _delegate(_reliability.reliability_cutoff)
+    hurst = _delegate(_hurst.hurst)
 
     @property
     def height(self):

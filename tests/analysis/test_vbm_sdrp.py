@@ -1,0 +1,89 @@
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+from xtopo.datasets import fractal_surface
+from xtopo.errors import ChunkError
+
+from conftest import batch
+
+
+def _tilt_corrected_sq(h):
+    ny, nx = h.shape
+    yy, xx = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    a = np.c_[np.ones(h.size), xx.ravel(), yy.ravel()]
+    coef, *_ = np.linalg.lstsq(a, h.ravel(), rcond=None)
+    return np.sqrt(np.mean((h.ravel() - a @ coef) ** 2))
+
+
+def test_vbm_zeta1_is_tilt_corrected_sq():
+    ds = fractal_surface((48, 80), (0.6, 1.0), hurst=0.7, periodic=False, seed=2)
+    v = ds.topo.vbm()
+    assert v.bandwidth.attrs["units"] == "m" and v.attrs["units"] == "m"
+    top = v.sel(bandwidth=v.bandwidth.max())
+    assert int(top.magnification) == 1
+    np.testing.assert_allclose(float(top), _tilt_corrected_sq(ds.height.values), rtol=1e-12)
+
+
+def test_vbm_blocks_match_direct_and_line():
+    ds = fractal_surface((37, 53), (1.0, 1.0), hurst=0.5, periodic=False, seed=1)
+    v = ds.topo.vbm()
+    h = ds.height.values
+    for zeta in v.magnification.values:
+        by = np.append((np.arange(zeta) * 37) // zeta, 37)
+        bx = np.append((np.arange(zeta) * 53) // zeta, 53)
+        vals = [_tilt_corrected_sq(h[by[i]:by[i + 1], bx[j]:bx[j + 1]]) for i in range(zeta) for j in range(zeta)]
+        got = v.values[v.magnification.values == zeta]
+        np.testing.assert_allclose(got, np.mean(vals), rtol=1e-10)
+    line = ds.isel(y=0)
+    assert line.topo.vbm().sizes["bandwidth"] >= 3
+
+
+def test_sdrp_smallest_distance_is_rdq():
+    for periodic in (True, False):
+        ds = fractal_surface((32, 64), (0.5, 1.0), hurst=0.6, periodic=periodic, seed=4)
+        s = ds.topo.scalars()
+        for dim in ("x", "y"):
+            r1 = ds.topo.sdrp(1, dim=dim)
+            np.testing.assert_allclose(float(r1.isel(distance=0)), float(s.Rdq.sel(direction=dim)), rtol=1e-12)
+            r2 = ds.topo.sdrp(2, dim=dim)
+            np.testing.assert_allclose(float(r2.isel(distance=0)), float(s.Rddq.sel(direction=dim)), rtol=1e-12)
+        assert r1.attrs["units"] == "1" and r2.attrs["units"] == "m-1"
+
+
+def test_sdrp_fractional_interpolates_linearly():
+    ds = xtopo.make_measurement(np.arange(50.0) ** 2, spacing=0.1)  # h = (x/Δ)²: linear interp exact formula
+    r = ds.topo.sdrp(1, distances=[0.25])  # η = 2.5
+    x = np.arange(50.0)
+    hp = np.interp(x + 2.5, x, x**2)
+    ok = x + 2.5 <= 49
+    expected = np.sqrt(np.mean(((hp - x**2)[ok] / 0.25) ** 2))
+    np.testing.assert_allclose(r.values[0], expected, rtol=1e-12)
+
+
+def test_sdrp_acf_relation_periodic():
+    """h'_rms(ℓ) = sqrt(2A(ℓ))/ℓ at integer η (paper §4.7)."""
+    ds = fractal_surface(128, 1.0, hurst=0.5, periodic=True, seed=0)
+    a = ds.topo.acf()
+    d = a.distance.values[1:10]
+    s = ds.topo.sdrp(1, distances=d)
+    np.testing.assert_allclose(s.values, np.sqrt(2 * a.values[1:10]) / d, rtol=1e-10)
+
+
+def test_numpy_dask_identical_and_lazy():
+    ds = fractal_surface((32, 32), (1.0, 1.0), hurst=0.6, periodic=False, seed=1)
+    for f in (lambda o: o.topo.vbm(), lambda o: o.topo.sdrp(1), lambda o: o.topo.sdrp(2, dim="y")):
+        lazy = f(batch(ds, 2, dask=True))
+        assert lazy.chunks is not None
+        xr.testing.assert_allclose(lazy.compute(), f(batch(ds, 2)), rtol=1e-12)
+    with pytest.raises(ChunkError):
+        ds.chunk({"y": 8}).topo.vbm()
+
+
+def test_nonuniform_line_sdrp_vbm():
+    rng = np.random.default_rng(3)
+    x = np.cumsum(rng.uniform(0.5, 1.5, 256))
+    ds = xtopo.make_measurement(rng.standard_normal(256).cumsum(), x=x)
+    assert "resampled" in ds.topo.sdrp(1).attrs
+    assert np.all(np.isfinite(ds.topo.vbm().values))

@@ -1,0 +1,116 @@
+"""Shared plumbing of the scale-dependent analyses (PSD, ACF, VBM, SDRP): input preparation,
+log binning of xarray results and result annotation. Not public API."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .._kernels.binning import BinPlan, log_edges
+from ..conventions import X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
+from ..errors import GridError
+
+__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord"]
+
+#: default density of logarithmic bins/collocation points
+POINTS_PER_DECADE = 10
+
+
+class Prepared:
+    """Heights plus what the analyses need to know about their grid."""
+
+    def __init__(self, h: xr.DataArray, units: str, periodic: bool, lat: tuple, resampled: bool):
+        self.h = h
+        self.units = units
+        self.periodic = periodic
+        self.lat = lat
+        self.resampled = resampled
+
+    @property
+    def is_area(self) -> bool:
+        return self.lat == (Y, X)
+
+    def spacing(self, dim: str) -> float:
+        return spacing(self.h, dim)
+
+    def size(self, dim: str) -> float:
+        return self.h.sizes[dim] * spacing(self.h, dim)
+
+    def check_dim(self, dim: str) -> str:
+        if dim not in self.lat:
+            raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {self.lat})")
+        return dim
+
+    def attrs(self, **extra) -> dict:
+        a = {"periodic": int(self.periodic)}
+        if self.resampled:
+            a["resampled"] = "nonuniform line scan linearly interpolated onto a uniform grid with the same number of points"
+        a.update(extra)
+        return a
+
+
+def _units_of(h: xr.DataArray) -> str:
+    for name in (X, Y):
+        if name in h.coords and "units" in h.coords[name].attrs:
+            return h.coords[name].attrs["units"]
+    return h.attrs.get("units", "1")
+
+
+def prepare(obj) -> Prepared:
+    """Heights of a measurement, with nonuniform line scans interpolated onto a uniform grid."""
+    h = height_of(obj)
+    lat = lateral_dims(h)
+    resampled = False
+    if is_nonuniform(h) or is_nonuniform(obj):
+        xv = np.asarray(h[X].values, dtype=float)
+        new = np.linspace(xv[0], xv[-1], xv.size)
+        attrs = dict(h.attrs)
+        cattrs = dict(h[X].attrs)
+        h = h.chunk({X: -1}) if h.chunks is not None else h
+        h = h.interp({X: new}, method="linear", assume_sorted=True)
+        h.attrs = {k: v for k, v in attrs.items() if k != "grid"}
+        h.coords[X].attrs = {**cattrs, "spacing": float(new[1] - new[0])}
+        resampled = True
+    return Prepared(h, _units_of(h), is_periodic(h) or is_periodic(obj), lat, resampled)
+
+
+def per_decade(lo: float, hi: float, nb_points=None) -> int:
+    """Number of log bins: ``nb_points`` or ``POINTS_PER_DECADE`` per decade of ``[lo, hi]``."""
+    if nb_points is not None:
+        return max(1, int(nb_points))
+    return max(1, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))))
+
+
+def length_coord(name: str, values, units: str, long_name: str, **attrs) -> xr.Variable:
+    return xr.Variable((name,), np.asarray(values, dtype=float), {"units": units, "long_name": long_name, **attrs})
+
+
+def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
+    """Average ``da`` over logarithmically spaced bins of its positive coordinate ``dim``.
+
+    Empty bins are dropped; the new coordinate is the mean abscissa of each bin.
+    Works lazily on dask (``dim`` must be one chunk).
+    """
+    x = np.asarray(da[dim].values, dtype=float)
+    pos = x > 0
+    if not pos.any():
+        raise GridError(f"no positive {dim!r} values to bin")
+    lo, hi = x[pos].min(), x[pos].max()
+    plan = BinPlan(np.where(pos, x, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points)))
+    out = xr.apply_ufunc(plan.mean, da, input_core_dims=[[dim]], output_core_dims=[["_bin"]],
+                         exclude_dims={dim}, dask="parallelized", output_dtypes=[float],
+                         dask_gufunc_kwargs={"output_sizes": {"_bin": len(plan)}, "allow_rechunk": False},
+                         keep_attrs=True)
+    out = out.rename({"_bin": dim}).assign_coords({dim: (dim, plan.centers, dict(da[dim].attrs))})
+    return out
+
+
+def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepared, analysis: str, **attrs):
+    """Name and annotate a result."""
+    da.name = name
+    da.attrs = {"units": units, "long_name": long_name, "analysis": analysis, **prep.attrs(**attrs)}
+    return da
+
+
+def history(da, line):
+    return append_history(da, line)

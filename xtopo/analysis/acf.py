@@ -1,0 +1,88 @@
+"""Height-difference autocorrelation function (paper §4.7, eq. 11-12)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import xarray as xr
+
+from .._apply import apply_lateral
+from .._kernels import correlation as _k
+from .._kernels.binning import BinPlan, log_edges
+from ..conventions import X, Y
+from ..errors import GridError, XtopoError
+from ._scale import finish, length_coord, log_bin, per_decade, prepare
+from .reliability import apply_reliability
+
+__all__ = ["acf"]
+
+
+@functools.lru_cache(maxsize=4)
+def _iso_plan(ny, nx, dy, dx, periodic, nb_points):
+    r = _k.acf_offsets(ny, nx, dy, dx, periodic=periodic)
+    w = _k.acf_weights(ny, nx, periodic=periodic)
+    lo = min(dx, dy)
+    hi = float(r.max())
+    return BinPlan(np.where(r > 0, r, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points)), w)
+
+
+def _acf_iso_kernel(h, *, periodic, plan):
+    return plan.mean(_k.acf_map(h, periodic=periodic))
+
+
+def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool = True) -> xr.DataArray:
+    """Height-difference autocorrelation function ``A(ℓ) = ½⟨(h(r) - h(r+ℓ))²⟩``.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement (line or area scan); extra dims broadcast, dask stays lazy.
+    kind : {"1d", "iso"}
+        ``"1d"``: along the profiles in ``dim``, averaged over the other lateral dim,
+        at ``ℓ = kΔ`` (``k ≤ N/2`` periodic, ``k < N`` nonperiodic). ``"iso"``: eq. (12),
+        averaged over all directions and log-spaced bins of ``|ℓ|``.
+    dim : {"x", "y"}
+        Profile direction for ``kind="1d"``.
+    nb_points : int, optional
+        Number of log bins (``"iso"``: default 10 per decade; ``"1d"``: no binning unless given).
+    reliable : bool
+        Drop distances below the reliability cutoff.
+
+    Returns
+    -------
+    xarray.DataArray
+        ``acf`` in length² on coord ``distance`` (length). Computed by FFT; periodic data
+        wrap, nonperiodic data are zero padded and each lag is divided by its own
+        number of pairs (so the result equals the direct sum, eq. 11).
+    """
+    if kind not in ("1d", "iso"):
+        raise XtopoError(f"kind must be '1d' or 'iso', got {kind!r}")
+    prep = prepare(obj)
+    h, u = prep.h, prep.units
+    if kind == "1d":
+        prep.check_dim(dim)
+        other = [d for d in prep.lat if d != dim]
+        n, dx = h.sizes[dim], prep.spacing(dim)
+        k = n // 2 + 1 if prep.periodic else n
+        out = apply_lateral(_k.acf_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
+                            output_sizes={"distance": k},
+                            kwargs=dict(dx=dx, periodic=prep.periodic, rows=len(other)), what="acf")
+        out = out.assign_coords(distance=length_coord("distance", np.arange(k) * dx, u, "distance"))
+        if nb_points is not None:
+            out = log_bin(out, "distance", nb_points)
+        out = finish(out, "acf", f"{u}2", "height-difference autocorrelation function", prep, "acf",
+                     kind="1d", direction=dim)
+    else:
+        if not prep.is_area:
+            raise GridError("acf(kind='iso') needs an area scan; use kind='1d' for line scans")
+        ny, nx = h.sizes[Y], h.sizes[X]
+        dy, dx = prep.spacing(Y), prep.spacing(X)
+        plan = _iso_plan(ny, nx, dy, dx, prep.periodic, nb_points)
+        out = apply_lateral(_acf_iso_kernel, h, output_core_dims=[["distance"]],
+                            output_sizes={"distance": len(plan)}, kwargs=dict(periodic=prep.periodic, plan=plan),
+                            what="acf")
+        out = out.assign_coords(distance=length_coord("distance", plan.centers, u, "distance"))
+        out = finish(out, "acf", f"{u}2", "radially averaged height-difference autocorrelation function", prep,
+                     "acf", kind="iso")
+    return apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)

@@ -1,0 +1,138 @@
+"""Power spectral density (paper §4.6) of line and area scans.
+
+Conventions: eq. (1) ``h̃ = Δx Δy Σ h e^{-iq·r}``, ``C1D = |h̃|²/L`` averaged over
+profiles, ``C2D = |h̃|²/(Lx Ly)``; ``Ciso`` averages C2D over log-spaced bins of |q|.
+Wavevectors are angular (2π/λ) in inverse length units.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import xarray as xr
+
+from .._apply import apply_lateral
+from .._kernels import spectra as _k
+from .._kernels.binning import BinPlan, log_edges
+from ..conventions import X, Y
+from ..errors import GridError, XtopoError
+from ._scale import finish, length_coord, log_bin, per_decade, prepare
+from .reliability import apply_reliability
+
+__all__ = ["psd"]
+
+_KINDS = ("1d", "2d", "iso")
+
+
+def _use_window(window, periodic: bool) -> bool:
+    if window == "auto":
+        return not periodic
+    if window in (None, "none", False):
+        return False
+    if window == "hann":
+        return True
+    raise XtopoError(f"window must be 'auto', 'hann' or None, got {window!r}")
+
+
+@functools.lru_cache(maxsize=4)
+def _iso_plan(ny, nx, dy, dx, nb_points):
+    q = _k.rfft_abs_q(ny, nx, dy, dx)
+    lo = min(2 * np.pi / (ny * dy) if ny > 1 else np.inf, 2 * np.pi / (nx * dx))
+    hi = float(q.max())
+    mult = np.broadcast_to(_k.rfft_multiplicity(ny, nx), q.shape)
+    return BinPlan(np.where(q > 0, q, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points)), mult)
+
+
+def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, convention: str = "standard",
+        equivalent_1d: bool = False, reliable: bool = True) -> xr.DataArray:
+    """Power spectral density of a measurement.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement (line or area scan); extra dims broadcast, dask stays lazy.
+    kind : {"1d", "2d", "iso"}
+        ``"1d"``: C1D of the profiles along ``dim``, averaged over the other lateral
+        dim, at ``q = 2πk/L`` (``k ≥ 0``; the ``-q`` half is identical). ``"2d"``: C2D
+        on the full ``(q_y, q_x)`` grid, ascending. ``"iso"``: C2D averaged over
+        log-spaced bins of |q| (empty bins dropped, coordinate = mean |q| of each bin).
+    dim : {"x", "y"}
+        Profile direction for ``kind="1d"``.
+    window : {"auto", "hann", None}
+        ``"auto"``: Hann window for nonperiodic data, none for periodic data. The
+        2D window is radial; all windows have ``mean(w²) = 1`` (§4.3).
+    nb_points : int, optional
+        Number of log bins (``"iso"``: default 10 per decade; ``"1d"``: no binning unless given).
+    convention : {"standard", "persson"}
+        ``"persson"`` divides C2D/Ciso by 4π² (Persson's normalisation).
+    equivalent_1d : bool
+        For ``"iso"``: return the 1D-equivalent ``q Ciso / π`` (eq. 10, units length³).
+    reliable : bool
+        Drop wavevectors above ``2π/cutoff`` (see :func:`~xtopo.analysis.reliability.reliability_cutoff`).
+
+    Returns
+    -------
+    xarray.DataArray
+        ``psd`` in length³ (1D, 1D-equivalent) or length⁴ (2D, iso), with coords
+        ``q`` or ``(q_y, q_x)`` in inverse length. Heights are taken about their mean
+        (per profile for 1D), so Parseval holds exactly without a window.
+    """
+    if kind not in _KINDS:
+        raise XtopoError(f"kind must be one of {_KINDS}, got {kind!r}")
+    if convention not in ("standard", "persson"):
+        raise XtopoError(f"convention must be 'standard' or 'persson', got {convention!r}")
+    prep = prepare(obj)
+    u = prep.units
+    h = prep.h
+    win = _use_window(window, prep.periodic)
+    qunits = f"{u}-1"
+    params = dict(kind=kind, window="hann" if win else "none", convention=convention)
+    if kind != "1d" and not prep.is_area:
+        raise GridError(f"psd(kind={kind!r}) needs an area scan; use kind='1d' for line scans")
+    if kind == "1d":
+        if convention == "persson" or equivalent_1d:
+            raise XtopoError("convention='persson' and equivalent_1d apply to 2D/iso spectra only")
+        prep.check_dim(dim)
+        other = [d for d in prep.lat if d != dim]
+        n, dx = h.sizes[dim], prep.spacing(dim)
+        out = apply_lateral(_k.psd_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["q"]],
+                            output_sizes={"q": n // 2 + 1}, kwargs=dict(dx=dx, window=win, rows=len(other)),
+                            what="psd")
+        q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
+        out = out.assign_coords(q=length_coord("q", q, qunits, "angular wavevector"))
+        if nb_points is not None:
+            out = log_bin(out, "q", nb_points)
+        out = finish(out, "psd", f"{u}3", "1D power spectral density C1D", prep, "psd", direction=dim, **params)
+    elif kind == "2d":
+        ny, nx = h.sizes[Y], h.sizes[X]
+        dy, dx = prep.spacing(Y), prep.spacing(X)
+        out = apply_lateral(_k.psd_map, h, output_core_dims=[["q_y", "q_x"]], output_sizes={"q_y": ny, "q_x": nx},
+                            kwargs=dict(dy=dy, dx=dx, window=win), what="psd")
+        qy = 2 * np.pi * np.fft.fftshift(np.fft.fftfreq(ny, d=dy))
+        qx = 2 * np.pi * np.fft.fftshift(np.fft.fftfreq(nx, d=dx))
+        out = out.assign_coords(q_y=length_coord("q_y", qy, qunits, "angular wavevector y"),
+                                q_x=length_coord("q_x", qx, qunits, "angular wavevector x"))
+        if convention == "persson":
+            out = out / (4 * np.pi**2)
+        out = finish(out, "psd", f"{u}4", "2D power spectral density C2D", prep, "psd", **params)
+    else:
+        ny, nx = h.sizes[Y], h.sizes[X]
+        dy, dx = prep.spacing(Y), prep.spacing(X)
+        plan = _iso_plan(ny, nx, dy, dx, nb_points)
+        out = apply_lateral(_k.psd_iso, h, output_core_dims=[["q"]], output_sizes={"q": len(plan)},
+                            kwargs=dict(dy=dy, dx=dx, window=win, plan=plan), what="psd")
+        out = out.assign_coords(q=length_coord("q", plan.centers, qunits, "magnitude of the angular wavevector"))
+        if equivalent_1d:
+            out = out * (out["q"] / np.pi)
+            out = finish(out, "psd", f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)", prep, "psd",
+                         equivalent_1d=1, **params)
+        else:
+            if convention == "persson":
+                out = out / (4 * np.pi**2)
+            out = finish(out, "psd", f"{u}4", "radially averaged 2D power spectral density Ciso", prep, "psd",
+                         equivalent_1d=0, **params)
+    if kind == "2d":
+        out.attrs.update(reliable=0, reliability_note="2D maps are not cut; use kind='iso' or '1d'")
+        return out
+    return apply_reliability(out, obj, coord="q", kind="q", reliable=reliable)

@@ -1,0 +1,161 @@
+"""Reliability analysis (paper §4.9): which scales of a measurement can be trusted.
+
+Two sources, checked in this order:
+
+* ``resolution`` attribute (optical instruments): everything below the lateral
+  resolution is unreliable;
+* ``tip_radius`` attribute (scanning probes): the scale ``ℓ`` below which the
+  largest negative curvature at that scale exceeds the tip curvature, eq. (13),
+  ``max_x[-D²_(ℓ) h] > c / R_tip`` with ``c = 1/2``.
+
+The curvature criterion expects peaks to point up (positive heights).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .._apply import apply_lateral
+from .._kernels.scaled import max_negative_curvature
+from ..conventions import X, Y, length_factor
+from ._scale import POINTS_PER_DECADE, prepare
+
+__all__ = ["reliability_cutoff", "apply_reliability", "TIP_FACTOR"]
+
+#: the constant ``c`` of eq. (13)
+TIP_FACTOR = 0.5
+
+
+def _attr_length(obj, key, units):
+    a = obj.attrs
+    if a.get(key) is None:
+        return None
+    val = float(a[key])
+    src = a.get(f"{key}_units")
+    return val * length_factor(src, units) if src else val
+
+
+def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarray:
+    """Largest distance at which ``curv > threshold``, refined by log-log interpolation to the next point."""
+    bad = curv > threshold
+    lead = curv.shape[:-1]
+    out = np.zeros(lead)
+    flat_c = curv.reshape(-1, curv.shape[-1])
+    flat_b = bad.reshape(-1, curv.shape[-1])
+    res = out.reshape(-1)
+    for i in range(flat_c.shape[0]):  # loop over the batch only
+        idx = np.flatnonzero(flat_b[i])
+        if idx.size == 0:
+            res[i] = 0.0
+            continue
+        j = idx[-1]
+        if j + 1 >= dist.size or not np.isfinite(flat_c[i, j + 1]) or flat_c[i, j + 1] <= 0:
+            res[i] = dist[j]
+            continue
+        c0, c1 = np.log(flat_c[i, j]), np.log(flat_c[i, j + 1])
+        t = (c0 - np.log(threshold)) / (c0 - c1) if c0 != c1 else 0.0
+        res[i] = float(np.exp(np.log(dist[j]) + t * (np.log(dist[j + 1]) - np.log(dist[j]))))
+    return out
+
+
+def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
+    """Shortest reliable length scale of a measurement (paper §4.9).
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement (attrs ``resolution`` or ``tip_radius`` with ``*_units``).
+    c : float
+        Factor of the tip criterion eq. (13); the paper uses 1/2.
+
+    Returns
+    -------
+    xarray.DataArray
+        The cutoff length in the measurement's length unit (0-d, or over batch
+        dims for a tip-radius criterion on a batch); NaN when the measurement
+        has neither attribute. Attr ``method`` says which criterion was used.
+        Lazy on dask inputs.
+    """
+    prep = prepare(obj)
+    units = prep.units
+    res = _attr_length(obj, "resolution", units)
+    if res is not None:
+        return xr.DataArray(res, name="reliability_cutoff",
+                            attrs={"units": units, "long_name": "short reliability cutoff", "method": "resolution"})
+    tip = _attr_length(obj, "tip_radius", units)
+    if tip is None:
+        return xr.DataArray(np.nan, name="reliability_cutoff",
+                            attrs={"units": units, "long_name": "short reliability cutoff", "method": "none"})
+    threshold = c / tip
+    h = prep.h
+    parts = []
+    for dim in prep.lat:
+        other = [d for d in prep.lat if d != dim]
+        n = h.sizes[dim]
+        dx = prep.spacing(dim)
+        emax = (n - 1) / 2
+        if emax < 1:
+            continue
+        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(emax))) + 1)
+        etas = np.unique(np.geomspace(1.0, emax, nb))
+        curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
+                             output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
+                             kwargs=dict(dx=dx, etas=etas, periodic=prep.periodic, rows=len(other)),
+                             what="reliability_cutoff")
+        parts.append(curv.assign_coords(_eta=2 * etas * dx))
+    # curvature criterion along every direction; the cutoffs of the directions are combined by max
+    cut = None
+    for curv in parts:
+        dist = np.asarray(curv["_eta"].values)
+        one = xr.apply_ufunc(_crossing, curv, input_core_dims=[["_eta"]], kwargs=dict(dist=dist, threshold=threshold),
+                             dask="parallelized", output_dtypes=[float])
+        cut = one if cut is None else np.maximum(cut, one)
+    cut = cut.drop_vars([v for v in cut.coords if v == "_eta"], errors="ignore")
+    cut.name = "reliability_cutoff"
+    cut.attrs = {"units": units, "long_name": "short reliability cutoff", "method": "tip_radius",
+                 "tip_radius": tip, "tip_factor": c}
+    return cut
+
+
+def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, reliable: bool) -> xr.DataArray:
+    """Drop (or, for lazy data-dependent cutoffs, mask) the unreliable scales of ``result``.
+
+    ``kind="q"``: keep ``q <= 2π/cutoff``; ``kind="length"``: keep ``coord >= cutoff``.
+    The cutoff and its method are stored in ``result.attrs``.
+    """
+    if not reliable:
+        result.attrs.update(reliable=0)
+        return result
+    cut = reliability_cutoff(obj)
+    method = cut.attrs["method"]
+    units = cut.attrs["units"]
+    attrs = dict(result.attrs, reliable=1, reliability_method=method, reliability_cutoff_units=units)
+    if method == "none":
+        attrs["reliability_cutoff"] = np.nan
+        result.attrs = attrs
+        return result
+    x = result[coord]
+    if cut.ndim == 0 and not _is_lazy(cut):
+        value = float(cut)
+        attrs["reliability_cutoff"] = value
+        keep = x <= 2 * np.pi / value if kind == "q" else x >= value
+        if value <= 0:
+            keep = xr.ones_like(x, dtype=bool)
+        out = result.sel({coord: keep.values})
+        out.attrs = attrs
+        return out
+    keep = (x <= 2 * np.pi / cut) | (cut <= 0) if kind == "q" else x >= cut
+    out = result.where(keep)
+    if not _is_lazy(out):
+        valid = out.notnull()
+        other = [d for d in out.dims if d != coord]
+        out = out.sel({coord: valid.any(other).values if other else valid.values})
+        attrs["reliability_cutoff"] = float(cut.max())
+    out = out.assign_coords(reliability_cutoff=cut.variable.copy(deep=False))
+    out.attrs = attrs
+    return out
+
+
+def _is_lazy(da) -> bool:
+    return da.chunks is not None

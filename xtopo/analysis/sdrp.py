@@ -1,0 +1,72 @@
+"""Scale-dependent roughness parameters (paper §4.5, eq. 9)."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .._apply import apply_lateral
+from .._kernels.scaled import sdrp_rms
+from ..conventions import X
+from ..errors import GridError, XtopoError
+from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare
+from .reliability import apply_reliability
+
+__all__ = ["sdrp"]
+
+
+def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = True) -> xr.DataArray:
+    """Scale-dependent RMS slope (``order=1``) or RMS curvature (``order=2``).
+
+    ``D^(η) h = (h(x+ηΔx) - h(x))/(ηΔx)`` (eq. 9) and
+    ``D²^(η) h = (h(x+ηΔx) - 2h(x) + h(x-ηΔx))/(ηΔx)²``; the RMS is taken over all
+    points whose stencil fits (all points for periodic data) and all profiles along
+    ``dim``. Fractional ``η`` interpolate heights linearly.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement; extra dims broadcast, dask stays lazy.
+    order : {1, 2}
+        Derivative order.
+    dim : {"x", "y"}
+        Direction of the derivative.
+    distances : array_like, optional
+        Stencil lengths ``ℓ = order·η·Δx`` in the measurement's length unit. Default:
+        10 per decade from ``order·Δx`` to ``L/2``.
+    reliable : bool
+        Drop distances below the reliability cutoff.
+
+    Returns
+    -------
+    xarray.DataArray
+        ``sdrp`` (dimensionless slope or curvature in inverse length) on coord
+        ``distance``; at ``ℓ = Δx`` (order 1) it equals RΔq, at ``ℓ = 2Δx`` (order 2) RΔ²q.
+    """
+    if order not in (1, 2):
+        raise XtopoError(f"order must be 1 or 2, got {order!r}")
+    prep = prepare(obj)
+    h, u = prep.h, prep.units
+    prep.check_dim(dim)
+    other = [d for d in prep.lat if d != dim]
+    n, dx = h.sizes[dim], prep.spacing(dim)
+    if distances is None:
+        lo, hi = order * dx, n * dx / 2
+        if hi < lo:
+            raise GridError(f"the scan is too short for sdrp(order={order}) ({n} points along {dim!r})")
+        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
+        distances = np.geomspace(lo, hi, nb)
+    distances = np.atleast_1d(np.asarray(distances, dtype=float))
+    if np.any(distances <= 0):
+        raise XtopoError("distances must be positive")
+    etas = distances / (order * dx)
+    out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
+                        output_sizes={"distance": etas.size},
+                        kwargs=dict(dx=dx, etas=etas, order=order, periodic=prep.periodic, rows=len(other)),
+                        what="sdrp")
+    out = out.assign_coords(distance=length_coord("distance", distances, u, "stencil length"))
+    if order == 1:
+        out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, "sdrp", order=1, direction=dim)
+    else:
+        out = finish(out, "sdrp", f"{u}-1", "scale-dependent RMS curvature", prep, "sdrp", order=2, direction=dim)
+    return apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)

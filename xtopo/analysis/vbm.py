@@ -1,0 +1,52 @@
+"""Variable bandwidth method (paper §4.8)."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .._apply import apply_lateral
+from .._kernels import bandwidth as _k
+from ..conventions import X
+from ._scale import finish, length_coord, prepare
+from .reliability import apply_reliability
+
+__all__ = ["vbm"]
+
+
+def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
+    """Mean tilt-corrected RMS height as a function of the bandwidth ``ℓ = L/ζ``.
+
+    The map is cut into ``ζ × ζ`` rectangles (``ζ`` segments for line scans),
+    ``ζ = 1, 2, 4, …`` while a block keeps at least ``min_pixels`` pixels per side;
+    a plane (line) is fitted and removed in every block, the RMS height computed,
+    and the mean over blocks reported.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement; extra dims broadcast, dask stays lazy.
+    min_pixels : int
+        Smallest block side in pixels.
+    reliable : bool
+        Drop bandwidths below the reliability cutoff.
+
+    Returns
+    -------
+    xarray.DataArray
+        ``vbm`` (length) on coord ``bandwidth`` (length; ``sqrt(Lx Ly)/ζ`` for area
+        scans, ``L/ζ`` for line scans), ascending, with coord ``magnification`` (ζ).
+    """
+    prep = prepare(obj)
+    h, u = prep.h, prep.units
+    sizes = [h.sizes[d] for d in prep.lat]
+    levels = _k.vbm_levels(sizes, min_pixels)
+    kwargs = dict(dx=prep.spacing(X), levels=levels, ndim=len(prep.lat))
+    out = apply_lateral(_k.vbm, h, output_core_dims=[["bandwidth"]], output_sizes={"bandwidth": levels.size},
+                        kwargs=kwargs, what="vbm")
+    length = float(np.sqrt(np.prod([prep.size(d) for d in prep.lat])))
+    out = out.assign_coords(bandwidth=length_coord("bandwidth", length / levels, u, "bandwidth"),
+                            magnification=("bandwidth", levels, {"units": "1", "long_name": "magnification ζ"}))
+    out = out.isel(bandwidth=slice(None, None, -1))
+    out = finish(out, "vbm", u, "mean tilt-corrected RMS height", prep, "vbm", min_pixels=int(min_pixels))
+    return apply_reliability(out, obj, coord="bandwidth", kind="length", reliable=reliable)
