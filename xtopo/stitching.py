@@ -14,8 +14,8 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from ._kernels.loginterp import collocation_points, interp_loglog
-from .conventions import convert_length, lateral_dims, length_factor
+from ._kernels.collocation import bin_mean, collocation_points, interp_loglog
+from .conventions import MASK, convert_length, lateral_dims, length_factor
 from .errors import XtopoError
 from .twins import measurements as _measurements
 
@@ -38,16 +38,17 @@ def _curve_coord(curve: xr.DataArray) -> str:
     return dims[0]
 
 
-def _interp(curve: xr.DataArray, coord: str, grid: np.ndarray) -> xr.DataArray:
+def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str) -> xr.DataArray:
     x = np.asarray(curve[coord].values, dtype=float)
     clean = curve.drop_vars([c for c in curve.coords if c != coord])
-    out = xr.apply_ufunc(interp_loglog, clean, input_core_dims=[[coord]], output_core_dims=[["_grid"]],
+    kernel = {"interp": interp_loglog, "bin": bin_mean}[method]
+    out = xr.apply_ufunc(kernel, clean, input_core_dims=[[coord]], output_core_dims=[["_grid"]],
                          exclude_dims={coord}, kwargs=dict(x=x, xnew=grid), dask="parallelized",
                          output_dtypes=[float], dask_gufunc_kwargs={"output_sizes": {"_grid": grid.size}})
     return out
 
 
-def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None) -> xr.Dataset:
+def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, method: str = "interp") -> xr.Dataset:
     """Average 1D curves of several measurements at common log-spaced points.
 
     Parameters
@@ -59,6 +60,10 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None) -
         Density of collocation points when ``points`` is not given.
     points : array_like, optional
         Explicit collocation points.
+    method : {"interp", "bin"}
+        ``"interp"``: log-log interpolation of each curve (smooth or sparse curves:
+        SDRP, VBM); ``"bin"``: mean of each curve's points in log bins around the
+        collocation points (dense, noisy curves: PSD, ACF; paper §4.10).
 
     Returns
     -------
@@ -78,7 +83,7 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None) -
     else:
         grid = np.asarray(points, dtype=float)
     names = list(curves)
-    per = [_interp(curves[n], coord, grid) for n in names]
+    per = [_onto(curves[n], coord, grid, method) for n in names]
     stacked = xr.concat(per, dim=xr.DataArray(names, dims="measurement", name="measurement"))
     stacked = stacked.rename({"_grid": coord}).assign_coords({coord: (coord, grid, dict(first[coord].attrs))})
     stacked.attrs = {k: v for k, v in first.attrs.items() if k in ("units", "long_name")}
@@ -88,24 +93,51 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None) -
         units=first.attrs.get("units", "1"), long_name=f"average {first.attrs.get('long_name', first.name or '')}".strip())
     count.attrs = {"units": "1", "long_name": "number of measurements contributing"}
     out = xr.Dataset({"average": average, "count": count, "curves": stacked})
-    cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else
-            xr.Variable((), c.attrs.get("reliability_cutoff", np.nan)) for c in curves.values()]
-    if any(v.ndim == 0 for v in cuts):
+    cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else xr.Variable((), np.nan)
+            for c in curves.values()]
+    if all(v.ndim == 0 for v in cuts):
+        units = next((c.coords["reliability_cutoff"].attrs.get("units") for c in curves.values()
+                      if "reliability_cutoff" in c.coords), "")
         out["reliability_cutoff"] = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").assign_attrs(
-            units=first.attrs.get("reliability_cutoff_units", ""), long_name="short reliability cutoff")
+            units=units, long_name="short reliability cutoff")
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
+                 "collocation_method": method,
                  "weighting": "equal weight per measurement over its reliable scales"}
     return out
 
 
-def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, **kw) -> dict:
+def _complete(ds: xr.Dataset) -> xr.Dataset:
+    """Measurements with missing data are filled harmonically first (paper §3.2); lazy on dask."""
+    if MASK in ds.data_vars:
+        from .preprocess import fill_missing
+
+        return fill_missing(ds)
+    return ds
+
+
+def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bool) -> xr.DataArray:
+    """Mask (never drop) the unreliable scales so every backend yields the same coordinates."""
+    if not reliable:
+        return curve
+    from .analysis.reliability import reliability_cutoff
+
+    cut = reliability_cutoff(ds)
+    x = curve[coord]
+    keep = (x <= 2 * np.pi / cut) if coord == "q" else (x >= cut)
+    out = curve.where(keep | ~(cut > 0))
+    out.attrs = dict(curve.attrs, reliable=1)
+    return out.assign_coords(reliability_cutoff=cut.variable)
+
+
+def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool, **kw) -> dict:
     ms = _measurements(tree)
     units = units or _common_units(ms)
     out = {}
     for name, ds in ms.items():
-        ds = convert_length(ds, units)
+        ds = _complete(convert_length(ds, units))
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
-        out[name] = func(ds, **extra, **kw)
+        curve = func(ds, **extra, **kw, reliable=False)
+        out[name] = _reliable_part(curve, ds, _curve_coord(curve), reliable)
     return out
 
 
@@ -126,7 +158,7 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
     else:
         curves = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, window=window,
                                   reliable=reliable)
-    return average_curves(curves, per_decade=per_decade)
+    return average_curves(curves, per_decade=per_decade, method="bin")
 
 
 def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True) -> xr.Dataset:
@@ -134,7 +166,7 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     from .analysis.acf import acf
 
     curves = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable=reliable)
-    return average_curves(curves, per_decade=per_decade)
+    return average_curves(curves, per_decade=per_decade, method="bin")
 
 
 def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True) -> xr.Dataset:
@@ -164,8 +196,9 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     grid = collocation_points(lo, hi, per_decade)
     curves = {}
     for name, ds in ms.items():
-        ds = convert_length(ds, units)
+        ds = _complete(convert_length(ds, units))
         x = np.asarray(ds["x"].values, dtype=float)
         mine = grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9)) & (grid <= (x[-1] - x[0]) / 2)]
-        curves[name] = sdrp(ds, order, dim="x", distances=mine, reliable=reliable)
+        curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
+                                      reliable)
     return average_curves(curves, points=grid)

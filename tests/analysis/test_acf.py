@@ -5,7 +5,7 @@ import xarray as xr
 import xtopo
 from xtopo.datasets import fractal_surface
 
-from conftest import batch
+from ..conftest import batch
 
 
 def _direct_1d(h, periodic):

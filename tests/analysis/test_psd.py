@@ -6,7 +6,7 @@ import xtopo
 from xtopo.datasets import fractal_surface, prescribed_psd
 from xtopo.errors import ChunkError, GridError, XtopoError
 
-from conftest import batch
+from ..conftest import batch
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import xtopo
 from xtopo.datasets import fractal_surface
 from xtopo.errors import ChunkError
 
-from conftest import batch
+from ..conftest import batch
 
 
 def _tilt_corrected_sq(h):

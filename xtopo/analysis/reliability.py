@@ -139,9 +139,10 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
     if cut.ndim == 0 and not _is_lazy(cut):
         value = float(cut)
         attrs["reliability_cutoff"] = value
-        keep = x <= 2 * np.pi / value if kind == "q" else x >= value
-        if value <= 0:
+        if value <= 0:  # no scale is unreliable
             keep = xr.ones_like(x, dtype=bool)
+        else:
+            keep = x <= 2 * np.pi / value if kind == "q" else x >= value
         out = result.sel({coord: keep.values})
         out.attrs = attrs
         return out

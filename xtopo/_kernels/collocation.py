@@ -1,10 +1,11 @@
-"""Interpolation of positive curves in log-log space onto collocation points."""
+"""Putting curves of several measurements onto common log-spaced collocation points:
+log-log interpolation (smooth, sparse curves) and log-bin averaging (dense, noisy curves)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["interp_loglog", "collocation_points"]
+__all__ = ["interp_loglog", "collocation_points", "bin_mean"]
 
 
 def collocation_points(lo: float, hi: float, per_decade: int) -> np.ndarray:
@@ -42,3 +43,28 @@ def interp_loglog(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
         inside = (lxn >= lx[0] - 1e-12) & (lxn <= lx[-1] + 1e-12)
         flat_o[i, inside] = np.exp(np.interp(lxn[inside], lx, ly))
     return out
+
+
+def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
+    """Mean of ``y[..., n]`` (at abscissae ``x[n]``) over log bins centred on ``xnew``.
+
+    Bin edges lie at the geometric midpoints between the points of ``xnew`` (and half a bin
+    beyond the first and last). NaN samples are ignored; empty bins are NaN.
+    """
+    y = np.asarray(y, dtype=float)
+    x = np.asarray(x, dtype=float)
+    centers = np.asarray(xnew, dtype=float)
+    lc = np.log(centers)
+    half = (lc[1] - lc[0]) / 2 if lc.size > 1 else 0.5
+    edges = np.exp(np.concatenate([[lc[0] - half], (lc[1:] + lc[:-1]) / 2, [lc[-1] + half]]))
+    idx = np.searchsorted(edges, x, side="right") - 1
+    nb = centers.size
+    idx = np.where((idx >= 0) & (idx < nb) & (x > 0), idx, nb)
+    flat = y.reshape(-1, y.shape[-1])
+    out = np.full((flat.shape[0], nb), np.nan)
+    for i, row in enumerate(flat):
+        ok = np.isfinite(row)
+        counts = np.bincount(idx[ok], minlength=nb + 1)[:nb]
+        sums = np.bincount(idx[ok], weights=row[ok], minlength=nb + 1)[:nb]
+        out[i, counts > 0] = sums[counts > 0] / counts[counts > 0]
+    return out.reshape(y.shape[:-1] + (nb,))
