@@ -12,7 +12,7 @@ def test_analyze_example_twin_prints_table_and_writes_netcdf(tmp_path, capsys, m
     monkeypatch.chdir(tmp_path)
     assert main(["analyze"]) == 0
     out = capsys.readouterr().out
-    assert "example twin" in out and "afm-5um" in out and "Sq/Rq" in out
+    assert "example twin" in out and "afm-5um" in out and "Sq/Rq" in out and "psd   average" in out
     import xarray as xr
 
     ds = xr.open_dataset(tmp_path / "xtopo-analysis.nc")
@@ -20,6 +20,10 @@ def test_analyze_example_twin_prints_table_and_writes_netcdf(tmp_path, capsys, m
     assert ds.rms_height.attrs["units"] == "m"
     assert np.all(np.isfinite(ds.rms_slope.values))
     ds.close()
+    tree = xr.open_datatree(tmp_path / "xtopo-analysis.nc")
+    assert set(tree.children) == {"psd", "acf", "vbm", "sdrp"}
+    assert tree["psd"]["average"].attrs["units"] == "m3"
+    assert int(tree["psd"]["count"].max()) >= 2
 
 
 def test_analyze_files_reports_bad_file_and_keeps_good(tmp_path, capsys):

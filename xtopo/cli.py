@@ -29,8 +29,10 @@ def _load_measurements(files, args):
 
 
 def _cmd_analyze(args) -> int:
-    from .io.netcdf import to_netcdf
-    from .summary import format_table, summary_table
+    from .stitching import analyze_twin
+    from .summary import format_table
+    from .io.netcdf import tree_to_netcdf
+    from .twins import twin
 
     measurements, what, failed = _load_measurements(args.files, args)
     for f, exc in failed:
@@ -38,11 +40,18 @@ def _cmd_analyze(args) -> int:
     if not measurements:
         print("xtopo: error: no measurement could be read", file=sys.stderr)
         return 2
-    table = summary_table(measurements)
+    results = analyze_twin(twin(measurements))
     print(f"xtopo analyze: {len(measurements)} measurements ({what})\n")
-    print(format_table(table))
-    to_netcdf(table, args.output)
-    print(f"\nwrote {args.output}")
+    print(format_table(results.to_dataset()))
+    for name in ("psd", "acf", "vbm", "sdrp"):
+        r = results[name].to_dataset()
+        coord = r.average.dims[0]
+        ok = r["count"] > 0
+        lo, hi = float(r[coord].where(ok).min()), float(r[coord].where(ok).max())
+        print(f"{name:5s} average over {int(r['count'].max())} measurements at {int(ok.sum())} points, "
+              f"{coord} from {lo:.3g} to {hi:.3g} {r[coord].attrs.get('units', '')}")
+    tree_to_netcdf(results, args.output)
+    print(f"\nwrote {args.output} (groups: summary at the root, psd, acf, vbm, sdrp)")
     return 1 if failed else 0
 
 

@@ -202,3 +202,21 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
         curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
                                       reliable)
     return average_curves(curves, points=grid)
+
+
+def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:
+    """The main job: per-measurement summary and the four averaged curves of a twin.
+
+    Returns
+    -------
+    xarray.DataTree
+        Root: the summary table (scalars per measurement); groups ``psd``, ``acf``,
+        ``vbm``, ``sdrp`` with the averages, counts and per-measurement curves (computed).
+    """
+    from .summary import summary_table
+
+    ms = _measurements(tree)
+    results = {"/": summary_table(ms).assign_attrs({**tree.attrs, "title": tree.attrs.get("title", "twin analysis")})}
+    for name, func in (("psd", twin_psd), ("acf", twin_acf), ("vbm", twin_vbm), ("sdrp", twin_sdrp)):
+        results[f"/{name}"] = func(tree, per_decade=per_decade).compute()
+    return xr.DataTree.from_dict(results)

@@ -14,7 +14,7 @@ import xarray as xr
 
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import XtopoError
-from .io.netcdf import atomic_write, check_engine, prepare_for_netcdf, read_netcdf
+from .io.netcdf import read_netcdf, tree_to_netcdf
 
 __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
 
@@ -101,8 +101,8 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     -------
     str
     """
-    engine = check_engine(engine)
-    groups = {"/": prepare_for_netcdf(tree.to_dataset())}
+    root = tree.to_dataset(inherit=False)
+    nodes = {}
     sums = []
     for name, ds in measurements(tree).items():
         ds = ds.copy(deep=False)
@@ -110,11 +110,10 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
             sums.append(f"{name}: {ds.attrs['source_sha256']}")
         elif not checksums:
             ds.attrs.pop("source_sha256", None)
-        groups[f"/{name}"] = prepare_for_netcdf(ds, provenance=False)
+        nodes[f"/{name}"] = ds
     if sums:
-        groups["/"].attrs["source_checksums"] = "\n".join(sums)
-    out = xr.DataTree.from_dict(groups)
-    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine))
+        root.attrs["source_checksums"] = "\n".join(sums)
+    return tree_to_netcdf(xr.DataTree.from_dict({"/": root, **nodes}), path, engine)
 
 
 def open_twin(path, engine: str | None = None) -> xr.DataTree:

@@ -19,7 +19,7 @@ from .._version import __version__
 from ..conventions import CONVENTIONS
 from ..errors import ReaderError, XtopoError
 
-__all__ = ["to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
+__all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
            "ENGINES"]
 
 ENGINES = ("netcdf4", "h5netcdf")
@@ -163,6 +163,15 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
         val = True if engine == "netcdf4" else "gzip"
         encoding = {v: {key: val} for v in out.data_vars if out[v].dtype.kind == "f"}
     return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine, encoding=encoding))
+
+
+def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
+    """Write every node of a DataTree as a NetCDF group (atomically); provenance on the root only."""
+    engine = check_engine(engine)
+    groups = {node.path: prepare_for_netcdf(node.to_dataset(inherit=False), provenance=node.is_root)
+              for node in tree.subtree}
+    out = xr.DataTree.from_dict(groups)
+    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine))
 
 
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
