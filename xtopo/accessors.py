@@ -14,6 +14,7 @@ from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
 from .io import netcdf as _netcdf
+from . import plot as _plot
 from . import twins as _twin
 
 
@@ -37,6 +38,9 @@ class _TopoAccessor:
     scalars = _delegate(_scalars.scalars)
     distribution = _delegate(_distribution.distribution)
     to_netcdf = _delegate(_netcdf.to_netcdf)
+
+    # figures (issue 8)
+    plot = _delegate(_plot.plot)
 
     @property
     def height(self):
@@ -74,3 +78,6 @@ class TopoTreeAccessor:
 
     to_netcdf = _delegate(_twin.to_netcdf)
     measurements = _delegate(_twin.measurements)
+
+    # figures (issue 8)
+    plot = _delegate(_plot.plot)
