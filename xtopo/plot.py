@@ -165,6 +165,13 @@ def downsample(da: xr.DataArray, max_pixels: int = MAX_PIXELS) -> xr.DataArray:
     return out
 
 
+def _frame(x, y) -> dict:
+    """Bokeh frame size of an image with equal scales on both axes (aspect clipped to 1:4..4:1)."""
+    width = _WIDTH - 120
+    ratio = (np.ptp(y) / np.ptp(x)) if np.size(x) > 1 and np.size(y) > 1 and np.ptp(x) > 0 else 1.0
+    return dict(frame_width=width, frame_height=int(round(width * float(np.clip(ratio, 0.25, 4.0)))))
+
+
 def _values(da: xr.DataArray) -> np.ndarray:
     return np.asarray(da.values)
 
@@ -243,8 +250,9 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
     if len(lat) == 2:
         el = hv.Image((coords[X], coords[Y], z.astype(np.float32)), kdims=[dims[X], dims[Y]], vdims=[vdim],
                       label="").relabel(group="Topography" if name == "height" else "Map")
-        el = _style(el, common=dict(cmap=cmap, colorbar=True, title=label, aspect="equal"),
-                    bokeh=dict(frame_width=_WIDTH - 120, tools=["hover"]), matplotlib=dict(fig_inches=5))
+        el = _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
+                    bokeh=dict(tools=["hover"], **_frame(coords[X], coords[Y])),
+                    matplotlib=dict(fig_inches=5, aspect="equal"))
     else:
         el = hv.Curve((coords[X], z), kdims=[dims[X]], vdims=[vdim])
         el = _style(el, common=dict(title=label, color="#1f77b4"),
@@ -263,8 +271,8 @@ def spectrum_map(da: xr.DataArray, *, max_pixels: int = MAX_PIXELS, cmap: str = 
     ky = _dimension("q_y", small["q_y"].attrs)
     vdim = _dimension(str(da.name or "psd"), da.attrs)
     el = hv.Image((small["q_x"].values, small["q_y"].values, z), kdims=[kx, ky], vdims=[vdim])
-    return _style(el, common=dict(cmap=cmap, colorbar=True, logz=True, title=_title(da, title), aspect="equal"),
-                  bokeh=dict(frame_width=_WIDTH - 120), matplotlib=dict(fig_inches=5))
+    return _style(el, common=dict(cmap=cmap, colorbar=True, logz=True, title=_title(da, title)),
+                  bokeh=_frame(small["q_x"].values, small["q_y"].values), matplotlib=dict(fig_inches=5, aspect="equal"))
 
 
 # --------------------------------------------------------------------------- curves
