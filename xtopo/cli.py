@@ -43,6 +43,25 @@ def _cmd_analyze(args) -> int:
     print(format_table(table))
     to_netcdf(table, args.output)
     print(f"\nwrote {args.output}")
+    if args.report:
+        from .report import report
+
+        report(measurements, args.report, title=f"xtopo analysis: {what}")
+        print(f"wrote {args.report}")
+    return 1 if failed else 0
+
+
+def _cmd_report(args) -> int:
+    from .report import report
+
+    measurements, what, failed = _load_measurements(args.files, args)
+    for f, exc in failed:
+        print(f"xtopo: error: {exc}", file=sys.stderr)
+    if not measurements:
+        print("xtopo: error: no measurement could be read", file=sys.stderr)
+        return 2
+    report(measurements, args.output, title=args.title or f"xtopo report: {what}")
+    print(f"wrote {args.output} ({len(measurements)} measurements, {what})")
     return 1 if failed else 0
 
 
@@ -57,7 +76,16 @@ def build_parser() -> argparse.ArgumentParser:
                                    "given), print a summary table and write the results to NetCDF.")
     p.add_argument("files", nargs="*", help="measurement files (any supported format)")
     p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
+    p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
     p.set_defaults(func=_cmd_analyze)
+    r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
+                       description="Read measurement files (or use the built-in example twin), and write one "
+                                   "HTML page with the summary table, the stitched PSD/ACF/VBM/curvature "
+                                   "averages and a map of every measurement. Opens offline in any browser.")
+    r.add_argument("files", nargs="*", help="measurement files (any supported format)")
+    r.add_argument("-o", "--output", default="xtopo-report.html", help="output HTML file (default: %(default)s)")
+    r.add_argument("--title", help="page title")
+    r.set_defaults(func=_cmd_report)
     return parser
 
 

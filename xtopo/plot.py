@@ -322,7 +322,9 @@ def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
                       common=common, bokeh=dict(line_width=line_width), matplotlib=dict(linewidth=line_width)))
     if unreliable.any():
         # overlap by one point so the dashed part joins the solid one
-        edge = unreliable | np.roll(unreliable, 1) | np.roll(unreliable, -1)
+        edge = unreliable.copy()
+        edge[1:] |= unreliable[:-1]
+        edge[:-1] |= unreliable[1:]
         dashed = np.where(edge, y, np.nan)
         out.append(_style(hv.Curve((x, dashed), kdims=[xdim], vdims=[ydim], label=f"{label} (unreliable)"),
                           common=common, bokeh=dict(line_width=line_width, line_dash="dashed"),
