@@ -251,12 +251,13 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
         el = hv.Image((coords[X], coords[Y], z.astype(np.float32)), kdims=[dims[X], dims[Y]], vdims=[vdim],
                       label="").relabel(group="Topography" if name == "height" else "Map")
         el = _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
-                    bokeh=dict(tools=["hover"], **_frame(coords[X], coords[Y])),
+                    bokeh=dict(tools=["hover"], toolbar="above", **_frame(coords[X], coords[Y])),
                     matplotlib=dict(fig_inches=5, aspect="equal"))
     else:
         el = hv.Curve((coords[X], z), kdims=[dims[X]], vdims=[vdim])
         el = _style(el, common=dict(title=label, color="#1f77b4"),
-                    bokeh=dict(width=_WIDTH, height=_HEIGHT - 80, line_width=1, tools=["hover"]),
+                    bokeh=dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 150, line_width=1, tools=["hover"],
+                               toolbar="above"),
                     matplotlib=dict(linewidth=1, aspect=1.8))
     return el
 
@@ -332,10 +333,13 @@ def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
     return out
 
 
-def _axes_opts(title, logx=True, logy=True):
-    return dict(common=dict(logx=logx, logy=logy, title=title, show_grid=True),
-                bokeh=dict(width=_WIDTH, height=_HEIGHT, legend_position="bottom_left", tools=["hover"]),
-                matplotlib=dict(aspect=1.3, legend_position="bottom_left"))
+def _axes_opts(title, logx=True, logy=True, legend_outside=False):
+    bokeh = dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 90, legend_position="bottom_left", tools=["hover"],
+                 toolbar="above")
+    if legend_outside:  # many entries (a twin): legend beside the axes, not over the curves
+        bokeh.update(legend_position="right")
+    return dict(common=dict(logx=logx, logy=logy, title=title, show_grid=True), bokeh=bokeh,
+                matplotlib=dict(aspect=1.3, legend_position="right" if legend_outside else "bottom_left"))
 
 
 def curve(da: xr.DataArray, *, cutoff=None, title: str | None = None, label: str | None = None,
@@ -428,7 +432,7 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
     elements.append(_style(hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label="average"),
                            common=dict(color="black"), bokeh=dict(line_width=4), matplotlib=dict(linewidth=4)))
     long_name = ds["average"].attrs.get("long_name") or curves.attrs.get("long_name") or yname
-    return _style(hv.Overlay(elements), **_axes_opts(title or long_name))
+    return _style(hv.Overlay(elements), **_axes_opts(title or long_name, legend_outside=len(elements) > 4))
 
 
 # --------------------------------------------------------------------------- contact

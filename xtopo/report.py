@@ -97,8 +97,16 @@ def _html_page(title: str, blocks: list) -> str:
     from bokeh.models import Div
     from bokeh.resources import INLINE
 
+    from bokeh.core.validation import silence
+    from bokeh.core.validation.warnings import FIXED_SIZING_MODE
+
     children = [Div(text=b, sizing_mode="stretch_width") if isinstance(b, str) else b for b in blocks]
-    return file_html(column(children), resources=INLINE, title=title)
+    # HoloViews sizes figures by their frame (frame_width/height), which bokeh's check does not count
+    silence(FIXED_SIZING_MODE, True)
+    try:
+        return file_html(column(children), resources=INLINE, title=title)
+    finally:
+        silence(FIXED_SIZING_MODE, False)
 
 
 def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
@@ -161,11 +169,11 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
         blocks.append("<h2>Twin averages</h2><p>Coloured: individual measurements over their reliable scales; "
                       "black: the average at common collocation points.</p>" + "".join(errors))
         if figures:
-            blocks.append(gridplot(figures, ncols=2, merge_tools=False))
+            blocks.append(gridplot(figures, ncols=2, merge_tools=False, toolbar_location=None))
     if maps:
         panels = [hv.render(_plot.topography(ds, max_pixels=max_pixels, title=labels.get(name, name)),
                             backend="bokeh") for name, ds in ms.items()]
-        blocks += ["<h2>Topography</h2>", gridplot(panels, ncols=3, merge_tools=False)]
+        blocks += ["<h2>Topography</h2>", gridplot(panels, ncols=3, merge_tools=False, toolbar_location=None)]
     page = _html_page(title, blocks)
     if path is None:
         return page
