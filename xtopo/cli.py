@@ -60,7 +60,8 @@ def _cmd_report(args) -> int:
     if not measurements:
         print("xtopo: error: no measurement could be read", file=sys.stderr)
         return 2
-    report(measurements, args.output, title=args.title or f"xtopo report: {what}")
+    analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
+    report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses)
     print(f"wrote {args.output} ({len(measurements)} measurements, {what})")
     return 1 if failed else 0
 
@@ -85,6 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("files", nargs="*", help="measurement files (any supported format)")
     r.add_argument("-o", "--output", default="xtopo-report.html", help="output HTML file (default: %(default)s)")
     r.add_argument("--title", help="page title")
+    r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
+                   help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
     r.set_defaults(func=_cmd_report)
     return parser
 

@@ -91,22 +91,30 @@ def _labels(table: xr.Dataset) -> dict:
 
 
 def _html_page(title: str, blocks: list) -> str:
-    """Assemble bokeh models and HTML snippets (strings) into one standalone page."""
-    from bokeh.embed import file_html
-    from bokeh.layouts import column
-    from bokeh.models import Div
-    from bokeh.resources import INLINE
+    """One standalone page from HTML snippets (str) and bokeh models, bokeh JS/CSS inline.
 
+    Text and tables are plain HTML (readable without JavaScript); each bokeh model
+    gets a ``<div>`` filled by the one embedded script at the end of the page.
+    """
     from bokeh.core.validation import silence
     from bokeh.core.validation.warnings import FIXED_SIZING_MODE
+    from bokeh.embed import components
+    from bokeh.embed.bundle import bundle_for_objs_and_resources
+    from bokeh.resources import INLINE
 
-    children = [Div(text=b, sizing_mode="stretch_width") if isinstance(b, str) else b for b in blocks]
+    models = [b for b in blocks if not isinstance(b, str)]
     # HoloViews sizes figures by their frame (frame_width/height), which bokeh's check does not count
     silence(FIXED_SIZING_MODE, True)
     try:
-        return file_html(column(children), resources=INLINE, title=title)
+        script, divs = components(models) if models else ("", ())
+        js, css = bundle_for_objs_and_resources(models, INLINE) if models else ("", "")  # only the bundles used
     finally:
         silence(FIXED_SIZING_MODE, False)
+    divs = iter(divs)
+    body = "\n".join(b if isinstance(b, str) else next(divs) for b in blocks)
+    return (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n<title>{html.escape(title)}</title>\n'
+            f"{css}\n{js}\n<style>{_CSS}</style>\n</head>\n<body>\n{body}\n"
+            f"{script}\n</body>\n</html>\n")
 
 
 def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
@@ -152,7 +160,7 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     table = summary_table(ms)
     labels = _labels(table)
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    blocks = [f"<style>{_CSS}</style><h1>{html.escape(title)}</h1>"
+    blocks = [f"<h1>{html.escape(title)}</h1>"
               f'<p class="meta">{len(ms)} measurement(s) · xtopo {html.escape(__version__)} · {stamp}</p>',
               "<h2>Measurements</h2>" + _table_html(table)]
     figures, errors = [], []
