@@ -81,7 +81,7 @@ def test_report_has_the_four_stitched_plots():
     page = report(_twin(), maps=False)
     for title in ("power spectral density", "autocorrelation", "variable-bandwidth", "curvature"):
         assert title in page
-    assert "not available" not in page
+    assert "class=\"error\"" not in page
     assert page.count("average") >= 4
 
 
