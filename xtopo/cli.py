@@ -28,15 +28,22 @@ def _load_measurements(files, args):
     return out, f"{len(files)} file(s)", failed
 
 
-def _cmd_analyze(args) -> int:
-    from .io.netcdf import to_netcdf
-    from .summary import format_table, summary_table
-
+def _read_inputs(args):
+    """The measurements of ``args.files`` (or the example twin); read errors are printed."""
     measurements, what, failed = _load_measurements(args.files, args)
     for f, exc in failed:
         print(f"xtopo: error: {exc}", file=sys.stderr)
     if not measurements:
         print("xtopo: error: no measurement could be read", file=sys.stderr)
+    return measurements, what, failed
+
+
+def _cmd_analyze(args) -> int:
+    from .io.netcdf import to_netcdf
+    from .summary import format_table, summary_table
+
+    measurements, what, failed = _read_inputs(args)
+    if not measurements:
         return 2
     table = summary_table(measurements)
     print(f"xtopo analyze: {len(measurements)} measurements ({what})\n")
@@ -54,11 +61,8 @@ def _cmd_analyze(args) -> int:
 def _cmd_report(args) -> int:
     from .report import report
 
-    measurements, what, failed = _load_measurements(args.files, args)
-    for f, exc in failed:
-        print(f"xtopo: error: {exc}", file=sys.stderr)
+    measurements, what, failed = _read_inputs(args)
     if not measurements:
-        print("xtopo: error: no measurement could be read", file=sys.stderr)
         return 2
     analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
     report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses)
