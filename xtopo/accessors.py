@@ -22,6 +22,7 @@ from .analysis import sdrp as _sdrp
 from .analysis import vbm as _vbm
 from .io import netcdf as _netcdf
 from . import stitching as _stitching
+from . import plot as _plot
 from . import twins as _twin
 from .io.formats import st_netcdf as _st_netcdf
 
@@ -58,6 +59,8 @@ class _TopoAccessor:
     sdrp = _delegate(_sdrp.sdrp)
     reliability_cutoff = _delegate(_reliability.reliability_cutoff)
     hurst = _delegate(_hurst.hurst)
+    # figures (issue 8)
+    plot = _delegate(_plot.plot)
 
     @property
     def height(self):
@@ -100,3 +103,6 @@ class TopoTreeAccessor:
     acf = _delegate(_stitching.twin_acf)
     vbm = _delegate(_stitching.twin_vbm)
     sdrp = _delegate(_stitching.twin_sdrp)
+
+    # figures (issue 8)
+    plot = _delegate(_plot.plot)

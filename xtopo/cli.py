@@ -28,17 +28,24 @@ def _load_measurements(files, args):
     return out, f"{len(files)} file(s)", failed
 
 
-def _cmd_analyze(args) -> int:
-    from .stitching import analyze_twin
-    from .summary import format_table
-    from .io.netcdf import tree_to_netcdf
-    from .twins import twin
-
+def _read_inputs(args):
+    """The measurements of ``args.files`` (or the example twin); read errors are printed."""
     measurements, what, failed = _load_measurements(args.files, args)
     for f, exc in failed:
         print(f"xtopo: error: {exc}", file=sys.stderr)
     if not measurements:
         print("xtopo: error: no measurement could be read", file=sys.stderr)
+    return measurements, what, failed
+
+
+def _cmd_analyze(args) -> int:
+    from .io.netcdf import tree_to_netcdf
+    from .stitching import analyze_twin
+    from .summary import format_table
+    from .twins import twin
+
+    measurements, what, failed = _read_inputs(args)
+    if not measurements:
         return 2
     results = analyze_twin(twin(measurements))
     print(f"xtopo analyze: {len(measurements)} measurements ({what})\n")
@@ -52,6 +59,23 @@ def _cmd_analyze(args) -> int:
               f"{coord} from {lo:.3g} to {hi:.3g} {r[coord].attrs.get('units', '')}")
     tree_to_netcdf(results, args.output)
     print(f"\nwrote {args.output} (groups: summary at the root, psd, acf, vbm, sdrp)")
+    if args.report:
+        from .report import report
+
+        report(measurements, args.report, title=f"xtopo analysis: {what}")
+        print(f"wrote {args.report}")
+    return 1 if failed else 0
+
+
+def _cmd_report(args) -> int:
+    from .report import report
+
+    measurements, what, failed = _read_inputs(args)
+    if not measurements:
+        return 2
+    analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
+    report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses)
+    print(f"wrote {args.output} ({len(measurements)} measurements, {what})")
     return 1 if failed else 0
 
 
@@ -66,7 +90,18 @@ def build_parser() -> argparse.ArgumentParser:
                                    "given), print a summary table and write the results to NetCDF.")
     p.add_argument("files", nargs="*", help="measurement files (any supported format)")
     p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
+    p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
     p.set_defaults(func=_cmd_analyze)
+    r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
+                       description="Read measurement files (or use the built-in example twin), and write one "
+                                   "HTML page with the summary table, the stitched PSD/ACF/VBM/curvature "
+                                   "averages and a map of every measurement. Opens offline in any browser.")
+    r.add_argument("files", nargs="*", help="measurement files (any supported format)")
+    r.add_argument("-o", "--output", default="xtopo-report.html", help="output HTML file (default: %(default)s)")
+    r.add_argument("--title", help="page title")
+    r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
+                   help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
+    r.set_defaults(func=_cmd_report)
     return parser
 
 

@@ -8,7 +8,7 @@ import xarray as xr
 from .analysis.scalars import scalars
 from .conventions import HEIGHT, MASK, convert_length, is_nonuniform, physical_size
 
-__all__ = ["summary_table", "format_table"]
+__all__ = ["summary_table", "format_table", "table_rows"]
 
 _COLUMNS = (
     ("kind", "kind", None),
@@ -84,8 +84,8 @@ def _fmt_len(v: float) -> str:
     return f"{v / 1e-12:.3g} pm"
 
 
-def format_table(table: xr.Dataset) -> str:
-    """A plain-text table of :func:`summary_table` for the terminal."""
+def table_rows(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
+    """Header and formatted cells of :func:`summary_table` (lengths in readable units)."""
     header = ["measurement", "kind", "size", "grid", "tip radius", "missing", "Sq/Rq", "SΔq/RΔq", "SΔ²q/RΔ²q"]
     lines = []
     for i in range(table.sizes["measurement"]):
@@ -98,6 +98,12 @@ def format_table(table: xr.Dataset) -> str:
         lines.append([str(t.measurement.item()), str(t.kind.item()), size, grid, _fmt_len(float(t.tip_radius)),
                       f"{float(t.missing_percent):.1f} %", _fmt_len(float(t.rms_height)),
                       f"{float(t.rms_slope):.3g}", f"{float(t.rms_curvature):.3g} m⁻¹"])
+    return header, lines
+
+
+def format_table(table: xr.Dataset) -> str:
+    """A plain-text table of :func:`summary_table` for the terminal."""
+    header, lines = table_rows(table)
     widths = [max(len(r[k]) for r in [header] + lines) for k in range(len(header))]
     fmt = "  ".join(f"{{:<{w}}}" for w in widths)
     out = [fmt.format(*header), fmt.format(*["-" * w for w in widths])]

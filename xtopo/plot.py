@@ -1,0 +1,600 @@
+"""HoloViews figures of measurements, analysis results, twin averages and contact results.
+
+Every function returns a HoloViews object that renders with the bokeh and the
+matplotlib backend (``hv.render(obj, backend=...)``, or displayed in Jupyter after
+``hv.extension("bokeh")``). HoloViews is imported on first use, not with xtopo.
+
+* :func:`topography` — height map (image with colorbar) or profile of a measurement,
+  also any other map on ``(y, x)`` (pressure, gap, contact);
+* :func:`curve` — a scale-dependent result (PSD, ACF, VBM, SDRP) on log-log axes,
+  unreliable scales omitted (NaN) or dashed (when a cutoff is known and the points are present);
+* :func:`spectrum_map` — a 2D PSD on ``(q_y, q_x)`` with a logarithmic colour scale;
+* :func:`twin_curves` — a twin average: each measurement coloured, the average thick black;
+* :func:`contact_area` — relative contact area against mean pressure, unconverged
+  points translucent; :func:`contact_maps` — pressure, gap and contact maps;
+* :func:`measurement_maps` — one panel per measurement of a twin;
+* :func:`plot` — dispatches on what the object holds (used by ``.topo.plot()``).
+
+Large maps are block-averaged to at most ``max_pixels`` per side before they are
+handed to HoloViews, so a notebook or report never carries a full-resolution map.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
+from .errors import UnitsError, XtopoError
+
+__all__ = ["plot", "topography", "curve", "spectrum_map", "twin_curves", "contact_area", "contact_maps",
+           "measurement_maps", "downsample", "unit_label", "PALETTE"]
+
+#: coordinate names of scale-dependent curves and whether the scale is a wavevector
+CURVE_COORDS = {"q": "wavevector", "distance": "length", "bandwidth": "length"}
+#: colours of individual measurements (Category10); the average is black
+PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+           "#bcbd22", "#17becf")
+#: default largest number of pixels per side of a map sent to the browser
+MAX_PIXELS = 512
+#: default largest number of points of a profile sent to the browser
+MAX_POINTS = 8192
+
+_WIDTH, _HEIGHT = 460, 360
+_DISPLAY_UNITS = ("m", "mm", "um", "nm", "pm")
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+# --------------------------------------------------------------------------- helpers
+
+def _hv():
+    """Import HoloViews with the bokeh (and, when available, matplotlib) plotting backends.
+
+    Importing a plotting backend does not change a backend the user already selected
+    with ``hv.extension``.
+    """
+    import holoviews as hv
+
+    current = hv.Store.current_backend if hv.Store.renderers else None
+    import holoviews.plotting.bokeh  # noqa: F401
+    try:
+        import holoviews.plotting.mpl  # noqa: F401
+    except ImportError:  # pragma: no cover - matplotlib is optional
+        pass
+    if current is not None:
+        hv.Store.set_current_backend(current)
+    return hv
+
+
+def _style(element, *, common=None, bokeh=None, matplotlib=None):
+    """Apply options per backend (only to the backends that are loaded)."""
+    hv = _hv()
+    common = common or {}
+    element = element.opts(**common, **(bokeh or {}), backend="bokeh")
+    if "matplotlib" in hv.Store.renderers:
+        element = element.opts(**common, **(matplotlib or {}), backend="matplotlib")
+    return element
+
+
+def unit_label(units) -> str:
+    """Readable form of a UDUNITS string: ``"um"`` → ``"µm"``, ``"m-1"`` → ``"m⁻¹"``, ``"m3"`` → ``"m³"``."""
+    if units is None:
+        return ""
+    u = str(units).strip()
+    if u == "1":
+        return ""
+    u = re.sub(r"\bu(?=m)", "µ", u)
+    return re.sub(r"(?<=[A-Za-zµ*])(-?\d+)", lambda m: m.group(1).translate(_SUPERSCRIPT), u)
+
+
+def _dimension(name: str, attrs: dict, label: str | None = None, units: str | None = None):
+    hv = _hv()
+    label = label or attrs.get("long_name") or name
+    unit = unit_label(units if units is not None else attrs.get("units"))
+    return hv.Dimension(name, label=str(label), unit=unit or None)
+
+
+def _is_length(units) -> bool:
+    try:
+        normalize_units(units)
+    except UnitsError:
+        return False
+    return True
+
+
+def _display_unit(units: str, magnitude: float) -> str:
+    """The largest of m, mm, µm, nm, pm in which ``magnitude`` (given in ``units``) is at least 1."""
+    if not (np.isfinite(magnitude) and magnitude > 0):
+        return normalize_units(units)
+    in_m = magnitude * length_factor(units, "m")
+    for u in _DISPLAY_UNITS:
+        if in_m >= length_factor(u, "m") * (1 - 1e-9):
+            return u
+    return _DISPLAY_UNITS[-1]
+
+
+def _rescaled(values: np.ndarray, units, magnitude: float):
+    """``values`` converted to a readable length unit (unchanged when ``units`` is not a length)."""
+    if not _is_length(units):
+        return values, units
+    to = _display_unit(units, magnitude)
+    return values * length_factor(units, to), to
+
+
+def _title(obj, title):
+    if title is not None:
+        return str(title)
+    a = obj.attrs
+    return str(a.get("title") or a.get("instrument") or a.get("long_name") or getattr(obj, "name", "") or "")
+
+
+def _quiet_mean(obj, dims: dict):
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return obj.coarsen(dims, boundary="trim").mean(keep_attrs=True)
+
+
+def downsample(da: xr.DataArray, max_pixels: int = MAX_PIXELS) -> xr.DataArray:
+    """Block-average ``da`` so that no lateral dimension exceeds ``max_pixels`` points.
+
+    Boolean maps become fractions (e.g. the fraction of a block in contact). Dask
+    arrays are reduced lazily and only the reduced array is computed by the caller.
+
+    Parameters
+    ----------
+    da : xarray.DataArray
+        A map on ``(y, x)`` or a profile on ``x`` (other dims are kept).
+    max_pixels : int
+        Largest number of points per lateral dimension.
+    """
+    if max_pixels < 1:
+        raise XtopoError(f"max_pixels must be a positive integer, got {max_pixels}")
+    factors = {d: math.ceil(da.sizes[d] / max_pixels) for d in LATERAL_DIMS if d in da.dims}
+    factors = {d: f for d, f in factors.items() if f > 1}
+    if da.dtype == bool:
+        da = da.astype(float).assign_attrs(da.attrs)
+    if not factors:
+        return da
+    out = _quiet_mean(da, factors)
+    out.name = da.name
+    out.attrs = dict(da.attrs, downsampled=f"block mean over {factors}")
+    return out
+
+
+def _frame(x, y) -> dict:
+    """Bokeh frame size of an image with equal scales on both axes (aspect clipped to 1:4..4:1)."""
+    width = _WIDTH - 120
+    ratio = (np.ptp(y) / np.ptp(x)) if np.size(x) > 1 and np.size(y) > 1 and np.ptp(x) > 0 else 1.0
+    return dict(frame_width=width, frame_height=int(round(width * float(np.clip(ratio, 0.25, 4.0)))))
+
+
+def _values(da: xr.DataArray) -> np.ndarray:
+    return np.asarray(da.values)
+
+
+# --------------------------------------------------------------------------- maps
+
+def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", title: str | None = None,
+               variable: str = "height"):
+    """Height map (area scan) or profile (line scan) with units on every axis.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement, a height DataArray or any map on ``(y, x)`` / profile on ``x``
+        (pressure, gap, ...). Missing data (``mask``) are shown blank.
+    max_pixels : int
+        Maps are block-averaged to at most this many pixels per side (profiles to
+        at most ``MAX_POINTS`` points).
+    cmap : str
+        Colour map of the image.
+    title : str, optional
+        Default: the measurement's ``title``/``instrument``.
+    variable : str
+        Variable of a Dataset to show (default ``"height"``, missing data masked).
+
+    Returns
+    -------
+    holoviews.Image or holoviews.Curve
+        Lengths are shown in a readable unit (mm, µm, nm, ...).
+    """
+    hv = _hv()
+    if isinstance(obj, xr.Dataset):
+        from .conventions import height_of
+
+        da = height_of(obj) if variable == "height" else obj[variable]
+        da = da.assign_attrs({k: v for k, v in obj.attrs.items() if k in ("title", "instrument")} | dict(da.attrs))
+    elif isinstance(obj, xr.DataArray):
+        da = obj
+    else:
+        raise XtopoError(f"topography() needs an xarray Dataset or DataArray, got {type(obj).__name__}")
+    lat = tuple(d for d in LATERAL_DIMS if d in da.dims)
+    extra = [d for d in da.dims if d not in lat]
+    if X not in lat:
+        raise XtopoError(f"{da.name!r} has no 'x' dimension (dims {da.dims}); nothing to draw as a map or profile")
+    if extra:
+        raise XtopoError(f"{da.name!r} has dims {extra} besides the lateral ones; select one item first, "
+                         f"e.g. .isel({extra[0]}=0)")
+    name = str(da.name or "value")
+    units = da.attrs.get("units")
+    small = downsample(da, max_pixels if len(lat) == 2 else MAX_POINTS)
+    z = _values(small).astype(np.float32 if len(lat) == 2 else np.float64)
+    if z.dtype.kind == "f" and np.isfinite(z).any():
+        finite = z[np.isfinite(z)]
+        z, zu = _rescaled(z, units, float(np.max(np.abs(finite))))
+    else:
+        zu = units
+    coords = {}
+    extent = 0.0
+    for d in lat:
+        c = small[d]
+        v = np.asarray(c.values, dtype=float)
+        extent = max(extent, float(np.ptp(v)) if v.size > 1 else 0.0)
+        coords[d] = (v, c.attrs)
+    xunits = da[X].attrs.get("units")
+    lu = _display_unit(xunits, extent) if _is_length(xunits) else xunits
+    dims = {}
+    for d, (v, attrs) in coords.items():
+        cu = attrs.get("units")
+        if _is_length(cu):
+            v = v * length_factor(cu, lu)
+            cu = lu
+        coords[d] = v
+        dims[d] = _dimension(d, attrs, units=cu)
+    vdim = _dimension(name, da.attrs, units=zu)
+    label = _title(da, title)
+    if len(lat) == 2:
+        el = hv.Image((coords[X], coords[Y], z.astype(np.float32)), kdims=[dims[X], dims[Y]], vdims=[vdim],
+                      label="").relabel(group="Topography" if name == "height" else "Map")
+        el = _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
+                    bokeh=dict(tools=["hover"], toolbar="above", **_frame(coords[X], coords[Y])),
+                    matplotlib=dict(fig_inches=5, aspect="equal"))
+    else:
+        el = hv.Curve((coords[X], z), kdims=[dims[X]], vdims=[vdim])
+        el = _style(el, common=dict(title=label, color="#1f77b4"),
+                    bokeh=dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 150, line_width=1, tools=["hover"],
+                               toolbar="above"),
+                    matplotlib=dict(linewidth=1, aspect=1.8))
+    return el
+
+
+def spectrum_map(da: xr.DataArray, *, max_pixels: int = MAX_PIXELS, cmap: str = "inferno", title: str | None = None):
+    """A 2D power spectrum on ``(q_y, q_x)`` with a logarithmic colour scale."""
+    hv = _hv()
+    small = downsample(da.rename({"q_y": Y, "q_x": X}), max_pixels).rename({Y: "q_y", X: "q_x"})
+    z = _values(small).astype(np.float32)
+    z = np.where(z > 0, z, np.nan)
+    kx = _dimension("q_x", small["q_x"].attrs)
+    ky = _dimension("q_y", small["q_y"].attrs)
+    vdim = _dimension(str(da.name or "psd"), da.attrs)
+    el = hv.Image((small["q_x"].values, small["q_y"].values, z), kdims=[kx, ky], vdims=[vdim])
+    return _style(el, common=dict(cmap=cmap, colorbar=True, logz=True, title=_title(da, title)),
+                  bokeh=_frame(small["q_x"].values, small["q_y"].values), matplotlib=dict(fig_inches=5, aspect="equal"))
+
+
+# --------------------------------------------------------------------------- curves
+
+def _curve_dim(da) -> str:
+    dims = [d for d in da.dims if d in CURVE_COORDS]
+    if len(dims) != 1:
+        raise XtopoError(f"{da.name!r} is not a scale-dependent curve: expected one of the dims "
+                         f"{tuple(CURVE_COORDS)}, got {da.dims}")
+    return dims[0]
+
+
+def _cutoff_of(da, cutoff):
+    """Reliability cutoff (length) of a result: the argument, the coordinate, or the attribute."""
+    if cutoff is None:
+        if "reliability_cutoff" in da.coords and da.coords["reliability_cutoff"].ndim == 0:
+            cutoff = da.coords["reliability_cutoff"]
+        else:
+            cutoff = da.attrs.get("reliability_cutoff")
+    if cutoff is None:
+        return None
+    value = float(np.asarray(getattr(cutoff, "values", cutoff)))
+    return value if np.isfinite(value) and value > 0 else None
+
+
+def _positive(x, y):
+    """Points that can be drawn on log-log axes (both positive); others become gaps (NaN)."""
+    ok = (x > 0) & np.isfinite(x)
+    x, y = x[ok], y[ok]
+    return x, np.where(y > 0, y, np.nan)
+
+
+def _safe_label(label, *dims) -> str:
+    """A legend label that HoloViews cannot mistake for a dimension name (it would map it to data)."""
+    label = str(label)
+    return label + "\u00a0" if label in {d.name for d in dims} else label
+
+
+def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
+    """One or two hv.Curve elements: reliable part solid, ``unreliable`` (bool mask) part dashed."""
+    hv = _hv()
+    label = _safe_label(label, xdim, ydim)
+    out = []
+    solid = np.where(unreliable, np.nan, y)
+    common = dict(color=color)
+    out.append(_style(hv.Curve((x, solid), kdims=[xdim], vdims=[ydim], label=label),
+                      common=common, bokeh=dict(line_width=line_width), matplotlib=dict(linewidth=line_width)))
+    if unreliable.any():
+        # overlap by one point so the dashed part joins the solid one
+        edge = unreliable.copy()
+        edge[1:] |= unreliable[:-1]
+        edge[:-1] |= unreliable[1:]
+        dashed = np.where(edge, y, np.nan)
+        out.append(_style(hv.Curve((x, dashed), kdims=[xdim], vdims=[ydim], label=f"{label} (unreliable)"),
+                          common=common, bokeh=dict(line_width=line_width, line_dash="dashed"),
+                          matplotlib=dict(linewidth=line_width, linestyle="--")))
+    return out
+
+
+def _axes_opts(title, logx=True, logy=True, legend_outside=False):
+    bokeh = dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 90, legend_position="bottom_left", tools=["hover"],
+                 toolbar="above")
+    if legend_outside:  # many entries (a twin): legend beside the axes, not over the curves
+        bokeh.update(legend_position="right")
+    return dict(common=dict(logx=logx, logy=logy, title=title, show_grid=True), bokeh=bokeh,
+                matplotlib=dict(aspect=1.3, legend_position="right" if legend_outside else "bottom_left"))
+
+
+def curve(da: xr.DataArray, *, cutoff=None, title: str | None = None, label: str | None = None,
+          color: str | None = None):
+    """A scale-dependent result (PSD, ACF, VBM, SDRP, ...) on log-log axes.
+
+    Parameters
+    ----------
+    da : xarray.DataArray
+        A curve on one of the coordinates ``q`` (wavevector), ``distance`` or
+        ``bandwidth`` (lengths), with ``units``/``long_name`` attrs. Further dims
+        (directions, a batch of samples) give one coloured curve each. NaN points
+        (scales masked as unreliable) are left out.
+    cutoff : float or xarray.DataArray, optional
+        Short reliability cutoff (a length, in the curve's length unit). Default:
+        the result's ``reliability_cutoff`` coordinate or attribute. Points on the
+        unreliable side that are still present (``reliable=False`` results) are dashed.
+    title, label, color : str, optional
+
+    Returns
+    -------
+    holoviews.Overlay
+    """
+    hv = _hv()
+    coord = _curve_dim(da)
+    cut = _cutoff_of(da, cutoff)
+    xdim = _dimension(coord, da[coord].attrs)
+    ydim = _dimension(str(da.name or "value"), da.attrs)
+    da = da.transpose(..., coord)
+    x = np.asarray(da[coord].values, dtype=float)
+    values = _values(da)
+    rows = values.reshape(-1, x.size)
+    others = [d for d in da.dims if d != coord]
+    keys = [""]
+    if others:
+        keys = [", ".join(str(da[d].values[i]) if d in da.coords else f"{d}={i}" for d, i in zip(others, idx))
+                for idx in np.ndindex(*[da.sizes[d] for d in others])]
+    elements = []
+    for k, (key, row) in enumerate(zip(keys, rows)):
+        xs, ys = _positive(x, row.astype(float))
+        if cut is None:
+            bad = np.zeros(xs.shape, dtype=bool)
+        elif CURVE_COORDS[coord] == "wavevector":
+            bad = xs > 2 * np.pi / cut
+        else:
+            bad = xs < cut
+        lab = f"{label or ''} {key}".strip()
+        col = color if color is not None and len(rows) == 1 else PALETTE[k % len(PALETTE)]
+        elements += _line_elements(xs, ys, xdim=xdim, ydim=ydim, label=lab, color=col,
+                                   unreliable=bad)
+    return _style(hv.Overlay(elements), **_axes_opts(_title(da, title)))
+
+
+def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None = None):
+    """A twin average: every measurement's curve coloured, the average as a thick black line.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The result of a twin average (:func:`xtopo.stitching.average_curves`): ``average``
+        on the collocation coordinate and ``curves`` on (``measurement``, coordinate).
+    labels : dict, optional
+        Legend text per measurement name (e.g. ``"afm-5um (AFM, 5 µm)"``); default: the names.
+    title : str, optional
+        Default: the average's ``long_name``.
+
+    Returns
+    -------
+    holoviews.Overlay
+    """
+    hv = _hv()
+    if "average" not in ds or "curves" not in ds:
+        raise XtopoError(f"twin_curves() needs a twin average with 'average' and 'curves' (got {list(ds.data_vars)})")
+    coord = _curve_dim(ds["average"])
+    curves = ds["curves"].transpose("measurement", coord)
+    xdim = _dimension(coord, ds[coord].attrs)
+    yname = str(curves.name or "value")
+    ydim = _dimension(yname, curves.attrs or ds["average"].attrs)
+    x = np.asarray(ds[coord].values, dtype=float)
+    labels = labels or {}
+    elements = []
+    values = _values(curves)
+    for k, name in enumerate(np.asarray(curves["measurement"].values)):
+        xs, ys = _positive(x, values[k].astype(float))
+        elements.append(_style(hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim],
+                                        label=_safe_label(labels.get(name, name), xdim, ydim)),
+                               common=dict(color=PALETTE[k % len(PALETTE)]), bokeh=dict(line_width=1.5),
+                               matplotlib=dict(linewidth=1.5)))
+    xs, ys = _positive(x, _values(ds["average"]).astype(float))
+    elements.append(_style(hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label="average"),
+                           common=dict(color="black"), bokeh=dict(line_width=4), matplotlib=dict(linewidth=4)))
+    long_name = ds["average"].attrs.get("long_name") or curves.attrs.get("long_name") or yname
+    return _style(hv.Overlay(elements), **_axes_opts(title or long_name, legend_outside=len(elements) > 4))
+
+
+# --------------------------------------------------------------------------- contact
+
+def _contact_steps_dim(ds) -> str | None:
+    for d in ("load", "penetration"):
+        if d in ds.dims:
+            return d
+    return None
+
+
+def contact_area(results, *, labels=None, title: str | None = None, x: str = "mean_pressure",
+                 y: str = "area_fraction"):
+    """Relative contact area against mean pressure on log-log axes; unconverged points translucent.
+
+    Parameters
+    ----------
+    results : xarray.Dataset or dict of str to xarray.Dataset
+        Load curves (:meth:`xtopo.contact.Scene.curve`, stacked along ``load`` or
+        ``penetration``) or single solutions; a dict overlays several (e.g. smooth
+        sphere, rough sphere, nominally flat roughness).
+    labels : dict, optional
+        Legend text per key of ``results``.
+    x, y : str
+        Variables on the axes (default: ``mean_pressure`` in units of E*, ``area_fraction``).
+
+    Returns
+    -------
+    holoviews.Overlay
+    """
+    hv = _hv()
+    if isinstance(results, xr.Dataset):
+        results = {"": results}
+    labels = labels or {}
+    elements = []
+    for k, (key, ds) in enumerate(results.items()):
+        for v in (x, y):
+            if v not in ds:
+                raise XtopoError(f"contact result {key!r} has no variable {v!r} (variables: {list(ds.data_vars)})")
+        xv = np.atleast_1d(_values(ds[x])).astype(float)
+        yv = np.atleast_1d(_values(ds[y])).astype(float)
+        conv = (np.atleast_1d(_values(ds["converged"])).astype(bool) if "converged" in ds
+                else np.ones(xv.shape, dtype=bool))
+        ok = (xv > 0) & (yv > 0)
+        color = PALETTE[k % len(PALETTE)]
+        if x == "mean_pressure" and ds[x].attrs.get("units") == "E*":
+            xdim = hv.Dimension(x, label="mean pressure p/E*")
+        else:
+            xdim = _dimension(x, ds[x].attrs)
+        ydim = _dimension(y, ds[y].attrs, label="relative contact area A/A₀" if y == "area_fraction" else None)
+        name = _safe_label(labels.get(key, key), xdim, ydim)
+        line = (xv[ok], yv[ok])
+        elements.append(_style(hv.Curve(line, kdims=[xdim], vdims=[ydim], label=name), common=dict(color=color),
+                               bokeh=dict(line_width=1), matplotlib=dict(linewidth=1)))
+        for flag, alpha, suffix in ((True, 1.0, ""), (False, 0.3, " (not converged)")):
+            sel = ok & (conv == flag)
+            if not sel.any():
+                continue
+            pts = hv.Scatter((xv[sel], yv[sel]), kdims=[xdim], vdims=[ydim], label=(name + suffix).strip())
+            elements.append(_style(pts, common=dict(color=color, alpha=alpha),
+                                   bokeh=dict(size=8, tools=["hover"]), matplotlib=dict(s=30)))
+    return _style(hv.Overlay(elements), **_axes_opts(title or "contact area", logx=True, logy=True))
+
+
+def contact_maps(ds: xr.Dataset, *, variables=("pressure", "gap", "contact"), step: int = -1,
+                 max_pixels: int = MAX_PIXELS):
+    """Maps of a contact solution (pressure, gap, contact; profiles for line contacts).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A solution (:meth:`xtopo.contact.Scene.solve`) or a load curve, of which
+        ``step`` (an index along ``load``/``penetration``) is shown.
+    variables : sequence of str
+        Maps to show, in order.
+    step : int
+        Index of the load step of a load curve (default: the last, highest load).
+    max_pixels : int
+        See :func:`topography`.
+
+    Returns
+    -------
+    holoviews.Layout
+    """
+    hv = _hv()
+    dim = _contact_steps_dim(ds)
+    if dim is not None:
+        ds = ds.isel({dim: step})
+    panels = []
+    at = ""
+    if "mean_pressure" in ds:
+        at = f" at p = {float(ds['mean_pressure']):.3g} {unit_label(ds['mean_pressure'].attrs.get('units', ''))}"
+    cmaps = {"pressure": "inferno", "gap": "viridis", "contact": "gray_r", "displacement": "viridis"}
+    for v in variables:
+        if v not in ds:
+            raise XtopoError(f"the contact result has no map {v!r} (variables: {list(ds.data_vars)})")
+        panels.append(topography(ds[v], max_pixels=max_pixels, cmap=cmaps.get(v, "viridis"),
+                                 title=f"{ds[v].attrs.get('long_name', v)}{at}"))
+    return hv.Layout(panels).cols(3)
+
+
+# --------------------------------------------------------------------------- twins
+
+def measurement_maps(tree, *, max_pixels: int = 256, cols: int = 3):
+    """One panel per measurement of a twin: height maps of area scans, profiles of line scans.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree or dict of str to xarray.Dataset
+        A twin (:func:`xtopo.twin`) or measurements by name.
+    max_pixels : int
+        See :func:`topography` (default 256 keeps a twin overview light).
+    cols : int
+        Panels per row.
+    """
+    hv = _hv()
+    from .twins import measurements
+
+    ms = measurements(tree) if isinstance(tree, xr.DataTree) else dict(tree)
+    panels = [topography(ds, max_pixels=max_pixels, title=name) for name, ds in ms.items()]
+    return hv.Layout(panels).cols(cols)
+
+
+# --------------------------------------------------------------------------- dispatch
+
+def plot(obj, **kwargs):
+    """Plot whatever ``obj`` is: a measurement, an analysis result, a twin average or a contact result.
+
+    ========================================================  ==============================
+    object                                                    figure
+    ========================================================  ==============================
+    twin (DataTree)                                           :func:`measurement_maps`
+    twin average (Dataset with ``average`` and ``curves``)    :func:`twin_curves`
+    contact load curve (``area_fraction`` along ``load``)     :func:`contact_area`
+    contact solution (``pressure`` map)                       :func:`contact_maps`
+    measurement (Dataset with ``height``), map, profile       :func:`topography`
+    curve on ``q``, ``distance`` or ``bandwidth``             :func:`curve`
+    2D PSD on ``(q_y, q_x)``                                  :func:`spectrum_map`
+    ========================================================  ==============================
+
+    Keyword arguments go to the chosen function.
+    """
+    if isinstance(obj, xr.DataTree):
+        return measurement_maps(obj, **kwargs)
+    if isinstance(obj, xr.Dataset):
+        if "average" in obj and "curves" in obj:
+            return twin_curves(obj, **kwargs)
+        if "area_fraction" in obj and _contact_steps_dim(obj) is not None:
+            return contact_area(obj, **kwargs)
+        if "pressure" in obj and any(d in obj["pressure"].dims for d in LATERAL_DIMS):
+            return contact_maps(obj, **kwargs)
+        if "height" in obj:
+            return topography(obj, **kwargs)
+        raise XtopoError(f"don't know how to plot a Dataset with variables {list(obj.data_vars)}; "
+                         "plot one variable (ds[name].topo.plot())")
+    if isinstance(obj, xr.DataArray):
+        if "q_x" in obj.dims and "q_y" in obj.dims:
+            return spectrum_map(obj, **kwargs)
+        if any(d in CURVE_COORDS for d in obj.dims):
+            return curve(obj, **kwargs)
+        if X in obj.dims:
+            return topography(obj, **kwargs)
+        raise XtopoError(f"don't know how to plot {obj.name!r} with dims {obj.dims}: expected lateral dims "
+                         f"(y, x) or a curve coordinate {tuple(CURVE_COORDS)}")
+    raise XtopoError(f"plot() needs an xarray object, got {type(obj).__name__}")
