@@ -176,6 +176,9 @@ def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
 
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
     """Open an xtopo NetCDF file; loaded into memory unless ``lazy``."""
+    if engine is None:  # naming the engine skips xarray's guessing over every backend (ours included)
+        with open(path, "rb") as f:
+            engine = "scipy" if f.read(3) == b"CDF" else _default_engine()
     try:
         ds = xr.open_dataset(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError) as exc:
