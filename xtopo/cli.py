@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("files", nargs="*", help="measurement files (any supported format)")
     p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
     p.set_defaults(func=_cmd_analyze)
+    from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
+
+    add_commands(sub)
     return parser
 
 
@@ -71,7 +74,7 @@ def main(argv=None) -> int:
 
     try:
         return args.func(args)
-    except XtopoError as exc:
+    except (XtopoError, OSError) as exc:
         print(f"xtopo: error: {exc}", file=sys.stderr)
         return 2
 
