@@ -157,7 +157,8 @@ def _run_item(func, source, params, dim):
             errors.append(_message(exc))
     if not parts:
         return None, errors
-    return xr.concat(parts, dim=dim, join="outer", combine_attrs="drop_conflicts"), errors
+    return xr.concat(parts, dim=dim, join="outer", combine_attrs="drop_conflicts", data_vars="minimal",
+                     coords="minimal", compat="override"), errors
 
 
 def _chunk_dataset(names, sources, results, errors, params, dim):
@@ -167,7 +168,7 @@ def _chunk_dataset(names, sources, results, errors, params, dim):
                          {"long_name": "file the measurement was read from ('' for in-memory data)"})}
     good = [r.expand_dims({MEASUREMENT: [n]}) for n, r in zip(names, results) if r is not None]
     if good:
-        ds = xr.concat(good, dim=MEASUREMENT, join="outer", combine_attrs="drop_conflicts")
+        ds = xr.concat(good, dim=MEASUREMENT, join="outer", combine_attrs="drop_conflicts", data_vars="all")
         ds = ds.reindex({MEASUREMENT: list(names)})
     else:
         ds = xr.Dataset()
@@ -182,7 +183,7 @@ def _chunk_dataset(names, sources, results, errors, params, dim):
     return ds
 
 
-def _run_chunk(func, dim, names, sources, params, store, key, fft_threads, home_pid):
+def _run_chunk(func, dim, names, sources, params, store, ckey, fft_threads, home_pid):
     """Run one chunk (top-level, picklable): every measurement × every parameter value of it.
 
     In a worker process FFT threads are set to ``fft_threads`` (``XTOPO_FFT_THREADS``);
@@ -204,8 +205,8 @@ def _run_chunk(func, dim, names, sources, params, store, key, fft_threads, home_
     failed = int(sum(bool(e) for row in errors for e in row))
     if store is None:
         return ds
-    Store(store).write(ds, key, failed)
-    return {"key": key, "failed": failed}
+    Store(store).write(ds, ckey, failed)
+    return {"key": ckey, "failed": failed}
 
 
 # --------------------------------------------------------------------------- execution
@@ -275,12 +276,20 @@ def _client_for(client, scheduler, workers):
         c.close()
 
 
+_CHUNK_ARGS = ("func", "dim", "names", "sources", "params", "store", "ckey", "fft_threads", "home_pid")
+
+
+def _args(spec) -> tuple:
+    """Positional arguments of :func:`_run_chunk` (``Client.submit`` reserves ``func``, ``key``)."""
+    return tuple(spec[k] for k in _CHUNK_ARGS)
+
+
 def _execute_distributed(client, specs, progress, retries):
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
-    futures = {client.submit(_run_chunk, **spec, key=f"xtopo-batch-{spec['key'][:16]}-{token}", pure=False,
-                             retries=retries): spec["key"] for spec in specs}
+    futures = {client.submit(_run_chunk, *_args(spec), key=f"xtopo-batch-{spec['ckey'][:16]}-{token}", pure=False,
+                             retries=retries): spec["ckey"] for spec in specs}
     if progress and futures:
         from distributed import progress as _progress
 
@@ -312,15 +321,14 @@ def _execute_local(specs, scheduler, workers, progress):
         bar = ProgressBar()
     with bar:
         results = dask.compute(*tasks, scheduler=scheduler or "threads", num_workers=workers)
-    return {spec["key"]: r for spec, r in zip(specs, results)}
+    return {spec["ckey"]: r for spec, r in zip(specs, results)}
 
 
 # --------------------------------------------------------------------------- assembly
 
 
-def _failure_block(spec, exc):
+def _failure_block(spec, msg: str):
     n = 1 if spec["params"] is None else len(spec["params"])
-    msg = f"chunk failed: {_message(exc)}"
     return _chunk_dataset(spec["names"], spec["sources"], [None] * len(spec["names"]),
                           [[msg] * n for _ in spec["names"]], spec["params"], spec["dim"])
 
@@ -328,12 +336,12 @@ def _failure_block(spec, exc):
 def _combine(blocks, dim, has_params, dim_attrs):
     if has_params:
         ds = xr.combine_nested(blocks, concat_dim=[MEASUREMENT, dim], join="outer", combine_attrs="drop_conflicts",
-                               coords="minimal", compat="override")
+                               data_vars="all", coords="minimal", compat="override")
         if dim_attrs and not ds[dim].attrs:
             ds[dim].attrs = dict(dim_attrs)
     else:
         ds = xr.combine_nested([row[0] for row in blocks], concat_dim=MEASUREMENT, join="outer",
-                               combine_attrs="drop_conflicts", coords="minimal", compat="override")
+                               combine_attrs="drop_conflicts", data_vars="all", coords="minimal", compat="override")
     ds[ERROR] = ds[ERROR].fillna("").astype(object)
     ds[ERROR].attrs = {"long_name": "error message of the failed item ('' where it succeeded)"}
     return ds
@@ -425,7 +433,7 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
             p = None if params is None else params[j:j + pchunk]
             key = chunk_key(func, dim, names[i:i + mchunk], prints[i:i + mchunk], p)
             spec = dict(func=func, dim=dim, names=names[i:i + mchunk], sources=sources[i:i + mchunk], params=p,
-                        store=None if store_obj is None else store_obj.directory, key=key,
+                        store=None if store_obj is None else store_obj.directory, ckey=key,
                         fft_threads=fft_threads, home_pid=home)
             spec_slices[key] = {"key": key, "m": [i, min(i + mchunk, len(names))],
                                 "p": None if p is None else [j, j + len(p)]}
@@ -437,7 +445,7 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
         layout.append(row)
     manifest = {"function": func_name(func), "dim": dim, "measurements": names, "params": params,
                 "sources": [s if isinstance(s, str) else "" for s in sources],
-                "chunks": [[spec_slices[s["key"]] for s in row] for row in layout], "status": "running"}
+                "chunks": [[spec_slices[s["ckey"]] for s in row] for row in layout], "status": "running"}
     if store_obj is not None:
         store_obj.write_manifest(manifest)
 
@@ -451,16 +459,16 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     for row in layout:
         brow = []
         for spec in row:
-            out = outcomes.get(spec["key"])
+            out = outcomes.get(spec["ckey"])
             if isinstance(out, BaseException):
-                block = _failure_block(spec, out)
+                block = _failure_block(spec, f"chunk failed: {_message(out)}")
             elif isinstance(out, xr.Dataset):
                 block = out
             else:
                 try:
-                    block = store_obj.read(spec["key"])
+                    block = store_obj.read(spec["ckey"])
                 except Exception as exc:
-                    block = _failure_block(spec, exc)
+                    block = _failure_block(spec, f"chunk result unreadable: {_message(exc)}")
             brow.append(block)
         blocks.append(brow)
     ds = _combine(blocks, dim, params is not None, dim_attrs)
@@ -476,7 +484,7 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
 def open_store(directory) -> xr.Dataset:
     """The results of a (possibly unfinished) batch from its store, without computing anything.
 
-    Chunks not (yet) in the store show up as failed items with error ``'not computed'``.
+    Chunks not (yet) in the store show up with error ``'not computed'`` and NaN results.
     """
     store = Store(directory)
     try:
@@ -495,7 +503,7 @@ def open_store(directory) -> xr.Dataset:
                 (i0, i1), p = c["m"], c["p"]
                 spec = dict(names=names[i0:i1], sources=sources[i0:i1], dim=dim,
                             params=None if p is None else params[p[0]:p[1]])
-                block = _failure_block(spec, XtopoError("not computed"))
+                block = _failure_block(spec, "not computed")
             brow.append(block)
         blocks.append(brow)
     return _combine(blocks, dim, params is not None, None)
@@ -518,7 +526,7 @@ def _contact_item(ds, values, *, control, scene, solve, maps):
         r = r.drop_vars(control, errors="ignore").expand_dims({control: [v]})
         r[control].attrs = attrs
         out.append(r)
-    return xr.concat(out, dim=control, combine_attrs="drop_conflicts")
+    return xr.concat(out, dim=control, combine_attrs="drop_conflicts", data_vars="all")
 
 
 def _require_contact():
