@@ -266,7 +266,7 @@ def _client_for(client, scheduler, workers):
         raise XtopoError(f"unknown scheduler {scheduler!r}; use 'threads', 'processes', 'sync', 'local' "
                          "or a scheduler address like 'tcp://host:8786'")
     try:
-        c = Client(scheduler, timeout="20s")
+        c = Client(scheduler)  # connect timeout: dask config distributed.comm.timeouts.connect
     except (OSError, TimeoutError) as exc:
         raise XtopoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}. Is `dask scheduler` "
                          "running there, and are workers attached (`dask worker {scheduler}`)?") from None
