@@ -183,19 +183,49 @@ def _chunk_dataset(names, sources, results, errors, params, dim):
     return ds
 
 
+_MALLOC_TUNED = False
+
+
+def _tune_malloc() -> None:
+    """Undo the cost of distributed's ``MALLOC_TRIM_THRESHOLD_`` in a worker process (glibc only, once).
+
+    Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``; glibc then also
+    freezes the mmap threshold at 128 KiB, so every FFT-sized temporary is a fresh
+    ``mmap`` + page faults: FFT-bound work ran 2-4× slower in a worker than in a plain
+    process on the reference machine. Raising both thresholds (64 MiB mmap, 128 MiB trim)
+    restores plain-process speed. Set ``XTOPO_BATCH_MALLOC_TUNE=0`` to leave malloc alone.
+    """
+    global _MALLOC_TUNED
+    if _MALLOC_TUNED or os.environ.get("XTOPO_BATCH_MALLOC_TUNE", "1") == "0":
+        return
+    _MALLOC_TUNED = True
+    if "MALLOC_TRIM_THRESHOLD_" not in os.environ:
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-3, 64 << 20)  # M_MMAP_THRESHOLD
+        libc.mallopt(-1, 128 << 20)  # M_TRIM_THRESHOLD
+    except (OSError, AttributeError):  # not glibc: nothing to undo
+        pass
+
+
 def _run_chunk(func, dim, names, sources, params, store, ckey, fft_threads, home_pid):
     """Run one chunk (top-level, picklable): every measurement × every parameter value of it.
 
-    In a worker process FFT threads are set to ``fft_threads`` (``XTOPO_FFT_THREADS``);
-    the result is written to the store (when given) before the task returns.
+    In a worker process FFT threads are set to ``fft_threads`` (``XTOPO_FFT_THREADS``) and
+    malloc is tuned (:func:`_tune_malloc`); the result is written to the store (when given) before the task returns.
 
     Returns
     -------
     xarray.Dataset or dict
         The chunk's results, or ``{"key", "failed"}`` when they went to the store.
     """
-    if fft_threads and os.getpid() != home_pid:  # a dedicated worker process
-        os.environ["XTOPO_FFT_THREADS"] = str(int(fft_threads))
+    if os.getpid() != home_pid:  # a dedicated worker process
+        _tune_malloc()
+        if fft_threads:
+            os.environ["XTOPO_FFT_THREADS"] = str(int(fft_threads))
     results, errors = [], []
     for source in sources:
         res, err = _run_item(func, source, params, dim)
