@@ -245,6 +245,14 @@ def test_distributed_active_client_and_resume(tmp_path, cluster):
     xr.testing.assert_identical(_data(a), _data(b))
 
 
+def test_distributed_progress_bar(cluster, capsys):
+    _, client = cluster
+    batch.run(fft_work, _surfaces(2), LOADS[:1], client=client, progress=True)
+    assert "100% Completed" in capsys.readouterr().out
+    batch.run(fft_work, _surfaces(2), LOADS[:1], client=client, progress=False)
+    assert "Completed" not in capsys.readouterr().out
+
+
 # --------------------------------------------------------------------------- contact (needs issue 5)
 
 

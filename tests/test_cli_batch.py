@@ -2,6 +2,7 @@
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -126,13 +127,13 @@ def loopback_scheduler():
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": REPO + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    procs = []
+    procs = []  # each in its own session, so that stopping it reaches its nannies and workers too
     try:
         procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
-                                       "--port", str(port), "--no-dashboard"], env=env,
+                                       "--port", str(port), "--no-dashboard"], env=env, start_new_session=True,
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers",
-                                       "2", "--nthreads", "1", "--no-dashboard"], env=env,
+                                       "2", "--nthreads", "1", "--no-dashboard"], env=env, start_new_session=True,
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         from distributed import Client
 
@@ -141,12 +142,21 @@ def loopback_scheduler():
         yield address
     finally:
         for p in reversed(procs):
-            p.terminate()
+            _signal_group(p, signal.SIGTERM)
         for p in reversed(procs):
             try:
-                p.wait(20)
+                p.wait(10)
             except subprocess.TimeoutExpired:
-                p.kill()
+                _signal_group(p, signal.SIGKILL)
+                p.wait(10)
+
+
+def _signal_group(proc, sig):
+    """Signal the session of a process this test started (it and its own children only)."""
+    try:
+        os.killpg(proc.pid, sig)
+    except ProcessLookupError:
+        pass
 
 
 def test_batch_against_separate_dask_scheduler(files, tmp_path, capsys, loopback_scheduler):
@@ -191,3 +201,9 @@ def test_contact_without_solver_says_so(files, tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "xtopo.contact", None)  # import fails as if absent
     assert main(["contact", files[0], "--loads", "1", "-o", str(tmp_path / "c.nc")]) == 2
     assert "contact solver" in capsys.readouterr().err
+
+
+def test_bad_worker_count_is_a_usage_error(files, tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["batch", "analyze", files[0], "--workers", "0", "-o", str(tmp_path / "s")])
+    assert e.value.code == 2 and "at least 1" in capsys.readouterr().err

@@ -60,6 +60,12 @@ def chunk_key(func, dim, names, prints, params) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
+def _strip(ds: xr.Dataset) -> xr.Dataset:
+    for k in (KEY_ATTR, FAILED_ATTR, *PROVENANCE_KEYS):
+        ds.attrs.pop(k, None)
+    return ds
+
+
 class Store:
     """A directory holding one NetCDF file per completed chunk of a batch.
 
@@ -82,30 +88,38 @@ class Store:
         """The file of chunk ``key``."""
         return os.path.join(self.directory, f"chunk-{key[:40]}.nc")
 
-    def complete(self, key: str) -> bool:
-        """Whether chunk ``key`` is stored, readable, has the same key and no failed item."""
+    def reusable(self, key: str) -> xr.Dataset | None:
+        """Chunk ``key`` if it is stored, readable, has the same key and no failed item; else None."""
         path = self.path(key)
         if not os.path.exists(path):
-            return False
+            return None
         try:
-            ds = read_netcdf(path, lazy=True)
+            ds = read_netcdf(path)
         except Exception:  # a damaged file is recomputed, never trusted
-            return False
-        with ds:
-            return ds.attrs.get(KEY_ATTR) == key and int(ds.attrs.get(FAILED_ATTR, 1)) == 0
+            return None
+        if ds.attrs.get(KEY_ATTR) != key or int(ds.attrs.get(FAILED_ATTR, 1)) != 0:
+            return None
+        return _strip(ds)
 
     def write(self, ds: xr.Dataset, key: str, n_failed: int) -> str:
-        """Store one chunk's result atomically."""
+        """Store one chunk's result atomically.
+
+        The data are in memory and the file is this task's alone, so xarray must not take
+        its scheduler-wide write lock: inside a distributed worker that is a
+        ``distributed.Lock`` (a scheduler round trip per write, and a lease a killed
+        worker holds until it expires). Declaring the synchronous scheduler for the
+        write gives xarray's process-local lock instead.
+        """
+        import dask
+
         ds = ds.copy(deep=False)
         ds.attrs = {**ds.attrs, KEY_ATTR: key, FAILED_ATTR: int(n_failed)}
-        return to_netcdf(ds, self.path(key))
+        with dask.config.set(scheduler="synchronous"):
+            return to_netcdf(ds, self.path(key))
 
     def read(self, key: str) -> xr.Dataset:
         """A stored chunk, loaded, without the store's bookkeeping attributes."""
-        ds = read_netcdf(self.path(key))
-        for k in (KEY_ATTR, FAILED_ATTR, *PROVENANCE_KEYS):
-            ds.attrs.pop(k, None)
-        return ds
+        return _strip(read_netcdf(self.path(key)))
 
     def write_manifest(self, manifest: dict) -> str:
         """Write ``manifest.json`` (what the batch is, which chunk files make it up) atomically."""

@@ -219,8 +219,8 @@ def _run_chunk(func, dim, names, sources, params, store, ckey, fft_threads, home
 
     Returns
     -------
-    xarray.Dataset or dict
-        The chunk's results, or ``{"key", "failed"}`` when they went to the store.
+    xarray.Dataset
+        The chunk's results (also in the store, when one is given).
     """
     if os.getpid() != home_pid:  # a dedicated worker process
         _tune_malloc()
@@ -233,10 +233,9 @@ def _run_chunk(func, dim, names, sources, params, store, ckey, fft_threads, home
         errors.append(err)
     ds = _chunk_dataset(names, sources, results, errors, params, dim)
     failed = int(sum(bool(e) for row in errors for e in row))
-    if store is None:
-        return ds
-    Store(store).write(ds, ckey, failed)
-    return {"key": ckey, "failed": failed}
+    if store is not None:
+        Store(store).write(ds, ckey, failed)
+    return ds
 
 
 # --------------------------------------------------------------------------- execution
@@ -456,7 +455,7 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     store_obj = Store(store) if store is not None else None
     home = os.getpid()
 
-    layout, specs, reused, spec_slices = [], [], 0, {}
+    layout, specs, stored, spec_slices = [], [], {}, {}
     for i in range(0, len(names), mchunk):
         row = []
         for j in range(0, 1 if params is None else len(params), pchunk):
@@ -468,8 +467,9 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
             spec_slices[key] = {"key": key, "m": [i, min(i + mchunk, len(names))],
                                 "p": None if p is None else [j, j + len(p)]}
             row.append(spec)
-            if store_obj is not None and store_obj.complete(key):
-                reused += 1
+            done = None if store_obj is None else store_obj.reusable(key)
+            if done is not None:
+                stored[key] = done
             else:
                 specs.append(spec)
         layout.append(row)
@@ -489,22 +489,17 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     for row in layout:
         brow = []
         for spec in row:
-            out = outcomes.get(spec["ckey"])
-            if isinstance(out, BaseException):
-                block = _failure_block(spec, f"chunk failed: {_message(out)}")
-            elif isinstance(out, xr.Dataset):
+            out = stored.get(spec["ckey"], outcomes.get(spec["ckey"]))
+            if isinstance(out, xr.Dataset):
                 block = out
             else:
-                try:
-                    block = store_obj.read(spec["ckey"])
-                except Exception as exc:
-                    block = _failure_block(spec, f"chunk result unreadable: {_message(exc)}")
+                block = _failure_block(spec, f"chunk failed: {_message(out or XtopoError('no result'))}")
             brow.append(block)
         blocks.append(brow)
     ds = _combine(blocks, dim, params is not None, dim_attrs)
     failed = _failed_items(ds, dim)
     ds.attrs.update({"title": f"xtopo batch: {func_name(func)}", "n_failed": len(failed),
-                     "failed_items": json.dumps(failed), "chunks_computed": len(specs), "chunks_reused": reused,
+                     "failed_items": json.dumps(failed), "chunks_computed": len(specs), "chunks_reused": len(stored),
                      "store": "" if store_obj is None else store_obj.directory})
     if store_obj is not None:
         store_obj.write_manifest({**manifest, "status": "partial" if failed else "complete", "failed": failed})

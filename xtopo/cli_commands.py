@@ -6,6 +6,7 @@ or a contact solve did not converge), 2 usage or input error (nothing useful don
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import sys
@@ -132,24 +133,21 @@ def _report_batch(result, store_dir) -> int:
 
 
 def _batch_common(args) -> dict:
-    if args.workers is not None and args.workers < 1:
-        raise _UsageError(f"--workers must be at least 1, got {args.workers}")
     return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=not args.quiet,
                 chunks=args.chunk_size)
 
 
-class _UsageError(Exception):
-    pass
+def _positive_int(value: str) -> int:
+    n = int(value)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
+    return n
 
 
 def _cmd_batch_contact(args) -> int:
     from .batch import contact
 
-    try:
-        common = _batch_common(args)
-    except _UsageError as exc:
-        _err(str(exc))
-        return 2
+    common = _batch_common(args)
     solve = _solve_kwargs(args)
     scene = _scene_kwargs(args)
     result = contact(args.files, args.loads, modulus=scene["modulus"], hardness=scene.get("hardness"),
@@ -161,12 +159,7 @@ def _cmd_batch_contact(args) -> int:
 def _cmd_batch_analyze(args) -> int:
     from .batch import analyze
 
-    try:
-        common = _batch_common(args)
-    except _UsageError as exc:
-        _err(str(exc))
-        return 2
-    result = analyze(args.files, analyses=args.analyses, **common)
+    result = analyze(args.files, analyses=args.analyses, **_batch_common(args))
     return _report_batch(result, args.output)
 
 
@@ -209,8 +202,8 @@ def _add_batch_options(p) -> None:
     g.add_argument("--scheduler", default="local",
                    help="'local' (a local cluster of --workers processes; default), 'threads', 'processes', "
                         "'sync', or a Dask scheduler address such as tcp://host:8786")
-    g.add_argument("--workers", type=int, default=None, help="local workers (default: one per CPU)")
-    g.add_argument("--chunk-size", type=int, default=None, metavar="N",
+    g.add_argument("--workers", type=_positive_int, default=None, help="local workers (default: one per CPU)")
+    g.add_argument("--chunk-size", type=_positive_int, default=None, metavar="N",
                    help="measurements per task (default 1)")
     g.add_argument("-o", "--output", required=True, metavar="STORE",
                    help="store directory: one NetCDF file per finished chunk plus result.nc; rerunning with "
