@@ -9,7 +9,8 @@ The batch is 16 measurements × 4 loads, one item per task (64 tasks), on a
 ``LocalCluster(n_workers=k, threads_per_worker=1, processes=True)`` with one FFT
 thread per task. Reported (medians over ``--repeat`` runs):
 
-* ``serial``: the 64 items one after the other in this process (pure solve time);
+* ``serial``: the 64 items one after the other in this process (pure solve time), with
+  the BLAS/OpenMP thread limits dask gives its workers (``OMP/OPENBLAS/MKL_NUM_THREADS=1``);
 * ``1 worker`` / ``2 workers``: wall time of :func:`xtopo.batch.run` on the cluster
   (warm: the workers have imported everything before the clock starts);
 * speedup = t(1 worker) / t(2 workers) (goal ≥ 1.7 on 2 free cores);
@@ -30,6 +31,10 @@ import time
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
+# Same thread settings in this process (the serial reference) as dask's nanny gives its workers:
+# threaded BLAS inside np.dot of a solver loop made the serial contact run ~10x slower on a busy machine.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 import xtopo  # noqa: E402
 from xtopo import batch  # noqa: E402
@@ -41,7 +46,7 @@ def _workload(args):
     if args.solver == "contact":
         from xtopo.batch import _contact_item
 
-        loads = [l * 1e-3 for l in loads]
+        loads = [l * 0.02 for l in loads]  # mean pressures 1e-3 … 8e-3 E* (unit area): a few % in contact
         return functools.partial(_contact_item, control="load", scene={"modulus": 1.0}, solve={}, maps=False), loads
     from tests._batch_work import fft_work
 
@@ -82,7 +87,7 @@ def main(argv=None):
 
     walls, in_task = {}, {}
     for n in (1, 2):
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                           silence_logs=50) as cluster, Client(cluster) as client:
             batch.run(func, dict(list(ms.items())[:n]) if isinstance(ms, dict) else ms[:n], loads[:1],
                       client=client, progress=False)  # warm-up: imports in every worker
