@@ -137,6 +137,9 @@ def test_bad_inputs_keep_good_results(tmp_path):
     good = batch.run(fft_work, paths, LOADS, scheduler="sync", progress=False)
     xr.testing.assert_identical(_data(res.sel(measurement=good.measurement)), _data(good))
     assert json.load(open(store / "manifest.json"))["status"] == "partial"
+    import dask
+
+    assert dask.config.get("scheduler", None) is None  # the store's write-time setting did not leak
     # failed chunks are retried on the next run, good ones reused
     res2 = batch.run(fft_work, items, LOADS, chunks=2, scheduler="threads", store=store, progress=False)
     assert res2.attrs["chunks_computed"] == 2 and res2.attrs["chunks_reused"] == 1

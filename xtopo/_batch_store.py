@@ -12,13 +12,19 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 
 import xarray as xr
 
 from ._version import __version__
 from .io.netcdf import PROVENANCE_KEYS, atomic_write, read_netcdf, to_netcdf
 
-__all__ = ["Store", "chunk_key", "fingerprint", "func_name"]
+__all__ = ["Store", "chunk_key", "fingerprint", "func_name", "IO_LOCK"]
+
+#: Serialises file I/O of batch tasks that share a process (threads scheduler, multi-threaded
+#: workers). xarray's locks do not exclude an h5netcdf read (HDF5 lock) from a netCDF4 write
+#: (netCDF-C lock), and HDF5 is not thread-safe: concurrent ones crashed the process (SIGBUS).
+IO_LOCK = threading.RLock()
 
 KEY_ATTR = "xtopo_batch_key"
 FAILED_ATTR = "xtopo_batch_failed"
@@ -114,7 +120,7 @@ class Store:
 
         ds = ds.copy(deep=False)
         ds.attrs = {**ds.attrs, KEY_ATTR: key, FAILED_ATTR: int(n_failed)}
-        with dask.config.set(scheduler="synchronous"):
+        with IO_LOCK, dask.config.set(scheduler="synchronous"):  # config.set is global: keep it under the lock
             return to_netcdf(ds, self.path(key))
 
     def read(self, key: str) -> xr.Dataset:

@@ -36,7 +36,7 @@ import uuid
 import numpy as np
 import xarray as xr
 
-from ._batch_store import MANIFEST, Store, chunk_key, fingerprint, func_name
+from ._batch_store import IO_LOCK, MANIFEST, Store, chunk_key, fingerprint, func_name
 from .errors import XtopoError
 
 __all__ = ["run", "contact", "analyze", "open_store"]
@@ -115,7 +115,8 @@ def _load(source) -> xr.Dataset:
         return source
     from .io.open import open_topography
 
-    return open_topography(source)
+    with IO_LOCK:  # see xtopo._batch_store.IO_LOCK
+        return open_topography(source)
 
 
 def _call(func, ds, params, dim):
