@@ -13,7 +13,9 @@ thread per task. Reported (medians over ``--repeat`` runs):
   the BLAS/OpenMP thread limits dask gives its workers (``OMP/OPENBLAS/MKL_NUM_THREADS=1``);
 * ``1 worker`` / ``2 workers``: wall time of :func:`xtopo.batch.run` on the cluster
   (warm: the workers have imported everything before the clock starts);
-* speedup = t(1 worker) / t(2 workers) (goal ≥ 1.7 on 2 free cores);
+* speedup = t(1 worker) / t(2 workers) (goal ≥ 1.7 on 2 free cores), next to the machine's
+  ceiling at that moment: the same work in 1 vs 2 plain processes without Dask (on a shared
+  machine the other core may simply not be free);
 * per-task overhead = (t(1 worker) − serial) / 64, also as a fraction of the mean solve time,
   and (t(1 worker) − Σ in-worker compute time from the task stream) / 64, which does not
   depend on the serial run being timed under the same machine load.
@@ -51,6 +53,31 @@ def _workload(args):
     from tests._batch_work import fft_work
 
     return functools.partial(fft_work, iterations=args.iterations), loads
+
+
+def _plain(func, ms, loads, chunks):
+    """The batch (or a part of it) run serially in a fresh process: for the machine's ceiling."""
+    t = time.perf_counter()
+    batch.run(func, ms, loads, chunks=chunks, scheduler="sync", progress=False)
+    return time.perf_counter() - t
+
+
+def _ceiling(func, ms, loads, chunks):
+    """What 2 processes can gain on this machine now, without Dask: t(1 process, all) / t(2 processes, halves)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    items = list(ms.items()) if isinstance(ms, dict) else list(ms)
+    halves = [dict(items[:len(items) // 2]), dict(items[len(items) // 2:])] if isinstance(ms, dict) else \
+        [items[:len(items) // 2], items[len(items) // 2:]]
+    with ProcessPoolExecutor(2) as pool:
+        pool.submit(_plain, func, halves[0], loads[:1], chunks).result()  # warm-up
+        t = time.perf_counter()
+        pool.submit(_plain, func, ms, loads, chunks).result()
+        one = time.perf_counter() - t
+        t = time.perf_counter()
+        list(pool.map(_plain, [func, func], halves, [loads, loads], [chunks, chunks]))
+        two = time.perf_counter() - t
+    return one / two
 
 
 def main(argv=None):
@@ -106,6 +133,7 @@ def main(argv=None):
             walls[n] = statistics.median(times)
             in_task[n] = statistics.median(computes)
 
+    ceiling = _ceiling(func, ms, loads, chunks)
     per_task = t_serial / n_tasks
     overhead = (walls[1] - t_serial) / n_tasks
     solve_1 = in_task[1] / n_tasks
@@ -116,7 +144,11 @@ def main(argv=None):
     print(f"serial (in process):  {t_serial:7.2f} s   ({per_task * 1e3:.1f} ms per task)")
     print(f"1 worker process:     {walls[1]:7.2f} s")
     print(f"2 worker processes:   {walls[2]:7.2f} s")
+    print(f"in-worker solve time per task: {in_task[1] / n_tasks * 1e3:.1f} ms (1 worker), "
+          f"{in_task[2] / n_tasks * 1e3:.1f} ms (2 workers; longer = the workers did not get a free core each)")
     print(f"speedup 1 → 2 workers: {walls[1] / walls[2]:.2f}×  (goal ≥ 1.7× on 2 free cores)")
+    print(f"machine ceiling now:   {ceiling:.2f}×  (the same work in 1 vs 2 plain processes, no Dask); "
+          f"parallel efficiency of the batch relative to it: {100 * walls[1] / walls[2] / ceiling:.0f} %")
     print(f"per-task overhead vs serial run:      {overhead * 1e3:.1f} ms = {100 * overhead / per_task:.1f} % "
           "of the serial solve time")
     print(f"per-task overhead vs in-worker solve: {overhead_1 * 1e3:.1f} ms = {100 * overhead_1 / solve_1:.1f} % "
