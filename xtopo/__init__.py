@@ -12,12 +12,12 @@ from .io import open_topography, to_netcdf
 from .twins import open_twin, twin
 from . import cache
 from . import io, preprocess
+from . import batch  # issue 7: chunked Dask batch runs (distributed is imported lazily)
 from . import accessors as _accessors  # noqa: F401  (registers .topo)
 
 __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
-    "open_topography", "to_netcdf", "twin", "open_twin", "cache",
-    "io", "preprocess",
+    "open_topography", "to_netcdf", "twin", "open_twin", "cache", "io", "preprocess", "batch",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
     "ValidationError", "ContactError", "ConvergenceWarning",
 ]

@@ -102,6 +102,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
     r.set_defaults(func=_cmd_report)
+    from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
+
+    add_commands(sub)
     return parser
 
 
@@ -115,7 +118,7 @@ def main(argv=None) -> int:
 
     try:
         return args.func(args)
-    except XtopoError as exc:
+    except (XtopoError, OSError) as exc:
         print(f"xtopo: error: {exc}", file=sys.stderr)
         return 2
 

@@ -1,0 +1,284 @@
+"""Batch engine: chunking, store/resume, bad inputs, worker faults, FFT threads, contact."""
+
+import functools
+import json
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+from xtopo import batch
+from xtopo.datasets import fractal_surface
+from xtopo.errors import XtopoError
+
+from ._batch_work import Interrupt, fft_work
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _surfaces(n, size=32):
+    return {f"s{i}": fractal_surface((size, size), 1e-6, hurst=0.8, seed=i) for i in range(n)}
+
+
+def _files(tmp_path, n, size=32):
+    paths = []
+    for name, ds in _surfaces(n, size).items():
+        p = tmp_path / f"{name}.nc"
+        xtopo.to_netcdf(ds, p)
+        paths.append(str(p))
+    return paths
+
+
+def _data(ds):
+    """Results without bookkeeping attrs, for comparisons between runs."""
+    return ds.drop_vars("source").drop_attrs()
+
+
+@pytest.fixture
+def counter(tmp_path, monkeypatch):
+    path = tmp_path / "executions.log"
+    monkeypatch.setenv("XTOPO_TEST_COUNTER", str(path))
+
+    def count():
+        return sum(1 for _ in open(path)) if path.exists() else 0
+
+    return count
+
+
+LOADS = [0.05, 0.1, 0.2]
+
+
+def test_run_matches_direct_calls_and_has_dims(tmp_path):
+    ms = _surfaces(3)
+    res = batch.run(fft_work, ms, LOADS, chunks={"measurement": 2, "load": 2}, scheduler="sync", progress=False)
+    assert dict(res.sizes) == {"measurement": 3, "load": 3}
+    assert list(res.measurement.values) == ["s0", "s1", "s2"]
+    np.testing.assert_array_equal(res["load"].values, LOADS)
+    assert res.attrs["n_failed"] == 0 and res.attrs["chunks_computed"] == 4
+    assert (res.error.values == "").all()
+    for name, ds in ms.items():
+        direct = fft_work(ds, LOADS)
+        np.testing.assert_allclose(res.mean_gap.sel(measurement=name).values, direct.mean_gap.values, rtol=1e-12)
+    assert res.mean_gap.attrs["units"] == "1" and "long_name" in res.mean_gap.attrs
+
+
+def test_threads_scheduler_equals_sync_and_sets_fft_threads(tmp_path):
+    ms = _surfaces(4)
+    a = batch.run(fft_work, ms, LOADS, scheduler="sync", progress=False, fft_threads=1)
+    b = batch.run(fft_work, ms, LOADS, scheduler="threads", workers=2, progress=False, fft_threads=1)
+    xr.testing.assert_allclose(_data(a), _data(b))
+    assert (b.fft_threads == 1).all()
+    c = batch.run(fft_work, ms, LOADS[:1], scheduler="sync", progress=False, fft_threads=2)
+    assert (c.fft_threads == 2).all()
+    assert os.environ.get("XTOPO_FFT_THREADS") is None  # restored after the run
+
+
+def test_resume_recomputes_only_missing_chunks(tmp_path, counter, monkeypatch):
+    ms = _surfaces(6)
+    store = tmp_path / "store"
+    full = batch.run(fft_work, ms, LOADS, chunks={"measurement": 1, "load": 3}, scheduler="sync", progress=False)
+    assert counter() == 6
+    # interrupted after 3 completed chunks (the 4th execution raises, like Ctrl-C)
+    monkeypatch.setenv("XTOPO_TEST_INTERRUPT_AFTER", "9")  # counter is at 6: executions 7, 8, 9 complete
+    with pytest.raises(Interrupt):
+        batch.run(fft_work, ms, LOADS, chunks={"measurement": 1, "load": 3}, scheduler="sync", store=store,
+                  progress=False)
+    assert len([f for f in os.listdir(store) if f.startswith("chunk-")]) == 3
+    partial = batch.open_store(store)
+    assert (partial.error.values == "not computed").sum() == 3 * 3
+    monkeypatch.delenv("XTOPO_TEST_INTERRUPT_AFTER")
+    before = counter()
+    res = batch.run(fft_work, ms, LOADS, chunks={"measurement": 1, "load": 3}, scheduler="sync", store=store,
+                    progress=False)
+    assert counter() - before == 3  # only the missing chunks ran
+    assert res.attrs["chunks_computed"] == 3 and res.attrs["chunks_reused"] == 3
+    xr.testing.assert_identical(_data(res), _data(full))
+    # a third run computes nothing; the store alone gives the same result
+    again = batch.run(fft_work, ms, LOADS, chunks={"measurement": 1, "load": 3}, scheduler="sync", store=store,
+                      progress=False)
+    assert counter() - before == 3 and again.attrs["chunks_reused"] == 6
+    xr.testing.assert_identical(_data(batch.open_store(store)), _data(full))
+    manifest = json.load(open(store / "manifest.json"))
+    assert manifest["status"] == "complete"
+
+
+def test_changed_input_or_params_invalidate_chunks(tmp_path, counter):
+    paths = _files(tmp_path, 2)
+    store = tmp_path / "store"
+    batch.run(fft_work, paths, LOADS, scheduler="sync", store=store, progress=False)
+    assert counter() == 2
+    xtopo.to_netcdf(fractal_surface((32, 32), 1e-6, hurst=0.5, seed=9), paths[0])  # file changed
+    os.utime(paths[0], ns=(1, 1))  # a different mtime even on coarse file systems
+    res = batch.run(fft_work, paths, LOADS, scheduler="sync", store=store, progress=False)
+    assert counter() == 3 and res.attrs["chunks_reused"] == 1
+    res = batch.run(functools.partial(fft_work, iterations=5), paths, LOADS, scheduler="sync", store=store,
+                    progress=False)
+    assert counter() == 5 and res.attrs["chunks_reused"] == 0
+
+
+def test_bad_inputs_keep_good_results(tmp_path):
+    paths = _files(tmp_path, 3)
+    bad = tmp_path / "broken.nc"
+    bad.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 64)  # an HDF5 signature with nothing behind it
+    missing = str(tmp_path / "missing.nc")
+    store = tmp_path / "store"
+    items = [paths[0], str(bad), paths[1], missing, paths[2]]
+    res = batch.run(fft_work, items, LOADS, chunks=2, scheduler="threads", store=store, progress=False)
+    assert res.attrs["n_failed"] == 2 * len(LOADS)
+    failed = json.loads(res.attrs["failed_items"])
+    assert any("broken.nc" in f for f in failed) and any("missing.nc" in f for f in failed)
+    assert "broken.nc" in res.error.sel(measurement="broken.nc", load=0.1).item()
+    assert np.isnan(res.mean_gap.sel(measurement="missing.nc")).all()
+    good = batch.run(fft_work, paths, LOADS, scheduler="sync", progress=False)
+    xr.testing.assert_identical(_data(res.sel(measurement=good.measurement)), _data(good))
+    assert json.load(open(store / "manifest.json"))["status"] == "partial"
+    import dask
+
+    assert dask.config.get("scheduler", None) is None  # the store's write-time setting did not leak
+    # failed chunks are retried on the next run, good ones reused
+    res2 = batch.run(fft_work, items, LOADS, chunks=2, scheduler="threads", store=store, progress=False)
+    assert res2.attrs["chunks_computed"] == 2 and res2.attrs["chunks_reused"] == 1
+
+
+def _fails_at_big_load(ds, loads):
+    if any(load > 1 for load in loads):
+        raise XtopoError("load too large for this test")
+    return fft_work(ds, loads, iterations=2)
+
+
+def test_failing_parameter_value_is_isolated():
+    res = batch.run(_fails_at_big_load, _surfaces(2), [0.1, 5.0, 0.2], scheduler="sync", progress=False)
+    assert res.attrs["n_failed"] == 2
+    assert (res.error.sel(load=5.0) == "XtopoError: load too large for this test").all()
+    assert np.isfinite(res.mean_gap.sel(load=[0.1, 0.2])).all()
+
+
+def test_analyze_matches_scalars(tmp_path):
+    ms = _surfaces(3)
+    res = batch.analyze(ms, ["scalars"], scheduler="threads", progress=False)
+    for name, ds in ms.items():
+        direct = xtopo.analysis.scalars.scalars(ds)
+        xr.testing.assert_allclose(res.drop_vars(["error", "source"]).sel(measurement=name, drop=True).drop_attrs(),
+                                   direct.drop_attrs())
+    assert res.Sq.attrs["units"] == "m"
+    both = batch.analyze(ms, ["scalars", xtopo.analysis.scalars.scalars], scheduler="sync", progress=False)
+    assert "scalars_Sq" in both and both.attrs["n_failed"] == 0
+
+
+def test_input_errors():
+    ms = _surfaces(1)
+    with pytest.raises(XtopoError, match="unknown analysis 'nope'"):
+        batch.analyze(ms, ["nope"])
+    with pytest.raises(XtopoError, match="chunk size"):
+        batch.run(fft_work, ms, LOADS, chunks={"load": 0}, scheduler="sync")
+    with pytest.raises(XtopoError, match="unknown dims"):
+        batch.run(fft_work, ms, LOADS, chunks={"time": 1}, scheduler="sync")
+    with pytest.raises(XtopoError, match="unknown scheduler"):
+        batch.run(fft_work, ms, LOADS, scheduler="gpu")
+    with pytest.raises(XtopoError, match="at least one measurement"):
+        batch.run(fft_work, [], LOADS)
+    with pytest.raises(XtopoError, match="exactly one"):
+        batch.contact(ms, loads=[1], penetrations=[1])
+
+
+def test_progress_bar_local(capsys):
+    batch.run(fft_work, _surfaces(2), LOADS[:1], scheduler="sync", progress=True)
+    assert "100% Completed" in capsys.readouterr().out
+    batch.run(fft_work, _surfaces(2), LOADS[:1], scheduler="sync", progress=False)
+    assert "Completed" not in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------- distributed
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                  silence_logs=50) as cl, distributed.Client(cl) as client:
+        yield cl, client
+
+
+def test_distributed_worker_killed_mid_run(tmp_path, cluster):
+    """64 tasks on 2 worker processes; one worker is SIGKILLed mid-run; all results equal the serial run."""
+    _, client = cluster
+    ms = _surfaces(16, size=64)
+    work = functools.partial(fft_work, iterations=60)
+    loads = [0.05, 0.1, 0.2, 0.4]
+    store = tmp_path / "store"
+    out = {}
+
+    def go():
+        out["res"] = batch.run(work, ms, loads, chunks={"measurement": 1, "load": 1}, client=client, store=store,
+                               progress=False)
+
+    t = threading.Thread(target=go)
+    t.start()
+    deadline = time.time() + 60
+    while t.is_alive() and time.time() < deadline and (not store.exists() or
+                                      len([f for f in os.listdir(store) if f.startswith("chunk-")]) < 6):
+        time.sleep(0.02)
+    done_at_kill = len([f for f in os.listdir(store) if f.startswith("chunk-")])
+    pids = client.run(os.getpid)
+    victim = sorted(pids)[0]
+    os.kill(pids[victim], signal.SIGKILL)
+    t.join(120)
+    assert not t.is_alive()
+    assert done_at_kill < 64  # the kill happened while work remained
+    res = out["res"]
+    assert res.attrs["chunks_computed"] == 64
+    assert res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+    serial = batch.run(work, ms, loads, scheduler="sync", progress=False)
+    xr.testing.assert_allclose(_data(res), _data(serial), rtol=1e-12)
+    assert (res.fft_threads == 1).all()  # workers ran FFTs single-threaded
+
+
+def test_distributed_active_client_and_resume(tmp_path, cluster):
+    _, client = cluster  # the active client is found without passing it
+    ms = _surfaces(4)
+    store = tmp_path / "store"
+    a = batch.run(fft_work, ms, LOADS, store=store, progress=False)
+    b = batch.run(fft_work, ms, LOADS, store=store, progress=False)
+    assert a.attrs["chunks_computed"] == 4 and b.attrs["chunks_reused"] == 4
+    xr.testing.assert_identical(_data(a), _data(b))
+
+
+def test_distributed_progress_bar(cluster, capsys):
+    _, client = cluster
+    batch.run(fft_work, _surfaces(2), LOADS[:1], client=client, progress=True)
+    assert "100% Completed" in capsys.readouterr().out
+    batch.run(fft_work, _surfaces(2), LOADS[:1], client=client, progress=False)
+    assert "Completed" not in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------- contact (needs issue 5)
+
+
+def _scene():
+    try:
+        from xtopo.contact import Scene
+    except ImportError as exc:
+        pytest.skip(f"xtopo.contact (issue 5) not available: {exc}")
+    return Scene
+
+
+def test_batch_contact_equals_direct_solves(tmp_path):
+    Scene = _scene()
+    ms = {f"s{i}": fractal_surface((32, 32), 1e-6, hurst=0.8, rms_slope=0.1, seed=i, periodic=True)
+          for i in range(2)}
+    loads = [1e-14, 2e-14]
+    res = batch.contact(ms, loads, scheduler="sync", progress=False)
+    assert set(res.dims) == {"measurement", "load"}
+    assert res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+    for name, ds in ms.items():
+        for load in loads:
+            direct = Scene(ds, modulus=1.0).solve(load=load)
+            np.testing.assert_allclose(res.area_fraction.sel(measurement=name, load=load).item(),
+                                       float(direct.area_fraction), rtol=1e-10)
+    with_maps = batch.contact(ms, loads[:1], scheduler="sync", progress=False, maps=True)
+    assert "pressure" in with_maps and {"x", "y"} <= set(with_maps.pressure.dims)

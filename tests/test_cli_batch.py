@@ -1,0 +1,209 @@
+"""CLI: info, contact, batch (local and against a separately started `dask scheduler`), convert."""
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import xtopo
+from xtopo.cli import main
+from xtopo.datasets import fractal_surface
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@pytest.fixture
+def files(tmp_path):
+    paths = []
+    for i in range(3):
+        p = tmp_path / f"surface{i}.nc"
+        xtopo.to_netcdf(fractal_surface((32, 32), 1e-6, hurst=0.8, rms_slope=0.1, seed=i, periodic=True), p)
+        paths.append(str(p))
+    return paths
+
+
+@pytest.mark.parametrize("command", [["info"], ["contact"], ["batch"], ["batch", "contact"], ["batch", "analyze"],
+                                     ["convert"]])
+def test_help_on_every_command(command, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([*command, "--help"])
+    assert e.value.code == 0
+    out = capsys.readouterr().out
+    assert f"usage: xtopo {' '.join(command)}" in out and len(out) > 200
+
+
+def test_console_script_batch_help():
+    r = subprocess.run([sys.executable, "-m", "xtopo.cli", "batch", "contact", "--help"], capture_output=True,
+                       text=True, cwd=REPO)
+    assert r.returncode == 0 and "--scheduler" in r.stdout and "resume" in r.stdout
+
+
+def test_info(files, capsys):
+    assert main(["info", files[0]]) == 0
+    out = capsys.readouterr().out
+    assert "area scan" in out and "y=32 × x=32" in out and "periodic" in out
+
+
+def test_info_errors(tmp_path, capsys):
+    assert main(["info", str(tmp_path / "nope.nc")]) == 2
+    assert "no such file" in capsys.readouterr().err
+    bad = tmp_path / "bad.dat"
+    bad.write_bytes(b"\x00garbage")
+    assert main(["info", str(bad)]) == 2
+    assert "bad.dat" in capsys.readouterr().err
+
+
+def test_usage_errors_exit_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["batch", "contact", "x.nc", "-o", "s"])  # --loads missing
+    assert e.value.code == 2
+    assert main(["batch"]) == 2
+
+
+def test_convert_roundtrip(files, tmp_path, capsys):
+    out = tmp_path / "out.nc"
+    assert main(["convert", files[0], "-o", str(out), "--units", "um"]) == 0
+    a = xtopo.open_topography(files[0], units="um")
+    b = xtopo.open_topography(out, units="um")
+    np.testing.assert_allclose(b.height.values, a.height.values)
+    assert b.height.attrs["units"] == "um"
+
+
+def test_convert_surfacetopography_layout(files, tmp_path, capsys):
+    out = tmp_path / "st.nc"
+    rc = main(["convert", files[0], "-o", str(out), "--layout", "surfacetopography"])
+    if getattr(xtopo.io, "to_surfacetopography_netcdf", None) is None:
+        assert rc == 2 and "not available" in capsys.readouterr().err
+        return
+    assert rc == 0
+    with xr.open_dataset(out) as ds:
+        assert ds["heights"].size == 32 * 32
+
+
+def test_batch_analyze_local_partial_failure_and_resume(files, tmp_path, capsys):
+    bad = tmp_path / "corrupt.nc"
+    bad.write_bytes(b"\x89HDF\r\n\x1a\n" + b"\x00" * 32)
+    store = tmp_path / "store"
+    argv = ["batch", "analyze", *files, str(bad), "--scheduler", "threads", "--workers", "2", "-q", "-o", str(store)]
+    assert main(argv) == 1  # partial failure
+    cap = capsys.readouterr()
+    assert "corrupt.nc" in cap.err and "3/4 items done" in cap.out
+    res = xr.open_dataset(store / "result.nc")
+    assert res.sizes["measurement"] == 4 and np.isfinite(res.Sq.values[:3]).all()
+    direct = xtopo.analysis.scalars.scalars(xtopo.open_topography(files[1]))
+    np.testing.assert_allclose(res.Sq.sel(measurement="surface1.nc").item(), float(direct.Sq))
+    res.close()
+    assert main(argv) == 1
+    assert "(1 chunks computed, 3 reused)" in capsys.readouterr().out
+    assert main(["batch", "analyze", str(bad), "--scheduler", "sync", "-q", "-o", str(tmp_path / "s2")]) == 2
+
+
+def test_batch_unreachable_scheduler(files, tmp_path, capsys):
+    import dask
+
+    port = _free_port()
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        rc = main(["batch", "analyze", files[0], "--scheduler", f"tcp://127.0.0.1:{port}", "-q",
+                   "-o", str(tmp_path / "store")])
+    assert rc == 2 and "cannot connect" in capsys.readouterr().err
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def loopback_scheduler():
+    """`dask scheduler` + `dask worker` (2 processes) on 127.0.0.1, started as separate programs."""
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    env = {**os.environ, "PYTHONPATH": REPO + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    procs = []  # each in its own session, so that stopping it reaches its nannies and workers too
+    try:
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+                                       "--port", str(port), "--no-dashboard"], env=env, start_new_session=True,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers",
+                                       "2", "--nthreads", "1", "--no-dashboard"], env=env, start_new_session=True,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(address, timeout="30s") as c:
+            c.wait_for_workers(2, timeout=60)
+        yield address
+    finally:
+        for p in reversed(procs):
+            _signal_group(p, signal.SIGTERM)
+        for p in reversed(procs):
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                _signal_group(p, signal.SIGKILL)
+                p.wait(10)
+
+
+def _signal_group(proc, sig):
+    """Signal the session of a process this test started (it and its own children only)."""
+    try:
+        os.killpg(proc.pid, sig)
+    except ProcessLookupError:
+        pass
+
+
+def test_batch_against_separate_dask_scheduler(files, tmp_path, capsys, loopback_scheduler):
+    store = tmp_path / "store"
+    rc = main(["batch", "analyze", *files, "--scheduler", loopback_scheduler, "-q", "-o", str(store)])
+    assert rc == 0, capsys.readouterr().err
+    assert "3/3 items done (3 chunks computed, 0 reused)" in capsys.readouterr().out
+    with xr.open_dataset(store / "result.nc") as res:
+        for i, f in enumerate(files):
+            direct = xtopo.analysis.scalars.scalars(xtopo.open_topography(f))
+            np.testing.assert_allclose(res.Rq.sel(measurement=os.path.basename(f)).values, direct.Rq.values)
+    assert json.load(open(store / "manifest.json"))["status"] == "complete"
+
+
+def _need_contact():
+    try:
+        from xtopo.contact import Scene  # noqa: F401
+    except ImportError as exc:
+        pytest.skip(f"xtopo.contact (issue 5) not available: {exc}")
+
+
+def test_contact_command(files, tmp_path, capsys):
+    _need_contact()
+    out = tmp_path / "c.nc"
+    assert main(["contact", files[0], "--loads", "1e-14", "2e-14", "-o", str(out)]) == 0
+    with xr.open_dataset(out) as ds:
+        assert ds.sizes["load"] == 2 and "pressure" in ds
+
+
+def test_batch_contact_against_separate_dask_scheduler(files, tmp_path, capsys, loopback_scheduler):
+    _need_contact()
+    store = tmp_path / "store"
+    rc = main(["batch", "contact", *files, "--loads", "1e-14", "2e-14", "--scheduler", loopback_scheduler, "-q",
+               "-o", str(store)])
+    assert rc == 0, capsys.readouterr().err
+    with xr.open_dataset(store / "result.nc") as res:
+        assert dict(res.sizes) == {"measurement": 3, "load": 2}
+        assert np.isfinite(res.area_fraction.values).all()
+
+
+def test_contact_without_solver_says_so(files, tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "xtopo.contact", None)  # import fails as if absent
+    assert main(["contact", files[0], "--loads", "1", "-o", str(tmp_path / "c.nc")]) == 2
+    assert "contact solver" in capsys.readouterr().err
+
+
+def test_bad_worker_count_is_a_usage_error(files, tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["batch", "analyze", files[0], "--workers", "0", "-o", str(tmp_path / "s")])
+    assert e.value.code == 2 and "at least 1" in capsys.readouterr().err

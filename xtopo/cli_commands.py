@@ -1,0 +1,266 @@
+"""``xtopo info | contact | batch | convert``: the subcommands beyond ``analyze``.
+
+Exit codes (as in :mod:`xtopo.cli`): 0 success, 1 partial failure (some items failed,
+or a contact solve did not converge), 2 usage or input error (nothing useful done).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+__all__ = ["add_commands", "parse_channel"]
+
+
+def parse_channel(value):
+    """``"2"`` → 2; names stay strings."""
+    try:
+        return int(value)
+    except ValueError:
+        return value
+
+
+def _err(msg: str) -> None:
+    print(f"xtopo: error: {msg}", file=sys.stderr)
+
+
+def _fmt_size(size, units) -> str:
+    if not size:
+        return "?"
+    return " × ".join("?" if s is None else f"{s:.4g}" for s in size) + (f" {units}" if units else "")
+
+
+# --------------------------------------------------------------------------- info
+
+
+def _cmd_info(args) -> int:
+    import xtopo.io as xio
+    from .conventions import HEIGHT, lateral_dims, physical_size
+
+    path = args.file
+    if not os.path.isfile(path):
+        _err(f"{path}: no such file")
+        return 2
+    print(f"file: {path} ({os.path.getsize(path)} bytes)")
+    channels = getattr(xio, "channels", None)
+    if channels is not None:
+        infos = channels(path)
+        print(f"channels: {len(infos)}")
+        for c in infos:
+            kind = "height" if getattr(c, "is_height", True) else "other"
+            print(f"  [{c.index}] {c.name}: {' × '.join(str(n) for n in c.shape)} points, "
+                  f"size {_fmt_size(c.size, c.units)}, data in {c.height_units or '?'} ({kind})")
+    ds = xio.open_topography(path, channel=args.channel, units=None)
+    h = ds[HEIGHT]
+    dims = lateral_dims(h)
+    u = h.attrs.get("units", "?")
+    print(f"measurement: {'area' if len(dims) == 2 else 'line'} scan, "
+          + " × ".join(f"{d}={ds.sizes[d]}" for d in dims) + " points, "
+          + "size " + " × ".join(f"{physical_size(ds, d):.4g}" for d in dims) + f" {u}")
+    hv = h.values
+    finite = hv[~(hv != hv)]
+    if finite.size:
+        print(f"heights: {float(finite.min()):.4g} … {float(finite.max()):.4g} {u}, "
+              f"missing {100 * (1 - finite.size / hv.size):.1f} %")
+    print("metadata:")
+    for key in sorted(ds.attrs):
+        if key == "history":
+            continue
+        val = str(ds.attrs[key])
+        print(f"  {key}: {val if len(val) <= 100 else val[:97] + '...'}")
+    return 0
+
+
+# --------------------------------------------------------------------------- contact
+
+
+def _scene_kwargs(args) -> dict:
+    scene = {"modulus": args.modulus}
+    if args.hardness is not None:
+        scene["hardness"] = args.hardness
+    if args.periodic is not None:
+        scene["periodic"] = args.periodic == "yes"
+    return scene
+
+
+def _solve_kwargs(args) -> dict:
+    return {k: v for k, v in (("tol", args.tol), ("maxiter", args.maxiter)) if v is not None}
+
+
+def _cmd_contact(args) -> int:
+    from .batch import _contact_item, _require_contact
+    from .io import open_topography
+    from .io.netcdf import to_netcdf
+
+    _require_contact()
+    ds = open_topography(args.file, channel=args.channel)
+    res = _contact_item(ds, args.loads, control="load", scene=_scene_kwargs(args), solve=_solve_kwargs(args),
+                        maps=not args.scalars_only)
+    print(f"xtopo contact: {args.file}, {len(args.loads)} load(s)\n")
+    cols = [c for c in ("mean_pressure", "area_fraction", "penetration", "iterations", "converged") if c in res]
+    print("  ".join(["load"] + cols))
+    for i, load in enumerate(res["load"].values):
+        print("  ".join([f"{load:.4g}"] + [f"{res[c].values[i]:.4g}" if res[c].dtype.kind == "f"
+                                          else str(res[c].values[i]) for c in cols]))
+    to_netcdf(res, args.output)
+    print(f"\nwrote {args.output}")
+    if "converged" in res and not bool(res["converged"].all()):
+        _err("some loads did not converge (see 'converged'); raise --maxiter or loosen --tol")
+        return 1
+    return 0
+
+
+# --------------------------------------------------------------------------- batch
+
+
+def _report_batch(result, store_dir) -> int:
+    from .io.netcdf import to_netcdf
+
+    failed = json.loads(result.attrs.get("failed_items", "[]"))
+    n_items = int(result["error"].size)
+    out = os.path.join(store_dir, "result.nc")
+    to_netcdf(result, out)
+    print(f"xtopo batch: {n_items - len(failed)}/{n_items} items done "
+          f"({result.attrs['chunks_computed']} chunks computed, {result.attrs['chunks_reused']} reused)")
+    print(f"wrote {out}")
+    for line in failed:
+        _err(line)
+    if failed and len(failed) == n_items:
+        return 2
+    return 1 if failed else 0
+
+
+def _batch_common(args) -> dict:
+    return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=not args.quiet,
+                chunks=args.chunk_size)
+
+
+def _positive_int(value: str) -> int:
+    n = int(value)
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
+    return n
+
+
+def _cmd_batch_contact(args) -> int:
+    from .batch import contact
+
+    common = _batch_common(args)
+    solve = _solve_kwargs(args)
+    scene = _scene_kwargs(args)
+    result = contact(args.files, args.loads, modulus=scene["modulus"], hardness=scene.get("hardness"),
+                     periodic=scene.get("periodic"), tol=solve.get("tol"), maxiter=solve.get("maxiter"),
+                     maps=args.maps, **common)
+    return _report_batch(result, args.output)
+
+
+def _cmd_batch_analyze(args) -> int:
+    from .batch import analyze
+
+    result = analyze(args.files, analyses=args.analyses, **_batch_common(args))
+    return _report_batch(result, args.output)
+
+
+# --------------------------------------------------------------------------- convert
+
+
+def _cmd_convert(args) -> int:
+    import xtopo.io as xio
+
+    ds = xio.open_topography(args.file, channel=args.channel, units=args.units)
+    if args.layout == "surfacetopography":
+        writer = getattr(xio, "to_surfacetopography_netcdf", None)
+        if writer is None:
+            _err("the SurfaceTopography NetCDF writer is not available in this xtopo build; "
+                 "use --layout xtopo")
+            return 2
+        writer(ds, args.output)
+    else:
+        xio.to_netcdf(ds, args.output)
+    print(f"wrote {args.output} ({args.layout} layout)")
+    return 0
+
+
+# --------------------------------------------------------------------------- parsers
+
+
+def _add_scene_options(p) -> None:
+    g = p.add_argument_group("contact scene")
+    g.add_argument("--modulus", type=float, default=1.0,
+                   help="effective contact modulus E* (default %(default)s: pressures in units of E*)")
+    g.add_argument("--hardness", type=float, default=None, help="hardness (pressure cap), same units as --modulus")
+    g.add_argument("--periodic", choices=("yes", "no"), default=None,
+                   help="override the periodicity stored with the measurement")
+    g.add_argument("--tol", type=float, default=None, help="solver tolerance (default: the solver's)")
+    g.add_argument("--maxiter", type=int, default=None, help="maximum solver iterations (default: the solver's)")
+
+
+def _add_batch_options(p) -> None:
+    g = p.add_argument_group("execution")
+    g.add_argument("--scheduler", default="local",
+                   help="'local' (a local cluster of --workers processes; default), 'threads', 'processes', "
+                        "'sync', or a Dask scheduler address such as tcp://host:8786")
+    g.add_argument("--workers", type=_positive_int, default=None, help="local workers (default: one per CPU)")
+    g.add_argument("--chunk-size", type=_positive_int, default=None, metavar="N",
+                   help="measurements per task (default 1)")
+    g.add_argument("-o", "--output", required=True, metavar="STORE",
+                   help="store directory: one NetCDF file per finished chunk plus result.nc; rerunning with "
+                        "the same store resumes (only missing chunks are computed)")
+    g.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def add_commands(sub) -> None:
+    """Register ``info``, ``contact``, ``batch contact|analyze`` and ``convert`` on ``sub``."""
+    p = sub.add_parser("info", help="channels, sizes and metadata of a measurement file",
+                       description="Print the channels, grid, physical size and metadata of a measurement file.")
+    p.add_argument("file", help="measurement file (any supported format)")
+    p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name (default: the first height channel)")
+    p.set_defaults(func=_cmd_info)
+
+    p = sub.add_parser("contact", help="contact mechanics of one measurement at several loads",
+                       description="Solve the contact of a rigid flat with the measured topography at each "
+                                   "load; print the scalars and write the results (maps included) to NetCDF.")
+    p.add_argument("file", help="measurement file")
+    p.add_argument("--loads", type=float, nargs="+", required=True, metavar="LOAD",
+                   help="normal loads (units of E* × length²)")
+    p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
+    p.add_argument("--scalars-only", action="store_true", help="leave the pressure/gap maps out of the output")
+    p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
+    _add_scene_options(p)
+    p.set_defaults(func=_cmd_contact)
+
+    pb = sub.add_parser("batch", help="many measurements on a Dask cluster (resumable)",
+                        description="Run contact or analyses for many files as chunked Dask tasks, locally or "
+                                    "on a cluster. Results stream into a store directory; an interrupted run "
+                                    "resumes. Exit code 1 when some items failed (they are listed).")
+    bsub = pb.add_subparsers(dest="batch_command", metavar="WHAT")
+    pb.set_defaults(func=lambda args: (pb.print_help(), 2)[1])
+    p = bsub.add_parser("contact", help="contact at several loads for each file",
+                        description="Contact of every file at every load (dims measurement × load).")
+    p.add_argument("files", nargs="+", help="measurement files")
+    p.add_argument("--loads", type=float, nargs="+", required=True, metavar="LOAD",
+                   help="normal loads (units of E* × length²)")
+    p.add_argument("--maps", action="store_true", help="keep pressure/gap maps (large); default scalars only")
+    _add_scene_options(p)
+    _add_batch_options(p)
+    p.set_defaults(func=_cmd_batch_contact)
+    p = bsub.add_parser("analyze", help="analyses of each file",
+                        description="Run analyses (default: scalars) on every file (dim measurement).")
+    p.add_argument("files", nargs="+", help="measurement files")
+    p.add_argument("--analyses", nargs="+", default=["scalars"], metavar="NAME",
+                   help="xtopo.analysis modules to run (default: scalars)")
+    _add_batch_options(p)
+    p.set_defaults(func=_cmd_batch_analyze)
+
+    p = sub.add_parser("convert", help="convert a measurement file to NetCDF",
+                       description="Read any supported file and write it as xtopo NetCDF (CF/ACDD) or in the "
+                                   "SurfaceTopography/contact.engineering NetCDF layout.")
+    p.add_argument("file", help="measurement file")
+    p.add_argument("-o", "--output", required=True, help="output NetCDF file")
+    p.add_argument("--layout", choices=("xtopo", "surfacetopography"), default="xtopo",
+                   help="file layout (default: %(default)s)")
+    p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
+    p.add_argument("--units", default="m", help="length unit of the output (default: %(default)s)")
+    p.set_defaults(func=_cmd_convert)
