@@ -13,6 +13,7 @@ import xarray as xr
 from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
+from .contact import curves as _contact_curves
 from .io import netcdf as _netcdf
 
 
@@ -36,6 +37,9 @@ class _TopoAccessor:
     scalars = _delegate(_scalars.scalars)
     distribution = _delegate(_distribution.distribution)
     to_netcdf = _delegate(_netcdf.to_netcdf)
+
+    # contact mechanics (issue 5)
+    contact = _delegate(_contact_curves.contact)
 
     @property
     def height(self):
