@@ -338,6 +338,9 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
         return res.load - load
 
     depth = np.sort(-w, axis=None)
+    if load >= pixel_area * hardness * depth.size:
+        raise ValueError(f"the load {load:g} needs more than the whole nominal area at the hardness "
+                         f"({pixel_area * hardness * depth.size:g})")
     k = int(min(depth.size - 1, max(0, math.ceil(load / (pixel_area * hardness)))))
     lo = float(depth[k]) if k < depth.size else float(depth[-1])
     f_lo = solve_at(lo)
@@ -347,7 +350,9 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
     else:
         hi = 2 * lo if lo > 0 else float(depth[-1]) / 100 + np.finfo(float).tiny
         f_hi = solve_at(hi)
-        while f_hi < 0:
+        for _ in range(200):
+            if f_hi >= 0:
+                break
             lo, f_lo, hi = hi, f_hi, 2 * hi
             f_hi = solve_at(hi)
     brentq(lambda d: solve_at(d), lo, hi, xtol=load_tol * max(hi, 1e-300), rtol=4 * np.finfo(float).eps,

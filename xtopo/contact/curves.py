@@ -62,9 +62,8 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         previous = res.pressure if np.any(res.pressure) else None
         steps.append(to_dataset(scene, res, tol))
     dim = "penetration" if name == "penetrations" else "load"
-    ds = xr.concat(steps, dim=dim, data_vars="all", coords="minimal", compat="override",
-                   combine_attrs="override")
-    ds = ds.set_coords(dim)
+    ds = xr.concat([st.set_coords(dim) for st in steps], dim=dim, data_vars="all", coords="minimal",
+                   compat="override", combine_attrs="override")
     units = result_units(scene)
     ds["stiffness"] = stiffness(ds, dim=dim).assign_attrs(units=units["stiffness"],
                                                            long_name="contact stiffness dF/dδ")

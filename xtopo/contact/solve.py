@@ -91,6 +91,9 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
     tol = default_tol(scene.dtype) if tol is None else float(tol)
     if not tol > 0:
         raise ContactError(f"tol must be positive, got {tol}")
+    if scene.hardness is not None and load is not None and load >= scene.hardness * scene.nominal_area:
+        raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
+                           "the whole surface would flow; lower the load or raise the hardness")
     res = polonsky_keer(scene.convolution, scene.w, pixel_area=scene.pixel_area, load=load, penetration=penetration,
                         hardness=scene.hardness, tol=tol, maxiter=int(maxiter), initial=_initial(scene, initial))
     if not res.converged:
