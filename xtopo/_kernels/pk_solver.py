@@ -44,6 +44,18 @@ import numpy as np
 __all__ = ["polonsky_keer", "PKResult"]
 
 
+def _dot(a, b, work=None) -> float:
+    """Inner product without BLAS (multiply into ``work``, then sum).
+
+    BLAS dot products wake a pool of threads that contend with the FFT threads; on a
+    loaded machine that costs far more than the extra pass.
+    """
+    if work is None:
+        work = np.empty_like(a)
+    np.multiply(a, b, out=work)
+    return float(np.sum(work, dtype=np.float64))
+
+
 class PKResult(dict):
     """Dict with keys ``pressure``, ``displacement``, ``gap``, ``penetration``, ``load``,
     ``iterations``, ``residual``, ``converged``, ``convolutions``, ``plastic``."""
@@ -138,7 +150,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             nconv += 1
             ov = p > 0
             ku = u[ov]
-            c0 = float(np.dot(ku, p[ov]) / max(np.dot(ku, ku), np.finfo(float).tiny))
+            c0 = float(_dot(ku, p[ov]) / max(_dot(ku, ku), np.finfo(float).tiny))
             p *= dtype.type(c0)
             u *= dtype.type(c0)
         else:
@@ -169,7 +181,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     cb = np.empty(shape, bool)
     free = np.empty(shape, bool)
     cf = np.empty(shape, dtype)
-    flat = lambda a: a.reshape(-1)  # noqa: E731  (views)
+    work = np.empty(shape, dtype)
 
     delta = float(penetration) if not load_control else 0.0
     restart = True
@@ -189,7 +201,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         np.copyto(cf, c)
         np.subtract(u, w, out=g)
         if load_control and nc > 0:
-            delta = float(np.dot(flat(g), flat(cf))) / nc
+            delta = float(_dot(g, cf, work)) / nc
         g -= dtype.type(delta)
         np.multiply(g, cf, out=gc)
         # residual: contact-set gaps, overlaps outside, opened plastic points
@@ -215,7 +227,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             restart = True
             continue
         # conjugate direction
-        G = float(np.dot(flat(gc), flat(gc)))
+        G = float(_dot(gc, gc, work))
         if not restart and G_old > 0:
             t *= dtype.type(G / G_old)
             t += gc
@@ -227,10 +239,10 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         if nc > 0 and G > 0:
             conv(t, r)
             nconv += 1
-            denom = float(np.dot(flat(r), flat(t)))
+            denom = float(_dot(r, t, work))
             if load_control:
-                denom -= float(np.dot(flat(r), flat(cf))) / nc * float(np.sum(t, dtype=np.float64))
-            tau = float(np.dot(flat(gc), flat(t))) / denom if denom > 0 else 0.0
+                denom -= float(_dot(r, cf, work)) / nc * float(np.sum(t, dtype=np.float64))
+            tau = float(_dot(gc, t, work)) / denom if denom > 0 else 0.0
             if tau != 0.0:
                 np.multiply(t, dtype.type(tau), out=tmp)
                 p -= tmp
