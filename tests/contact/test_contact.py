@@ -204,3 +204,14 @@ def test_errors():
     with pytest.raises(ContactError, match="extra dims"):
         Scene(xr.concat([ds, ds], dim="sample"))
     assert issubclass(ContactError, xtopo.XtopoError)
+
+
+def test_cylinder_plane_strain_free_line_scan():
+    """2D Hertz (cylinder on flat, plane strain): half-width a = sqrt(4 R F / (π E*))."""
+    line = datasets.sphere(1024, 1.0, 1.0, kind="paraboloid", units="um")
+    scene = Scene(line)
+    assert scene.line and not scene.periodic and "plane-strain" in repr(scene)
+    a = 0.1
+    r = scene.solve(load=np.pi * a**2 / 4)
+    assert abs(float(r.contact_area) / 2 / a - 1) < 0.01
+    assert r["load"].attrs["units"] == "E* um"
