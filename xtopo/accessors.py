@@ -20,6 +20,7 @@ from .analysis import psd as _psd
 from .analysis import reliability as _reliability
 from .analysis import sdrp as _sdrp
 from .analysis import vbm as _vbm
+from .contact import curves as _contact_curves
 from .io import netcdf as _netcdf
 from . import stitching as _stitching
 from . import plot as _plot
@@ -61,6 +62,8 @@ class _TopoAccessor:
     hurst = _delegate(_hurst.hurst)
     # figures (issue 8)
     plot = _delegate(_plot.plot)
+    # contact mechanics (issue 5)
+    contact = _delegate(_contact_curves.contact)
 
     @property
     def height(self):

@@ -1,0 +1,186 @@
+"""Contact mechanics side by side: xtopo vs ContactMechanics vs tamaas (issue 5).
+
+Every case runs in a fresh subprocess (clean timings and peak memory). For each grid the
+same seeded fractal surface is solved at the same mean pressure; the area fractions are
+printed next to each other, with
+
+* ``ratio``   = xtopo time / fastest peer time (goal ≤ 0.2),
+* ``it/fft``  = xtopo time per CG iteration / one forward+inverse real FFT pair on the
+  solver's grid (native grid periodic, 2N padded grid free; goal ≤ 1.5),
+* peak RSS of each process.
+
+Usage::
+
+    python benchmarks/bench_contact.py                    # periodic 256 512 1024, free 256 512
+    python benchmarks/bench_contact.py --periodic 256 --free  # quick
+    python benchmarks/bench_contact.py --big 4096          # one 4096² free solve: time and peak RSS
+
+Tolerances: xtopo ``tol`` (largest contact violation / peak-to-valley height); the same
+length ``tol·PtV`` is ContactMechanics' ``pentol``; tamaas gets its own relative ``tol``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, ROOT)
+
+MEAN_PRESSURE = 0.005  # p/E*; with an rms slope of 0.1 this gives roughly 10 % contact
+
+
+def surface(n, periodic):
+    from xtopo import datasets
+
+    return datasets.fractal_surface((n, n), 1.0, hurst=0.8, rms_slope=0.1, short_cutoff=4.0 / n, seed=11,
+                                    periodic=periodic, units="um")
+
+
+def peak_rss_mb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def fft_pair_time(shape, backend, repeat=5):
+    from xtopo._kernels import fft as xfft
+
+    a = np.random.default_rng(0).random(shape)
+    xfft.irfftn(xfft.rfftn(a, backend=backend), s=shape, backend=backend)
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        xfft.irfftn(xfft.rfftn(a, backend=backend), s=shape, backend=backend)
+        ts.append(time.perf_counter() - t0)
+    return min(ts)
+
+
+def run_xtopo(n, periodic, tol, repeat, dtype="float64"):
+    from xtopo.contact import Scene
+
+    ds = surface(n, periodic)
+    t0 = time.perf_counter()
+    scene = Scene(ds, dtype=dtype)
+    scene.convolution  # build the Green's function (reported separately)
+    setup = time.perf_counter() - t0
+    times, r = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+        times.append(time.perf_counter() - t0)
+    t = statistics.median(times)
+    pair = fft_pair_time(scene.fft_shape, scene.backend)
+    it = int(r.iterations)
+    return dict(time=t, setup=setup, area=float(r.area_fraction), iterations=it, converged=bool(r.converged),
+                per_iteration=t / it, fft_pair=pair, it_per_fft=t / it / pair,
+                convolutions=int(r.attrs["convolutions"]), backend=scene.backend, rss=peak_rss_mb())
+
+
+def run_contactmechanics(n, periodic, tol, repeat):
+    from ContactMechanics import FreeFFTElasticHalfSpace, PeriodicFFTElasticHalfSpace
+    from ContactMechanics.Factory import make_system
+    from SurfaceTopography import Topography
+
+    h = surface(n, periodic).height.values
+    cls = PeriodicFFTElasticHalfSpace if periodic else FreeFFTElasticHalfSpace
+    sub = cls((n, n), 1.0, physical_sizes=(1.0, 1.0))
+    system = make_system(substrate=sub, surface=Topography(h, physical_sizes=(1.0, 1.0), periodic=periodic))
+    pentol = tol * float(h.max() - h.min())
+    times, sol = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        sol = system.minimize_proxy(external_force=MEAN_PRESSURE * 1.0, pentol=pentol, maxiter=5000)
+        times.append(time.perf_counter() - t0)
+    forces = np.asarray(sol.jac)[:n, :n]
+    return dict(time=statistics.median(times), area=float(np.count_nonzero(forces)) / n**2,
+                iterations=int(sol.nit), converged=bool(sol.success), rss=peak_rss_mb())
+
+
+def run_tamaas(n, periodic, tol, repeat):
+    if not periodic:
+        raise RuntimeError("tamaas solves periodic problems only")
+    import tamaas as tm
+
+    h = np.ascontiguousarray(surface(n, periodic).height.values)
+    times, model = [], None
+    for _ in range(repeat):
+        model = tm.ModelFactory.createModel(tm.model_type.basic_2d, [1.0, 1.0], [n, n])
+        model.E, model.nu = 1.0, 0.0  # E* = E/(1-ν²) = 1
+        solver = tm.PolonskyKeerRey(model, h, tol)
+        solver.max_iter = 5000
+        t0 = time.perf_counter()
+        solver.solve(MEAN_PRESSURE)
+        times.append(time.perf_counter() - t0)
+    traction = np.asarray(model.traction)
+    return dict(time=statistics.median(times), area=float(np.count_nonzero(traction > 0)) / n**2,
+                iterations=-1, converged=True, rss=peak_rss_mb())
+
+
+RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas}
+
+
+def case(pkg, n, boundary, tol, repeat):
+    cmd = [sys.executable, __file__, "--case", pkg, str(n), boundary, str(tol), str(repeat)]
+    out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    for line in out.stdout.splitlines()[::-1]:
+        if line.startswith("{"):
+            return json.loads(line)
+    return {"error": (out.stderr.strip().splitlines() or ["?"])[-1][:120]}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--periodic", type=int, nargs="*", default=[256, 512, 1024])
+    ap.add_argument("--free", type=int, nargs="*", default=[256, 512])
+    ap.add_argument("--tol", type=float, default=1e-6)
+    ap.add_argument("--peer-tol", type=float, default=None, help="tamaas tolerance (default: --tol)")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--big", type=int, default=None, help="run one free-boundary solve of this size only")
+    ap.add_argument("--case", nargs=5, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.case:
+        pkg, n, boundary, tol, repeat = args.case
+        print(json.dumps(RUNNERS[pkg](int(n), boundary == "periodic", float(tol), int(repeat))))
+        return
+    if args.big:
+        r = case("xtopo", args.big, "free", args.tol, 1)
+        print(f"free {args.big}²: {json.dumps(r)}")
+        return
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', 'all')}, "
+          f"cpus {os.cpu_count()}")
+    head = (f"{'grid':>14} {'package':>16} {'time s':>9} {'area':>9} {'iters':>6} {'conv':>5} {'RSS MB':>8}")
+    print(head)
+    for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
+        for n in sizes:
+            rows = {}
+            for pkg in RUNNERS:
+                if pkg == "tamaas" and boundary == "free":
+                    continue
+                tol = args.tol if pkg != "tamaas" or args.peer_tol is None else args.peer_tol
+                rows[pkg] = r = case(pkg, n, boundary, tol, args.repeat)
+                if "error" in r:
+                    print(f"{boundary + ' ' + str(n):>14} {pkg:>16}  failed: {r['error']}")
+                    continue
+                print(f"{boundary + ' ' + str(n):>14} {pkg:>16} {r['time']:9.3f} {r['area']:9.5f} "
+                      f"{r['iterations']:6d} {str(r['converged']):>5} {r['rss']:8.0f}")
+            x = rows.get("xtopo", {})
+            peers = [r["time"] for p, r in rows.items() if p != "xtopo" and "time" in r]
+            if "time" in x:
+                ratio = x["time"] / min(peers) if peers else float("nan")
+                dareas = [abs(r["area"] - x["area"]) for p, r in rows.items() if p != "xtopo" and "area" in r]
+                print(f"{'':>14} (a) xtopo/fastest peer = {ratio:.3f}   (b) time per iteration / rFFT pair on "
+                      f"{x['backend']} = {x['it_per_fft']:.2f} ({x['convolutions']} convolutions in "
+                      f"{x['iterations']} iterations; pair {1e3 * x['fft_pair']:.2f} ms)   "
+                      f"max |Δarea| vs peers = {max(dareas) if dareas else float('nan'):.2e}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,137 @@
+"""Load curves: a sequence of warm-started solves stacked along ``load`` (or ``penetration``)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from .._kernels.pk_solver import polonsky_keer
+from ..conventions import append_history
+from ..errors import ContactError, ConvergenceWarning
+from .solve import _control, default_tol, result_units, to_dataset
+
+__all__ = ["curve", "stiffness", "gap_distribution", "contact"]
+
+
+def _sequence(name, values):
+    v = np.atleast_1d(np.asarray(values, dtype=float))
+    if v.ndim != 1 or v.size == 0:
+        raise ContactError(f"{name} must be a non-empty 1D sequence, got shape {v.shape}")
+    return v
+
+
+def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int = 1000,
+          gap_bins: int = 50) -> xr.Dataset:
+    """Solve ``scene`` for each value of a sequence, each step starting from the previous solution.
+
+    Parameters
+    ----------
+    scene : xtopo.contact.Scene
+    loads, mean_pressures, penetrations : array_like
+        Exactly one sequence (units as in :func:`xtopo.contact.solve.solve`).
+    tol, maxiter : as in :func:`xtopo.contact.solve.solve`
+    gap_bins : int
+        Bins of the gap distribution (0 for none).
+
+    Returns
+    -------
+    xarray.Dataset
+        The variables of :func:`~xtopo.contact.solve.solve` stacked along ``load`` (loads or
+        mean pressures given; coordinate ``load``) or ``penetration``, plus ``stiffness``
+        (``dF/dδ``) and ``gap_distribution``.
+    """
+    given = [(n, v) for n, v in (("loads", loads), ("mean_pressures", mean_pressures),
+                                 ("penetrations", penetrations)) if v is not None]
+    if len(given) != 1:
+        raise ContactError("give exactly one of loads=, mean_pressures= or penetrations=")
+    name, values = given[0]
+    values = _sequence(name, values)
+    tol = default_tol(scene.dtype) if tol is None else float(tol)
+    steps, previous = [], None
+    for v in values:
+        kw = {{"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]: v}
+        load, pen = _control(scene, kw.get("load"), kw.get("mean_pressure"), kw.get("penetration"))
+        res = polonsky_keer(scene.convolution, scene.w, pixel_area=scene.pixel_area, load=load, penetration=pen,
+                            hardness=scene.hardness, tol=tol, maxiter=int(maxiter), initial=previous)
+        if not res.converged:
+            warnings.warn(f"contact solve at {name[:-1]}={v:g} did not converge in {res.iterations} iterations "
+                          f"(residual {res.residual:.3g} > tol {tol:g}); flagged converged=False",
+                          ConvergenceWarning, stacklevel=3)
+        previous = res.pressure if np.any(res.pressure) else None
+        steps.append(to_dataset(scene, res, tol))
+    dim = "penetration" if name == "penetrations" else "load"
+    ds = xr.concat([st.set_coords(dim) for st in steps], dim=dim, data_vars="all", coords="minimal",
+                   compat="override", combine_attrs="override")
+    units = result_units(scene)
+    ds["stiffness"] = stiffness(ds, dim=dim).assign_attrs(units=units["stiffness"],
+                                                           long_name="contact stiffness dF/dδ")
+    if gap_bins:
+        ds["gap_distribution"] = gap_distribution(ds, bins=gap_bins)
+    ds.attrs.pop("history", None)
+    return append_history(ds, f"xtopo.contact.curve({name}={len(values)} values)")
+
+
+def stiffness(ds: xr.Dataset, dim: str = "load") -> xr.DataArray:
+    """Contact stiffness ``dF/dδ`` along a curve, by second-order finite differences.
+
+    NaN where fewer than two distinct penetrations exist.
+    """
+    f = np.asarray(ds["load"].values, dtype=float)
+    d = np.asarray(ds["penetration"].values, dtype=float)
+    if f.size < 2 or np.any(np.diff(d) == 0):
+        k = np.full(f.shape, np.nan)
+    else:
+        k = np.gradient(f, d)
+    return xr.DataArray(k, dims=(dim,))
+
+
+def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
+    """Probability density of the gap over the non-contacting points, per load step.
+
+    The bin edges span ``[0, max gap]`` over all steps; coordinate ``gap_bin`` holds bin centres.
+    """
+    gap = ds["gap"]
+    lateral = [d for d in gap.dims if d in ("x", "y")]
+    extra = [d for d in gap.dims if d not in lateral]
+    values = gap.transpose(*extra, *lateral).values
+    contact = ds["contact"].transpose(*extra, *lateral).values
+    gmax = float(values.max()) if values.size else 0.0
+    edges = np.linspace(0.0, gmax if gmax > 0 else 1.0, bins + 1)
+    flat_v = values.reshape((-1,) + values.shape[len(extra):]).reshape(int(np.prod(values.shape[:len(extra)])), -1)
+    flat_c = contact.reshape(flat_v.shape)
+    dens = np.stack([np.histogram(v[~c], bins=edges, density=False)[0] for v, c in zip(flat_v, flat_c)])
+    width = np.diff(edges)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        total = dens.sum(axis=1, keepdims=True)
+        dens = np.where(total > 0, dens / np.where(total > 0, total, 1) / width, 0.0)
+    dens = dens.reshape(values.shape[:len(extra)] + (bins,))
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    lu = gap.attrs.get("units", "1")
+    return xr.DataArray(dens, dims=(*extra, "gap_bin"),
+                        coords={"gap_bin": ("gap_bin", centres, {"units": lu, "long_name": "gap (bin centre)"})},
+                        attrs={"units": f"{lu}-1", "long_name": "probability density of the gap outside contact"})
+
+
+def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
+            hardness: float | None = None, periodic: bool | None = None, counter=None, dtype="float64",
+            tol=None, maxiter: int = 1000) -> xr.Dataset:
+    """Contact of ``topography`` on an elastic flat: a :class:`~xtopo.contact.Scene` solved in one call.
+
+    A scalar ``load``/``mean_pressure``/``penetration`` gives one solution
+    (:func:`~xtopo.contact.solve.solve`); a sequence gives a load curve
+    (:func:`curve`). Other parameters as in :class:`~xtopo.contact.Scene`.
+    """
+    from .scene import Scene
+
+    scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype)
+    control = {"load": load, "mean_pressure": mean_pressure, "penetration": penetration}
+    given = {k: v for k, v in control.items() if v is not None}
+    if len(given) != 1:
+        raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
+    (key, value), = given.items()
+    if np.ndim(value) == 0:
+        return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
+    plural = {"load": "loads", "mean_pressure": "mean_pressures", "penetration": "penetrations"}[key]
+    return scene.curve(**{plural: value}, tol=tol, maxiter=maxiter)

@@ -1,0 +1,202 @@
+"""What a contact calculation models, and nothing more (paper §5, DESIGN.md §5).
+
+A :class:`Scene` takes one measurement (or two, ``h1 + h2``), the contact modulus
+``E*`` and optionally a hardness, decides the boundary condition, and builds only the
+operators that scene needs: the periodic Green's function eq. (17) on the native grid
+for periodic data; the Love rectangle eq. (19) on a ``2N`` padded grid (Hockney) for
+free boundaries; the plane-strain kernels for line scans; a pressure cap only with a
+hardness.  The FFT plans are built on first use and are not pickled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .._kernels import fft as _fft
+from .._kernels.convolution import Convolution
+from .._kernels.greens import padded_shape
+from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
+from ..errors import ContactError, GridError
+
+__all__ = ["Scene"]
+
+
+def _heights(obj, what: str) -> xr.DataArray:
+    h = height_of(obj)
+    extra = [d for d in h.dims if d not in LATERAL_DIMS]
+    if extra:
+        raise ContactError(f"{what}: a Scene models one measurement, but 'height' has the extra dims {extra}; "
+                           f"select one (e.g. .isel({extra[0]}=0)) or batch the solves (xtopo.batch)")
+    if "x" not in h.dims:
+        raise GridError(f"{what}: 'height' has no 'x' dimension (dims {h.dims}); rename the lateral dims to 'x'/'y'")
+    if is_nonuniform(obj):
+        raise GridError(f"{what}: contact mechanics needs a uniform grid; interpolate the nonuniform scan first")
+    h = h.transpose(*[d for d in LATERAL_DIMS if d in h.dims])
+    values = np.asarray(h.values)
+    if not np.all(np.isfinite(values)):
+        raise ContactError(f"{what}: 'height' has {int(np.count_nonzero(~np.isfinite(values)))} missing (NaN or "
+                           "masked) points; fill them first (e.g. xtopo.preprocess.fill_missing) — a contact "
+                           "calculation needs a height at every pixel")
+    return h
+
+
+def _length_units(h: xr.DataArray) -> str:
+    units = h.attrs.get("units") or h.coords["x"].attrs.get("units")
+    return normalize_units(units) if units else "1"
+
+
+class Scene:
+    """A contact problem: rigid rough surface(s) on an elastic half-space.
+
+    Parameters
+    ----------
+    topography : xarray.Dataset or xarray.DataArray
+        A measurement (``height`` on ``("y", "x")`` or ``("x",)``, uniform grid, no
+        missing data). Heights point toward the elastic body: the highest point touches first.
+    modulus : float
+        Contact modulus ``E*`` (``1/E* = (1-ν₁²)/E₁ + (1-ν₂²)/E₂``). Pressures, loads and the
+        hardness are in the units of ``modulus`` (``modulus_units``, default ``"E*"``).
+    hardness : float, optional
+        Indentation hardness ``p_y``: pressures are capped at this value (simple
+        perfectly plastic model). Without it no cap is built.
+    periodic : bool, optional
+        Boundary condition; default the ``periodic`` attribute of the topography (and of
+        the counter surface: both must be periodic).
+    counter : xarray.Dataset or xarray.DataArray, optional
+        A second rough surface on the same grid; the scene uses the compound topography
+        ``h1 + h2`` (paper §5.2).
+    dtype : {"float64", "float32"}
+        Floating point type of the solver.
+    modulus_units : str, optional
+        Units label of ``modulus`` (e.g. ``"GPa"``); default ``"E*"``.
+    backend : {"auto", "scipy", "pyfftw"}
+        FFT library (``"auto"``: by the size of the FFT grid, see :mod:`xtopo._kernels.fft`).
+    """
+
+    def __init__(self, topography, *, modulus: float = 1.0, hardness: float | None = None, periodic: bool | None = None,
+                 counter=None, dtype="float64", modulus_units: str | None = None, backend: str = "auto"):
+        h = _heights(topography, "topography")
+        try:
+            modulus = float(modulus)
+        except (TypeError, ValueError):
+            raise ContactError(f"modulus must be a positive number (E* in your pressure unit), got {modulus!r}") \
+                from None
+        if not (np.isfinite(modulus) and modulus > 0):
+            raise ContactError(f"modulus must be positive and finite, got {modulus}")
+        if hardness is not None:
+            hardness = float(hardness)
+            if not (np.isfinite(hardness) and hardness > 0):
+                raise ContactError(f"hardness must be positive and finite (or None for elastic), got {hardness}")
+        if np.dtype(dtype) not in (np.dtype("float32"), np.dtype("float64")):
+            raise ContactError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
+        self.dtype = np.dtype(dtype)
+        self.modulus = modulus
+        self.hardness = hardness
+        self.modulus_units = modulus_units or "E*"
+        self.length_units = _length_units(h)
+        self.dims = tuple(h.dims)
+        self.shape = tuple(h.shape)
+        self.spacing = tuple(spacing(h, d) for d in self.dims)
+        reasons = []
+        per_attr = is_periodic(topography)
+        if counter is not None:
+            h2 = _heights(counter, "counter")
+            self._check_same_grid(h, h2)
+            per_attr = per_attr and is_periodic(counter)
+            values = np.asarray(h.values, dtype=np.float64) + np.asarray(h2.values, dtype=np.float64)
+            reasons.append("compound topography h1 + h2 (counter surface given)")
+        else:
+            values = np.asarray(h.values, dtype=np.float64)
+        if periodic is None:
+            self.periodic = bool(per_attr)
+            self._boundary_reason = (f"from the data's periodic attribute ({int(self.periodic)})"
+                                     + (" of both surfaces" if counter is not None else ""))
+        else:
+            self.periodic = bool(periodic)
+            self._boundary_reason = "as requested"
+        self._reasons = reasons
+        self.coords = {d: h.coords[d] for d in self.dims}
+        self.heights = values
+        # rigid surface relative to its highest point (≤ 0): first contact at penetration 0
+        self.w = (values - values.max()).astype(self.dtype)
+        self.pixel_area = float(np.prod(self.spacing))
+        self.nominal_area = self.pixel_area * int(np.prod(self.shape))
+        self.backend_request = backend
+        self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
+        self.backend = _fft.choose_backend(self.fft_shape, backend)
+        self._conv = None
+
+    @staticmethod
+    def _check_same_grid(h1, h2):
+        if h1.dims != h2.dims or h1.shape != h2.shape:
+            raise GridError(f"counter surface has dims {h2.dims} shape {h2.shape}, but the topography has "
+                            f"{h1.dims} {h1.shape}; interpolate one onto the other's grid first")
+        u1, u2 = _length_units(h1), _length_units(h2)
+        if u1 != u2:
+            raise GridError(f"counter surface is in {u2!r} but the topography in {u1!r}; convert with "
+                            f".topo.to_units({u1!r})")
+        for d in h1.dims:
+            if not np.isclose(spacing(h1, d), spacing(h2, d), rtol=1e-6):
+                raise GridError(f"counter surface has spacing {spacing(h2, d)} along {d!r}, the topography "
+                                f"{spacing(h1, d)}; both must share one grid")
+
+    # -- what is modelled -----------------------------------------------------------------
+    @property
+    def line(self) -> bool:
+        """True for a line scan (plane strain)."""
+        return len(self.shape) == 1
+
+    @property
+    def convolution(self) -> Convolution:
+        """The elastic operator ``u = G * p`` (built on first use)."""
+        if self._conv is None:
+            self._conv = Convolution(self.shape, self.spacing, self.modulus, periodic=self.periodic,
+                                     dtype=self.dtype, backend=self.backend)
+        return self._conv
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_conv"] = None  # rebuilt lazily after unpickling
+        return state
+
+    def __repr__(self) -> str:
+        grid = "×".join(str(n) for n in self.shape)
+        sp = "×".join(f"{d:g}" for d in self.spacing)
+        kind = "line scan, plane strain" if self.line else "area scan"
+        if self.periodic:
+            green = (f"periodic Green's function 2/(E*|q|) (eq. 17) on the native {grid} grid, no padding")
+        else:
+            pgrid = "×".join(str(n) for n in self.fft_shape)
+            kernel = "plane-strain strip kernel" if self.line else "Love rectangle (eq. 19)"
+            green = f"free boundaries: {kernel} on a {pgrid} padded grid (Hockney), padding hidden"
+        plastic = (f"pressure capped at hardness {self.hardness:g} {self.modulus_units}" if self.hardness is not None
+                   else "elastic (no hardness given, no cap)")
+        lines = [
+            f"Scene({kind}, {grid} px of {sp} {self.length_units})",
+            f"  boundary: {'periodic' if self.periodic else 'free'} ({self._boundary_reason})",
+            f"  elasticity: {green}",
+            f"  material: E* = {self.modulus:g} {self.modulus_units}; {plastic}",
+            f"  solver: Polonsky–Keer CG, {self.dtype.name}, FFT backend {self.backend} "
+            f"({'requested' if self.backend_request != 'auto' else 'chosen by FFT grid size'})",
+        ]
+        lines += [f"  {r}" for r in self._reasons]
+        return "\n".join(lines)
+
+    # -- solving (implemented in solve.py / curves.py) ----------------------------------------
+    def solve(self, load=None, *, mean_pressure=None, penetration=None, tol=None, maxiter: int = 1000,
+              initial=None) -> xr.Dataset:
+        """Solve for one load, mean pressure or penetration; see :func:`xtopo.contact.solve.solve`."""
+        from .solve import solve
+
+        return solve(self, load=load, mean_pressure=mean_pressure, penetration=penetration, tol=tol,
+                     maxiter=maxiter, initial=initial)
+
+    def curve(self, loads=None, *, mean_pressures=None, penetrations=None, tol=None, maxiter: int = 1000,
+              gap_bins: int = 50) -> xr.Dataset:
+        """Solve a sequence of loads (warm-started); see :func:`xtopo.contact.curves.curve`."""
+        from .curves import curve
+
+        return curve(self, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations, tol=tol,
+                     maxiter=maxiter, gap_bins=gap_bins)
+

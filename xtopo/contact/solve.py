@@ -1,0 +1,144 @@
+"""One contact solution of a :class:`~xtopo.contact.scene.Scene` as a Dataset (paper §5.4)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from .._kernels.pk_solver import polonsky_keer
+from ..conventions import append_history
+from ..errors import ContactError, ConvergenceWarning
+
+__all__ = ["solve", "default_tol", "result_units"]
+
+#: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`).
+_DEFAULT_TOL = {np.dtype("float64"): 1e-6, np.dtype("float32"): 1e-5}
+
+
+def default_tol(dtype) -> float:
+    """Tolerance used when ``tol=None``: 1e-6 (float64) / 1e-5 (float32) of the peak-to-valley height."""
+    return _DEFAULT_TOL[np.dtype(dtype)]
+
+
+def result_units(scene) -> dict:
+    """Units strings of the outputs of ``scene`` (pressure, length, load, stiffness)."""
+    pu, lu = scene.modulus_units, scene.length_units
+    if scene.line:
+        return {"pressure": pu, "length": lu, "load": f"{pu} {lu}", "area": lu, "stiffness": pu}
+    return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2", "stiffness": f"{pu} {lu}"}
+
+
+def _control(scene, load, mean_pressure, penetration):
+    given = [v is not None for v in (load, mean_pressure, penetration)]
+    if sum(given) != 1:
+        raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
+    for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
+        if v is not None:
+            if np.ndim(v) != 0 or not np.isfinite(float(v)):
+                raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
+            if name != "penetration" and float(v) < 0:
+                raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
+    if mean_pressure is not None:
+        load = float(mean_pressure) * scene.nominal_area
+    return (None if load is None else float(load)), (None if penetration is None else float(penetration))
+
+
+def _initial(scene, initial):
+    if initial is None:
+        return None
+    p = initial["pressure"] if isinstance(initial, xr.Dataset) else initial
+    p = np.asarray(getattr(p, "values", p))
+    if p.shape != scene.shape:
+        raise ContactError(f"initial pressures have shape {p.shape}, the scene {scene.shape}")
+    return p
+
+
+def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int = 1000,
+          initial=None) -> xr.Dataset:
+    """Solve the contact of ``scene`` at one load, mean pressure or penetration.
+
+    Parameters
+    ----------
+    scene : xtopo.contact.Scene
+    load : float, optional
+        Total normal force, in modulus units × length² (area scans) or modulus units ×
+        length (line scans: force per unit length).
+    mean_pressure : float, optional
+        Load divided by the nominal (measurement) area, in modulus units.
+    penetration : float, optional
+        Rigid-body approach from first contact of the highest point, in length units.
+        Periodic scenes measure it with the mean displacement set to zero.
+    tol : float, optional
+        Largest violation of the contact conditions relative to the peak-to-valley height
+        (see :mod:`xtopo._kernels.pk_solver`); default :func:`default_tol`.
+    maxiter : int
+        Iteration limit. Non-convergence gives a :class:`~xtopo.errors.ConvergenceWarning`
+        and ``converged=False``.
+    initial : xarray.Dataset or array_like, optional
+        Starting pressures (e.g. a previous result).
+
+    Returns
+    -------
+    xarray.Dataset
+        Maps ``pressure``, ``displacement``, ``gap``, ``contact`` (and ``plastic`` with a
+        hardness) on the measurement grid; scalars ``load``, ``mean_pressure``,
+        ``area_fraction``, ``contact_area``, ``penetration``, ``iterations``, ``residual``,
+        ``converged``.
+    """
+    load, penetration = _control(scene, load, mean_pressure, penetration)
+    tol = default_tol(scene.dtype) if tol is None else float(tol)
+    if not tol > 0:
+        raise ContactError(f"tol must be positive, got {tol}")
+    if scene.hardness is not None and load is not None and load >= scene.hardness * scene.nominal_area:
+        raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
+                           "the whole surface would flow; lower the load or raise the hardness")
+    res = polonsky_keer(scene.convolution, scene.w, pixel_area=scene.pixel_area, load=load, penetration=penetration,
+                        hardness=scene.hardness, tol=tol, maxiter=int(maxiter), initial=_initial(scene, initial))
+    if not res.converged:
+        warnings.warn(f"contact solve did not converge in {res.iterations} iterations (relative residual "
+                      f"{res.residual:.3g} > tol {tol:g}); the result is flagged converged=False — raise maxiter or "
+                      "tol, or start from a nearby solution (initial=)", ConvergenceWarning, stacklevel=3)
+    return to_dataset(scene, res, tol)
+
+
+def to_dataset(scene, res, tol) -> xr.Dataset:
+    """Wrap a :class:`~xtopo._kernels.pk_solver.PKResult` of ``scene`` as a Dataset with units."""
+    u = result_units(scene)
+    dims = scene.dims
+    contact = res.pressure > 0
+    n = contact.size
+    data = {
+        "pressure": (dims, res.pressure, {"units": u["pressure"], "long_name": "contact pressure"}),
+        "displacement": (dims, res.displacement, {"units": u["length"], "long_name": "normal displacement of the "
+                                                  "elastic surface (positive into the solid)"}),
+        "gap": (dims, res.gap, {"units": u["length"], "long_name": "gap between the surfaces"}),
+        "contact": (dims, contact, {"units": "1", "long_name": "in contact (pressure > 0)"}),
+        "load": ((), res.load, {"units": u["load"], "long_name": "normal load"
+                                + (" per unit length" if scene.line else "")}),
+        "mean_pressure": ((), res.load / scene.nominal_area, {"units": u["pressure"],
+                                                              "long_name": "mean pressure over the nominal area"}),
+        "area_fraction": ((), np.count_nonzero(contact) / n, {"units": "1",
+                                                              "long_name": "relative contact area A/A0"}),
+        "contact_area": ((), np.count_nonzero(contact) * scene.pixel_area,
+                         {"units": u["area"], "long_name": "contact " + ("length" if scene.line else "area")}),
+        "penetration": ((), res.penetration, {"units": u["length"],
+                                              "long_name": "rigid-body approach from first contact"}),
+        "iterations": ((), res.iterations, {"units": "1", "long_name": "Polonsky-Keer iterations"}),
+        "residual": ((), res.residual, {"units": "1", "long_name": "largest contact-condition violation / "
+                                        "peak-to-valley height"}),
+        "converged": ((), res.converged, {"units": "1", "long_name": "solver reached tol"}),
+    }
+    if scene.hardness is not None:
+        data["plastic"] = (dims, res.plastic, {"units": "1", "long_name": "pressure at the hardness (flowing)"})
+    ds = xr.Dataset(data, coords=scene.coords)
+    ds.attrs = {
+        "modulus": scene.modulus, "modulus_units": scene.modulus_units, "periodic": int(scene.periodic),
+        "boundary": "periodic" if scene.periodic else "free", "solver": "Polonsky-Keer constrained CG",
+        "tolerance": tol, "dtype": scene.dtype.name, "convolutions": int(res.convolutions),
+    }
+    if scene.hardness is not None:
+        ds.attrs["hardness"] = scene.hardness
+    return append_history(ds, f"xtopo.contact.solve(load={res.load:.6g}, boundary="
+                              f"{'periodic' if scene.periodic else 'free'}, hardness={scene.hardness})")
