@@ -202,7 +202,7 @@ def _real_files(real_data):
     return sorted(p for p in real_data.iterdir() if p.is_file() and p.name != "MANIFEST.md")
 
 
-def _check(results, expected):
+def check_results(results, expected):
     assert len(results) == expected
     bad = [r for r in results if r["status"] in FAILING]
     assert not bad, "hostile-input failures:\n" + "\n".join(
@@ -215,7 +215,7 @@ def test_hostile_input_reduced(real_data):
     files = _real_files(real_data)
     jobs = make_jobs(files, n_trunc=3, n_corrupt=10)
     results = run_jobs(jobs)
-    _check(results, len(jobs))
+    check_results(results, len(jobs))
     # the unmodified text formats still read; their empty copies are refused with a named error
     assert all(r["status"] == "error" for r in results if r["kind"] == "empty")
 
@@ -232,4 +232,4 @@ def test_hostile_input_full(real_data):
           f"slowest read {slowest['secs']:.2f} s ({pathlib.Path(slowest['src']).name} {slowest['kind']})")
     for name, counts in sorted(by.items()):
         print(f"  {name:40s} {counts}")
-    _check(results, sum(len(make_jobs([f], 12, 200, 1)) for f in files))
+    check_results(results, sum(len(make_jobs([f], 12, 200, 1)) for f in files))

@@ -384,7 +384,7 @@ def test_units_conversion_keeps_values(real_data):
 
 # --------------------------------------------------------------------------- hostile input (smoke)
 
-def _hostile(path, payload: bytes, tmp_path, tag):
+def check_hostile_read(path, payload: bytes, tmp_path, tag):
     bad = tmp_path / f"{tag}{path.suffix}"
     bad.write_bytes(payload)
     t0 = time.perf_counter()
@@ -401,17 +401,17 @@ def test_hostile_input_smoke(real_data, tmp_path, name):
     path = real_data / name
     data = path.read_bytes()
     rng = np.random.default_rng(sum(map(ord, name)))
-    _hostile(path, b"", tmp_path, "empty")
+    check_hostile_read(path, b"", tmp_path, "empty")
     # truncations: inside the header and inside the data
     for k, cut in enumerate(sorted(set(np.linspace(1, len(data) - 1, 10).astype(int).tolist()))):
-        _hostile(path, data[:cut], tmp_path, f"trunc{k}")
+        check_hostile_read(path, data[:cut], tmp_path, f"trunc{k}")
     # random byte corruptions, biased to the header where the size fields are
     head = min(len(data), 8192)
     for k in range(20):
         buf = bytearray(data)
         for pos in rng.integers(0, head, size=rng.integers(1, 8)):
             buf[pos] = rng.integers(0, 256)
-        _hostile(path, bytes(buf), tmp_path, f"corrupt{k}")
+        check_hostile_read(path, bytes(buf), tmp_path, f"corrupt{k}")
 
 
 def test_hostile_size_fields(real_data, tmp_path):
