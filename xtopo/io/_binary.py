@@ -62,6 +62,14 @@ class BinaryReader:
         self.endian = endian
         self.pos = 0
 
+    @classmethod
+    def from_file(cls, path, *, magic: bytes = b"", not_this: str = "", endian: str = "<") -> "BinaryReader":
+        """Read ``path`` whole; raise ``not_this`` as a ReaderError unless it starts with ``magic``."""
+        reader = cls(read_bytes(path), path, endian)
+        if magic and not reader.data.startswith(magic):
+            raise reader.error(not_this or "unexpected file signature")
+        return reader
+
     def __len__(self):
         return len(self.data)
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...conventions import make_measurement
-from .._binary import BinaryReader, read_bytes
+from .._binary import BinaryReader
 from .._formatkit import clean_text, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
 
@@ -26,10 +26,8 @@ def _sniff(head: bytes, path: str) -> bool:
 
 
 def _parse(path):
-    data = read_bytes(path)
-    r = BinaryReader(data, path, "<")
-    if not data.startswith(_MAGIC):
-        raise r.error("not an Alicona AL3D file")
+    r = BinaryReader.from_file(path, magic=_MAGIC, not_this="not an Alicona AL3D file")
+    data = r.data
     r.seek(len(_MAGIC))
 
     def tag():

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...conventions import make_measurement
-from .._binary import BinaryReader, check_count, read_bytes
+from .._binary import BinaryReader, check_count
 from .._formatkit import pick_channel, reading, unix_time
 from ..registry import ChannelInfo, Format, register
 
@@ -30,10 +30,8 @@ def _sniff(head: bytes, path: str) -> bool:
 
 
 def _parse(path):
-    data = read_bytes(path)
-    r = BinaryReader(data, path, "<")
-    if not data.startswith(_MAGIC):
-        raise r.error("not an FRT MicroProf file")
+    r = BinaryReader.from_file(path, magic=_MAGIC, not_this="not an FRT MicroProf file")
+    data = r.data
     version = data[12:16].decode("latin-1")
     if version not in ("1.00", "1.01"):
         raise r.error(f"unsupported FRT version {version!r}")

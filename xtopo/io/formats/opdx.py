@@ -23,7 +23,7 @@ import re
 
 
 from ...conventions import length_factor, make_measurement, normalize_units
-from .._binary import BinaryReader, check_count, read_bytes
+from .._binary import BinaryReader, check_count
 from .._formatkit import parse_time, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
 
@@ -108,10 +108,8 @@ def _items(r, out, prefix, end, depth):
 
 
 def _parse(path):
-    data = read_bytes(path)
-    r = BinaryReader(data, path, "<")
-    if not data.startswith(_MAGIC):
-        raise r.error("not a Bruker OPDx file (magic 'VCA DATA' missing)")
+    r = BinaryReader.from_file(path, magic=_MAGIC, not_this="not a Bruker OPDx file (magic 'VCA DATA' missing)")
+    data = r.data
     r.seek(len(_MAGIC))
     tree = {}
     _items(r, tree, "", len(data), 0)

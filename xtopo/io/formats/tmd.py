@@ -8,7 +8,7 @@ mm) and ``nx*ny`` float32 heights in mm, row by row.
 from __future__ import annotations
 
 from ...conventions import make_measurement
-from .._binary import BinaryReader, read_bytes
+from .._binary import BinaryReader
 from .._formatkit import clean_text, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
 
@@ -21,10 +21,8 @@ def _sniff(head: bytes, path: str) -> bool:
 
 
 def _parse(path):
-    data = read_bytes(path)
-    r = BinaryReader(data, path, "<")
-    if not data.startswith(_MAGIC):
-        raise r.error("not a TrueMap TMD v2.0 file")
+    r = BinaryReader.from_file(path, magic=_MAGIC, not_this="not a TrueMap TMD v2.0 file")
+    data = r.data
     end = data.find(b"\0", 32, 32 + _MAX_COMMENT)
     if end < 0:
         raise r.error("unterminated comment in TMD header")
