@@ -13,17 +13,20 @@ Iteration (Polonsky & Keer, Wear 231, 206 (1999)), on the CG set ``I = {0 < p < 
 
 1. ``g = u - w - δ`` (load control: ``δ = mean_I(u - w)``), ``G = Σ_I g²``;
 2. direction ``t = g + β (G/G_old) t`` on ``I`` (0 elsewhere; ``β = 0`` after a reset);
-3. ``r = G * t`` — the one FFT convolution of a plain step; under load control ``r``
-   is shifted by its mean over ``I`` for the step length;
-4. step ``τ = Σ_I g t / Σ_I r t``, ``p ← p - τ t``, ``u ← u - τ r`` (exact, by linearity);
-5. projection: ``p < 0 → 0``; ``p > H → H``; points outside ``I`` that overlap
+   under load control ``t`` is made zero-sum on ``I``, so a step keeps the load;
+3. step ``τ = Σ_I g t / Σ t (G * t)``, ``p ← p - τ t``;
+4. projection: ``p < 0 → 0``; ``p > H → H``; points outside ``I`` that overlap
    (``p = 0, g < 0``) or plastic points whose gap opened (``p = H, g > 0``) get
    ``p ← p - τ g`` and the CG restarts (``β = 0``);
-6. load control: ``p ← p F/(ΔA Σ p)`` (then the cap again).
+5. load control: ``p ← p F/(ΔA Σ p)``; then ``u = G * p``.
 
-The displacement is carried along incrementally; only when the projection changed a
-pressure does a second convolution correct ``u`` (``u ← u + G * Δp``), and ``u`` is
-recomputed from ``p`` every ``refresh`` iterations and before convergence is accepted.
+Cost per iteration: the denominator ``Σ t (G*t)`` comes from the spectrum of ``t`` by
+Parseval (a forward transform, no inverse), and ``u`` is the exact convolution of the
+projected pressures (a forward and an inverse transform) — 1.5 FFT pairs, whatever the
+projection changed, and no drift of ``u``. Everything else works on the index arrays
+of the contact and plastic sets (a fraction of the grid) but for three passes over the
+grid: ``u - w``, the overlap test and its indices. The transform buffers are written
+only where the pressures or the direction are non-zero.
 
 Convergence: ``residual ≤ tol`` where
 
@@ -43,17 +46,7 @@ import numpy as np
 
 __all__ = ["polonsky_keer", "PKResult"]
 
-
-def _dot(a, b, work=None) -> float:
-    """Inner product without BLAS (multiply into ``work``, then sum).
-
-    BLAS dot products wake a pool of threads that contend with the FFT threads; on a
-    loaded machine that costs far more than the extra pass.
-    """
-    if work is None:
-        work = np.empty_like(a)
-    np.multiply(a, b, out=work)
-    return float(np.sum(work, dtype=np.float64))
+_FREE, _ELASTIC, _PLASTIC = 0, 1, 2
 
 
 class PKResult(dict):
@@ -72,15 +65,65 @@ def _length_scale(w, u=None):
     return 1.0
 
 
+def _dot(a, b) -> float:
+    """Inner product in float64 without BLAS (its thread pool contends with the FFT threads)."""
+    return float(np.einsum("i,i->", a, b, dtype=np.float64))
+
+
+class _Buffer:
+    """Writes sparse fields into the convolution's input buffer, clearing only what was set."""
+
+    def __init__(self, conv):
+        self.conv = conv
+        self.flat = conv.input_flat
+        self.flat.fill(0)
+        self.set = np.empty(0, np.intp)
+
+    def put(self, *pairs):
+        self.flat[self.set] = 0
+        idx = [self.conv.buffer_index(i) for i, _ in pairs]
+        for i, (_, v) in zip(idx, pairs):
+            self.flat[i] = v
+        self.set = np.concatenate(idx) if len(idx) > 1 else idx[0]
+
+
+def _initial_pressure(conv, w, *, pixel_area, load, penetration, H, initial):
+    """Starting pressures (full grid) and their displacements; ``None`` when nothing touches."""
+    dtype = w.dtype
+    p = np.zeros(w.shape, dtype)
+    if initial is not None:
+        p[...] = np.maximum(np.asarray(initial, dtype=dtype), 0)
+        if H is not None:
+            np.minimum(p, H, out=p)
+    if load is not None:
+        total = float(np.sum(p, dtype=np.float64))
+        if total <= 0:
+            p.fill(load / (pixel_area * p.size))
+        else:
+            p *= dtype.type(load / (pixel_area * total))
+    elif not np.any(p):
+        np.subtract(-w, penetration, out=p)          # overlap without deformation
+        np.maximum(p, 0, out=p)
+        if not np.any(p):
+            return None
+        u = conv(p)
+        ov = p > 0
+        ku = u[ov]
+        c0 = _dot(ku, p[ov]) / max(_dot(ku, ku), np.finfo(float).tiny)
+        p *= dtype.type(c0)
+    if H is not None:
+        np.minimum(p, H, out=p)
+    return p
+
+
 def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, penetration: float | None = None,
-                  hardness: float | None = None, tol: float = 1e-8, maxiter: int = 1000, initial=None,
-                  refresh: int = 50) -> PKResult:
+                  hardness: float | None = None, tol: float = 1e-8, maxiter: int = 1000, initial=None) -> PKResult:
     """Solve eq. (20) for the pressures under ``w`` at prescribed ``load`` or ``penetration``.
 
     Parameters
     ----------
-    conv : callable
-        ``conv(p, out)`` writes ``G * p`` into ``out`` (:class:`~xtopo._kernels.convolution.Convolution`).
+    conv : xtopo._kernels.convolution.Convolution
+        The elastic operator ``G`` (``conv(p)``, and its forward/energy/inverse halves).
     w : numpy.ndarray
         Heights of the rigid surface minus their maximum (≤ 0), on the active grid.
     pixel_area : float
@@ -96,235 +139,184 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         Largest number of iterations.
     initial : numpy.ndarray, optional
         Starting pressures (a previous solution).
-    refresh : int
-        Recompute ``u = G * p`` from scratch every ``refresh`` iterations.
 
     Returns
     -------
     PKResult
+        ``convolutions`` counts applications of ``G`` (forward + inverse transforms);
+        ``transforms`` counts forward and inverse transforms together.
     """
     if (load is None) == (penetration is None):
         raise ValueError("give exactly one of load and penetration")
     if hardness is not None and load is not None and load > 0:
         return _plastic_load_control(conv, w, pixel_area=pixel_area, load=load, hardness=hardness, tol=tol,
-                                     maxiter=maxiter, initial=initial, refresh=refresh)
+                                     maxiter=maxiter, initial=initial)
+    w = np.ascontiguousarray(w)
     dtype = w.dtype
     shape = w.shape
     H = None if hardness is None else dtype.type(hardness)
     scale = _length_scale(w)
     load_control = load is not None
-    p = np.zeros(shape, dtype)
-    u = np.zeros(shape, dtype)
-    nconv = 0
+    counts = {"conv": 0, "fft": 0}
 
-    def result(p, u, delta, it, res, conv_ok):
+    def result(p, u, delta, it, res, ok):
         g = u - w - dtype.type(delta)
         plastic = (p >= H) if H is not None else np.zeros(shape, bool)
         return PKResult(pressure=p, displacement=u, gap=np.maximum(g, 0), penetration=float(delta),
                         load=float(pixel_area * np.sum(p, dtype=np.float64)), iterations=it, residual=float(res),
-                        converged=bool(conv_ok), convolutions=nconv, plastic=plastic)
+                        converged=bool(ok), convolutions=counts["conv"], transforms=counts["fft"], plastic=plastic)
 
     if load_control and load <= 0:
-        return result(p, u, 0.0, 0, 0.0, True)
+        z = np.zeros(shape, dtype)
+        return result(z, z.copy(), 0.0, 0, 0.0, True)
+    p0 = _initial_pressure(conv, w, pixel_area=pixel_area, load=load, penetration=penetration, H=H,
+                           initial=initial)
+    if p0 is None:
+        z = np.zeros(shape, dtype)
+        return result(z, z.copy(), penetration, 0, 0.0, True)
 
-    # -- initial pressures ------------------------------------------------------------------
-    if initial is not None:
-        p[...] = np.maximum(np.asarray(initial, dtype=dtype), 0)
-        if H is not None:
-            np.minimum(p, H, out=p)
-    if load_control:
-        total = float(np.sum(p, dtype=np.float64))
-        if total <= 0:
-            p.fill(load / (pixel_area * p.size))
-        else:
-            p *= dtype.type(load / (pixel_area * total))
-        conv(p, u)
-        nconv += 1
-    else:
-        if not np.any(p):
-            np.subtract(-w, penetration, out=p)          # overlap without deformation
-            np.maximum(p, 0, out=p)
-            if not np.any(p):
-                return result(p, u, penetration, 0, 0.0, True)
-            conv(p, u)
-            nconv += 1
-            ov = p > 0
-            ku = u[ov]
-            c0 = float(_dot(ku, p[ov]) / max(_dot(ku, ku), np.finfo(float).tiny))
-            p *= dtype.type(c0)
-            u *= dtype.type(c0)
-        else:
-            conv(p, u)
-            nconv += 1
-    if H is not None:
-        np.minimum(p, H, out=p)
-        conv(p, u)
-        nconv += 1
+    # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
+    p0 = p0.reshape(-1)
+    state = np.zeros(p0.size, np.int8)
+    idx = np.flatnonzero(p0 > 0) if H is None else np.flatnonzero((p0 > 0) & (p0 < H))
+    pl = np.empty(0, np.intp) if H is None else np.flatnonzero(p0 >= H)
+    state[idx] = _ELASTIC
+    state[pl] = _PLASTIC
+    pI = p0[idx]
+    del p0
+    tI = np.zeros(idx.size, dtype)
+    wf = w.reshape(-1)
+    d = np.empty(shape, dtype)
+    df = d.reshape(-1)
+    mask = np.empty(shape, bool)
+    buf = _Buffer(conv)
 
-    # Jacobi step: fallback for τ when no CG set exists (fully plastic)
-    unit = np.zeros(shape, dtype)
-    unit[tuple(n // 2 for n in shape)] = 1
-    kii = float(conv(unit, np.empty(shape, dtype))[tuple(n // 2 for n in shape)])
-    nconv += 1
-    del unit
-    # damped Jacobi step (a single pixel's stiffness over-counts a patch of neighbours)
+    def displacement():
+        buf.put((idx, pI), (pl, H if H is not None else 0))
+        counts["conv"] += 1
+        counts["fft"] += 2
+        return conv.inverse(conv.forward())
+
+    # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
+    # the step of joining points when no CG step exists (e.g. fully plastic)
+    kii = float(conv.energy(_unit_spectrum(conv, shape)))
     tau_fallback = 0.25 / kii if kii > 0 else 0.0
 
-    # -- work arrays (no allocation inside the loop but for np.nonzero-free masks) -----------
-    g = np.empty(shape, dtype)
-    gc = np.empty(shape, dtype)
-    t = np.zeros(shape, dtype)
-    r = np.empty(shape, dtype)
-    dp = np.zeros(shape, dtype)
-    tmp = np.empty(shape, dtype)
-    c = np.empty(shape, bool)
-    cb = np.empty(shape, bool)
-    free = np.empty(shape, bool)
-    cf = np.empty(shape, dtype)
-    work = np.empty(shape, dtype)
-
+    u = displacement()
     delta = float(penetration) if not load_control else 0.0
     restart = True
     G_old = 1.0
-    tau = 0.0
-    since_exact = 0
     residual = math.inf
     converged = False
     it = 0
-    for it in range(1, maxiter + 1):
-        # contact (CG) set
-        np.greater(p, 0, out=c)
-        if H is not None:
-            np.less(p, H, out=cb)
-            c &= cb
-        nc = int(np.count_nonzero(c))
-        np.copyto(cf, c)
-        np.subtract(u, w, out=g)
-        if load_control and nc > 0:
-            delta = float(_dot(g, cf, work)) / nc
-        g -= dtype.type(delta)
-        np.multiply(g, cf, out=gc)
-        # residual: contact-set gaps, overlaps outside, opened plastic points
-        res = float(np.max(np.abs(gc))) if nc else 0.0
-        np.less_equal(p, 0, out=free)
-        np.negative(g, out=tmp)
-        tmp *= free
-        res = max(res, float(np.max(tmp)))
-        if H is not None:
-            np.greater_equal(p, H, out=cb)
-            np.multiply(g, cb, out=tmp)
-            res = max(res, float(np.max(tmp)))
+    for it in range(maxiter + 1):
+        np.subtract(u, w, out=d)
+        dI = df[idx]
+        nI = idx.size
+        if load_control and nI:
+            delta = float(np.sum(dI, dtype=np.float64)) / nI
+        gI = dI - dtype.type(delta)
+        # overlaps outside the CG set (free points with g < 0); plastic points whose gap opened
+        np.less(d, dtype.type(delta), out=mask)
+        cand = np.flatnonzero(mask)
+        over = cand[state[cand] == _FREE]
+        g_over = df[over] - dtype.type(delta)
+        res = float(np.max(np.abs(gI))) if nI else 0.0
+        if over.size:
+            res = max(res, -float(np.min(g_over)))
+        if pl.size:
+            g_pl = df[pl] - dtype.type(delta)
+            opened = g_pl > 0
+            if opened.any():
+                res = max(res, float(np.max(g_pl[opened])))
         residual = res / scale
-        if H is not None and load_control:
-            residual = max(residual, abs(pixel_area * float(np.sum(p, dtype=np.float64)) - load) / load)
         if residual <= tol:
-            if since_exact == 0:
-                converged = True
-                break
-            conv(p, u)           # verify with exact displacements
-            nconv += 1
-            since_exact = 0
-            restart = True
-            continue
-        # conjugate direction
-        G = float(_dot(gc, gc, work))
-        if not restart and G_old > 0:
-            t *= dtype.type(G / G_old)
-            t += gc
-            t *= cf
-        else:
-            np.copyto(t, gc)
-        G_old = G
+            converged = True
+            break
+        if it == maxiter:
+            break
+        # conjugate direction on the CG set
         tau = 0.0
-        if nc > 0 and G > 0:
-            conv(t, r)
-            nconv += 1
-            denom = float(_dot(r, t, work))
+        if nI:
+            G = _dot(gI, gI)
+            if restart or G_old <= 0 or tI.size != nI:
+                tI = gI.copy()
+            else:
+                tI *= dtype.type(G / G_old)
+                tI += gI
             if load_control:
-                denom -= float(_dot(r, cf, work)) / nc * float(np.sum(t, dtype=np.float64))
-            tau = float(_dot(gc, t, work)) / denom if denom > 0 else 0.0
-            if tau != 0.0:
-                np.multiply(t, dtype.type(tau), out=tmp)
-                p -= tmp
-                np.multiply(r, dtype.type(tau), out=tmp)
-                u -= tmp
-        step = tau if tau > 0 else tau_fallback
-        # projection onto 0 ≤ p ≤ H, overlap points join (and the CG restarts)
-        changed = False
-        np.less(p, 0, out=cb)
-        if cb.any():
-            np.negative(p, out=dp)
-            dp *= cb
-            p[cb] = 0
-            changed = True
-        else:
-            dp.fill(0)
+                tI -= dtype.type(np.sum(tI, dtype=np.float64) / nI)
+            G_old = G
+            buf.put((idx, tI))
+            counts["fft"] += 1
+            denom = conv.energy(conv.forward())
+            if denom > 0:
+                tau = _dot(gI, tI) / denom
+                pI -= dtype.type(tau) * tI
+        step = dtype.type(tau if tau > 0 else tau_fallback)
+        # joins: overlapping free points, plastic points whose gap opened → p ← p - step g
+        joined = []
+        if over.size:
+            joined.append((over, -step * g_over))
+        if pl.size and opened.any():
+            leave = pl[opened]
+            joined.append((leave, H - step * g_pl[opened]))
+            state[leave] = _FREE
+            pl = pl[~opened]
+        # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic)
+        keep = pI > 0
         if H is not None:
-            np.greater(p, H, out=cb)
-            if cb.any():
-                dp[cb] += H - p[cb]
-                p[cb] = H
-                changed = True
-        # overlapping free points (p was 0 before the step, g < 0)
-        np.less(g, 0, out=cb)
-        cb &= free
-        if H is not None:
-            np.greater(g, 0, out=c)
-            np.greater_equal(p, H, out=free)
-            c &= free
-            cb |= c
-        if cb.any():
-            np.multiply(g, dtype.type(-step), out=tmp)
-            tmp *= cb
-            p += tmp
-            dp += tmp
-            np.maximum(p, 0, out=p)
+            capped = pI >= H
+            keep &= ~capped
+        if not keep.all():
+            state[idx[~keep]] = _FREE
+            if H is not None and capped.any():
+                state[idx[capped]] = _PLASTIC
+                pl = np.concatenate([pl, idx[capped]])
+            idx, pI, tI = idx[keep], pI[keep], tI[keep]
+        restart = bool(joined)
+        for where, value in joined:
             if H is not None:
-                np.minimum(p, H, out=p)
-            changed = True
-            restart = True
-        else:
-            restart = False
+                full = value >= H
+                if full.any():
+                    state[where[full]] = _PLASTIC
+                    pl = np.concatenate([pl, where[full]])
+                    where, value = where[~full], value[~full]
+            pos = value > 0
+            where, value = where[pos], value[pos]
+            state[where] = _ELASTIC
+            idx = np.concatenate([idx, where])
+            pI = np.concatenate([pI, value.astype(dtype, copy=False)])
+            tI = np.concatenate([tI, np.zeros(where.size, dtype)])
         if load_control:
-            total = pixel_area * float(np.sum(p, dtype=np.float64))
-            s = dtype.type(load / total) if total > 0 else dtype.type(1)
-        since_exact += 1
-        if H is not None:
-            if load_control:
-                p *= s
-                np.minimum(p, H, out=p)
-            conv(p, u)
-            nconv += 1
-            since_exact = 0
-        else:
-            if changed:
-                conv(dp, r)
-                nconv += 1
-                u += r
-            if load_control:
-                p *= s
-                u *= s
-            if since_exact >= refresh:
-                conv(p, u)
-                nconv += 1
-                since_exact = 0
-    else:
-        it = maxiter
-    if since_exact:
-        conv(p, u)
-        nconv += 1
-    if load_control:
-        np.greater(p, 0, out=c)
-        if H is not None:
-            np.less(p, H, out=cb)
-            c &= cb
-        nc = int(np.count_nonzero(c))
-        if nc:
-            delta = float(np.mean((u - w)[c]))
+            total = pixel_area * float(np.sum(pI, dtype=np.float64))
+            if total > 0:
+                pI *= dtype.type(load / total)
+        u = displacement()
+    p = np.zeros(w.size, dtype)
+    p[idx] = pI
+    if pl.size:
+        p[pl] = H
+    p = p.reshape(shape)
+    u = np.array(u, dtype=dtype)
+    if load_control and idx.size:
+        delta = float(np.mean((u.reshape(-1) - wf)[idx], dtype=np.float64))
     return result(p, u, delta, it, residual, converged)
 
 
-def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, initial, refresh):
+def _unit_spectrum(conv, shape):
+    """Spectrum of a unit pressure on one pixel (its energy is the self-stiffness ``G(0)``)."""
+    flat = conv.input_flat
+    flat.fill(0)
+    centre = np.ravel_multi_index(tuple(n // 2 for n in shape), shape)
+    i = conv.buffer_index(np.array([centre]))
+    flat[i] = 1
+    spec = conv.forward()
+    flat[i] = 0
+    return spec
+
+
+def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, initial):
     """Load control with a hardness: find the penetration whose solution carries ``load``.
 
     The load is a monotonic function of the penetration; Brent's method on
@@ -339,7 +331,7 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
 
     def solve_at(delta):
         res = polonsky_keer(conv, w, pixel_area=pixel_area, penetration=delta, hardness=hardness, tol=tol,
-                            maxiter=maxiter, initial=state["p"], refresh=refresh)
+                            maxiter=maxiter, initial=state["p"])
         state["iterations"] += res.iterations
         state["solves"] += 1
         state["convolutions"] += res.convolutions

@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._kernels import fft as _fft
-from .._kernels.convolution import Convolution
+from .._kernels.convolution import Convolution, choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
 from ..errors import ContactError, GridError
@@ -124,7 +123,7 @@ class Scene:
         self.nominal_area = self.pixel_area * int(np.prod(self.shape))
         self.backend_request = backend
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
-        self.backend = _fft.choose_backend(self.fft_shape, backend)
+        self.backend = choose_backend(backend)
         self._conv = None
 
     @staticmethod
@@ -178,7 +177,7 @@ class Scene:
             f"  elasticity: {green}",
             f"  material: E* = {self.modulus:g} {self.modulus_units}; {plastic}",
             f"  solver: Polonsky–Keer CG, {self.dtype.name}, FFT backend {self.backend} "
-            f"({'requested' if self.backend_request != 'auto' else 'chosen by FFT grid size'})",
+            f"({'requested' if self.backend_request != 'auto' else 'planned FFTW when installed'})",
         ]
         lines += [f"  {r}" for r in self._reasons]
         return "\n".join(lines)
