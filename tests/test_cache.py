@@ -76,3 +76,52 @@ def test_damaged_entry_is_recomputed(tmp_path):
         f.write(b"garbage")
     res = cache(scalars, ds)
     assert cache.misses == 2 and np.isfinite(float(res.Sq))
+
+
+def test_array_changed_in_place_recomputes(tmp_path):
+    """The in-process layer never hides a change: an array mutated in place gets a new key."""
+    cache = Cache(tmp_path)
+    ds = fractal_surface((128, 128), 1.0, hurst=0.7, seed=2)
+    first = cache(scalars, ds)
+    assert cache(scalars, ds).Sq == first.Sq and cache.hits == 1
+    ds["height"].values[5, 7] += 0.5  # same array object, new content
+    changed = cache(scalars, ds)
+    assert cache.misses == 2 and float(changed.Sq) != float(first.Sq)
+    xr.testing.assert_identical(changed, scalars(ds))
+
+
+def test_frozen_measurement_is_hashed_once_and_stays_immutable(tmp_path, monkeypatch):
+    import xtopo.cache as cache_mod
+
+    calls = []
+    real = cache_mod._hash_array
+    monkeypatch.setattr(cache_mod, "_hash_array", lambda a: calls.append(a.nbytes) or real(a))
+    ds = fractal_surface((128, 128), 1.0, hurst=0.7, seed=4)
+    frozen = cache_mod.freeze(ds)
+    xr.testing.assert_identical(frozen, ds)
+    with pytest.raises(ValueError):
+        frozen["height"].values[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        frozen["height"].values.flags.writeable = True
+    cache = Cache(tmp_path)
+    cache(scalars, frozen)
+    cache(scalars, frozen)
+    assert checksum(frozen) == checksum(ds) and cache.hits == 1
+    big = [n for n in calls if n >= cache_mod._MEMO_MIN_BYTES]
+    # frozen heights hashed once for three look-ups, writeable ones on every call
+    assert big == [ds["height"].nbytes] * 2
+
+
+def test_memory_copy_follows_the_file(tmp_path):
+    """A hit served from memory is a private copy, and a replaced file replaces it."""
+    cache = Cache(tmp_path)
+    ds = fractal_surface((64, 64), 1.0, hurst=0.7, seed=5)
+    first = cache(scalars, ds)
+    hit = cache(scalars, ds)
+    hit["Sq"] = hit["Sq"] * 0 + 123.0  # mutating what a hit returned must not reach the cache
+    xr.testing.assert_identical(cache(scalars, ds), first)
+    other = Cache(tmp_path, memory_bytes=0)
+    assert float(other(scalars, ds).Sq) == float(first.Sq) and other.hits == 1
+    assert cache.clear() == 1
+    cache(scalars, ds)
+    assert cache.misses == 2

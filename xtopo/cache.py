@@ -1,4 +1,4 @@
-"""On-disk result cache for analyses.
+"""On-disk result cache for analyses, with an in-process layer in front of it.
 
 Results are keyed by the content checksum of the measurement (after
 preprocessing: heights, mask, coordinates and the attributes analyses read),
@@ -7,13 +7,26 @@ stored as NetCDF files in a directory the user chooses (default: the user
 cache directory). Writes are atomic (temp file + ``os.replace``), so two
 processes writing the same key never leave a broken file: the last complete
 write wins and both results are identical by construction.
+
+Two in-process shortcuts make a hit cheap without weakening the key:
+
+* the results last read from (or written to) the directory are kept in memory,
+  each tied to its file's ``os.stat`` signature: a file replaced, damaged or
+  removed by anyone invalidates the memory copy; callers get deep copies;
+* the checksum of an array is remembered only when its content provably cannot
+  change: arrays whose memory is an immutable ``bytes`` object (numpy refuses to
+  make them writeable), as :func:`freeze` produces. Every other array is hashed
+  in full on every call, so an array changed in place gets a new key.
 """
 
 from __future__ import annotations
 
+import collections
 import hashlib
 import json
 import os
+import threading
+import weakref
 
 import numpy as np
 import xarray as xr
@@ -22,7 +35,15 @@ from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
 from .io.netcdf import read_netcdf, to_netcdf
 
-__all__ = ["Cache", "checksum", "default_directory"]
+__all__ = ["Cache", "checksum", "default_directory", "freeze"]
+
+#: arrays smaller than this are hashed every time (remembering them costs more than hashing)
+_MEMO_MIN_BYTES = 1 << 16
+#: default budget of the in-process result layer
+MEMORY_BYTES = 256 * 2**20
+
+_lock = threading.Lock()
+_digests: dict[int, tuple] = {}  # id(array) -> (weakref to array, digest)
 
 
 def default_directory() -> str:
@@ -35,11 +56,57 @@ def default_directory() -> str:
     return user_cache_dir("xtopo")
 
 
-def _update_array(h, arr) -> None:
-    a = np.ascontiguousarray(np.asarray(arr))
-    h.update(str(a.dtype).encode())
-    h.update(str(a.shape).encode())
-    h.update(a.tobytes())
+def _immutable(arr: np.ndarray) -> bool:
+    """True when no one can write to ``arr``'s memory: a read-only chain of views ending in ``bytes``."""
+    base = arr
+    while isinstance(base, np.ndarray):
+        if base.flags.writeable:
+            return False
+        base = base.base
+    return isinstance(base, bytes)
+
+
+def _hash_array(a: np.ndarray) -> bytes:
+    h = hashlib.sha256()
+    h.update(f"{a.dtype.str}{a.shape}".encode())
+    if a.dtype.hasobject:
+        h.update(repr(a.tolist()).encode())
+    else:
+        h.update(memoryview(np.ascontiguousarray(a)).cast("B"))  # no copy for contiguous data
+    return h.digest()
+
+
+def _array_digest(arr) -> bytes:
+    a = np.asarray(arr)
+    if a.nbytes < _MEMO_MIN_BYTES or not _immutable(a):
+        return _hash_array(a)
+    key = id(a)
+    with _lock:
+        hit = _digests.get(key)
+    if hit is not None and hit[0]() is a:
+        return hit[1]
+    digest = _hash_array(a)
+    with _lock:
+        # the callback runs while ``a`` is being freed, before its id can be reused
+        _digests[key] = (weakref.ref(a, lambda _, k=key: _digests.pop(k, None)), digest)
+    return digest
+
+
+def freeze(ds: xr.Dataset) -> xr.Dataset:
+    """A copy of ``ds`` whose numpy-backed variables live in immutable memory.
+
+    Their checksums are computed once per array and remembered, so repeated
+    :class:`Cache` look-ups of the same frozen measurement skip hashing its data.
+    Writing into the arrays raises ``ValueError`` (numpy refuses to make them writeable).
+    Dask-backed variables are left as they are.
+    """
+    out = ds.copy(deep=False)
+    for name, var in ds.variables.items():
+        if name in ds.indexes or not isinstance(var.data, np.ndarray) or var.dtype.hasobject:
+            continue
+        data = np.ascontiguousarray(var.data)
+        out[name].variable.data = np.frombuffer(data.tobytes(), dtype=data.dtype).reshape(data.shape)
+    return out
 
 
 def checksum(ds) -> str:
@@ -54,7 +121,7 @@ def checksum(ds) -> str:
         h.update(str(name).encode())
         h.update(str(var.dims).encode())
         h.update(json.dumps({k: str(var.attrs.get(k)) for k in ("units",)}).encode())
-        _update_array(h, var.values)
+        h.update(_array_digest(var.values))
     attrs = {k: str(ds.attrs.get(k)) for k in MEASUREMENT_ATTRS if k in ds.attrs}
     h.update(json.dumps(attrs, sort_keys=True).encode())
     return h.hexdigest()
@@ -67,6 +134,71 @@ def _key(func, data_sum: str, params: dict) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
+def _signature(path: str):
+    """What identifies one complete write of a cache file (``None`` if absent)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_ino, st.st_size, st.st_mtime_ns
+
+
+class _Memory:
+    """Least-recently-used results by cache file path, valid while the file's signature holds."""
+
+    def __init__(self):
+        self.entries: collections.OrderedDict = collections.OrderedDict()
+        self.nbytes = 0
+
+    def get(self, path: str, signature):
+        with _lock:
+            entry = self.entries.get(path)
+            if entry is None:
+                return None
+            if entry[0] != signature:
+                self._drop(path)
+                return None
+            self.entries.move_to_end(path)
+            return entry[1]
+
+    def put(self, path: str, signature, result, budget: int) -> None:
+        size = int(result.nbytes)
+        with _lock:
+            self._drop(path)
+            if signature is None or size > budget:
+                return
+            self.entries[path] = (signature, result, size)
+            self.nbytes += size
+            while self.nbytes > budget:
+                self._drop(next(iter(self.entries)))
+
+    def _drop(self, path: str) -> None:
+        entry = self.entries.pop(path, None)
+        if entry is not None:
+            self.nbytes -= entry[2]
+
+    def clear(self, directory: str) -> None:
+        with _lock:
+            for path in [p for p in self.entries if os.path.dirname(p) == directory]:
+                self._drop(path)
+
+
+_memory = _Memory()
+
+
+def _restore(stored: xr.Dataset):
+    """The object the cached function returned, from its stored Dataset."""
+    stored.attrs = dict(stored.attrs)
+    kind = stored.attrs.pop("xtopo_cache_kind", "Dataset")
+    for key in ("Conventions", "xtopo_version", "date_created", "product_version"):
+        stored.attrs.pop(key, None)
+    if kind == "DataArray":
+        name = stored.attrs.pop("xtopo_cache_name")
+        var = stored[name]
+        return var.rename(None) if name == "__xtopo_unnamed__" else var
+    return stored
+
+
 class Cache:
     """A directory of cached analysis results.
 
@@ -74,6 +206,9 @@ class Cache:
     ----------
     directory : str or os.PathLike, optional
         Where results are stored (created on first write); default :func:`default_directory`.
+    memory_bytes : int
+        Budget (bytes) of the in-process copies of recently used results shared by all
+        caches of this process; 0 reads every hit from disk.
 
     Examples
     --------
@@ -82,36 +217,41 @@ class Cache:
     >>> psd = cache(xtopo.analysis.psd.psd, ds, kind="1d")  # read back
     """
 
-    def __init__(self, directory=None):
+    def __init__(self, directory=None, *, memory_bytes: int = MEMORY_BYTES):
         self.directory = os.fspath(directory) if directory is not None else default_directory()
+        self.memory_bytes = int(memory_bytes)
         self.hits = 0
         self.misses = 0
 
     def path(self, func, ds, **params) -> str:
         """The file that holds (or will hold) ``func(ds, **params)``."""
-        return os.path.join(self.directory, _key(func, checksum(ds), params) + ".nc")
+        return os.path.join(os.path.abspath(self.directory), _key(func, checksum(ds), params) + ".nc")
+
+    def _load(self, path: str):
+        """The stored result (a private deep copy), or ``None`` when absent or damaged."""
+        signature = _signature(path)
+        if signature is None:
+            return None
+        held = _memory.get(path, signature)
+        if held is None:
+            try:
+                held = _restore(read_netcdf(path))
+            except Exception:  # a damaged entry is recomputed, never trusted
+                return None
+            _memory.put(path, signature, held, self.memory_bytes)
+        return held.copy(deep=True)
 
     def __call__(self, func, ds, **params):
         """``func(ds, **params)``, from the cache when present, else computed and stored.
 
-        DataArray results come back as DataArrays, Dataset results as Datasets.
+        DataArray results come back as DataArrays, Dataset results as Datasets; a
+        hit is identical to what the first computation returned.
         """
         path = self.path(func, ds, **params)
-        if os.path.exists(path):
-            try:
-                stored = read_netcdf(path)
-            except Exception:  # a damaged entry is recomputed, never trusted
-                stored = None
-            if stored is not None:
-                self.hits += 1
-                kind = stored.attrs.pop("xtopo_cache_kind", "Dataset")
-                for key in ("Conventions", "xtopo_version", "date_created", "product_version"):
-                    stored.attrs.pop(key, None)
-                if kind == "DataArray":
-                    name = stored.attrs.pop("xtopo_cache_name")
-                    var = stored[name]
-                    return var.rename(None) if name == "__xtopo_unnamed__" else var
-                return stored
+        stored = self._load(path)
+        if stored is not None:
+            self.hits += 1
+            return stored
         self.misses += 1
         result = func(ds, **params)
         if hasattr(result, "compute"):
@@ -125,11 +265,13 @@ class Cache:
             out = result.copy(deep=False)
             out.attrs = {**result.attrs, "xtopo_cache_kind": "Dataset"}
         to_netcdf(out, path)
+        self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
         return result
 
     def clear(self) -> int:
         """Delete every cached result; return how many files were removed."""
         n = 0
+        _memory.clear(os.path.abspath(self.directory))
         if os.path.isdir(self.directory):
             for f in os.listdir(self.directory):
                 if f.endswith(".nc"):

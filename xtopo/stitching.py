@@ -23,6 +23,8 @@ __all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp"]
 
 #: default density of collocation points
 PER_DECADE = 10
+#: coordinate holding the independent modes of each wavevector of a spectrum
+_MODES = "independent_modes"
 
 
 def _common_units(ms: dict) -> str:
@@ -41,9 +43,12 @@ def _curve_coord(curve: xr.DataArray) -> str:
 def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str) -> xr.DataArray:
     x = np.asarray(curve[coord].values, dtype=float)
     clean = curve.drop_vars([c for c in curve.coords if c != coord])
+    kwargs = dict(x=x, xnew=grid)
+    if method == "bin" and _MODES in curve.coords:  # spectra: independent modes add up within a bin
+        kwargs.update(weights=np.asarray(curve[_MODES].values), min_weight=curve.attrs["min_independent"])
     kernel = {"interp": interp_loglog, "bin": bin_mean}[method]
     out = xr.apply_ufunc(kernel, clean, input_core_dims=[[coord]], output_core_dims=[["_grid"]],
-                         exclude_dims={coord}, kwargs=dict(x=x, xnew=grid), dask="parallelized",
+                         exclude_dims={coord}, kwargs=kwargs, dask="parallelized",
                          output_dtypes=[float], dask_gufunc_kwargs={"output_sizes": {"_grid": grid.size}})
     return out
 
@@ -115,6 +120,20 @@ def _complete(ds: xr.Dataset) -> xr.Dataset:
     return ds
 
 
+def _statistically_reliable(curve: xr.DataArray, ds: xr.Dataset, coord: str, min_independent) -> xr.DataArray:
+    """Attach (spectra) or apply (real-space curves) the long-scale statistical criterion."""
+    from .analysis.reliability import MIN_INDEPENDENT, independent_samples
+
+    n_min = MIN_INDEPENDENT if min_independent is None else float(min_independent)
+    n = independent_samples(ds, coord, curve[coord].values, dim=curve.attrs.get("direction", "x"))
+    if coord == "q":
+        out = curve.assign_coords({_MODES: (coord, n, {"units": "1", "long_name": "independent Fourier modes"})})
+    else:
+        out = curve.where(xr.DataArray(n >= n_min, dims=coord))
+    out.attrs = dict(curve.attrs, min_independent=n_min)
+    return out
+
+
 def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bool) -> xr.DataArray:
     """Mask (never drop) the unreliable scales so every backend yields the same coordinates."""
     if not reliable:
@@ -129,7 +148,8 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     return out.assign_coords(reliability_cutoff=cut.variable)
 
 
-def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool, **kw) -> dict:
+def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
+                     min_independent=None, **kw) -> dict:
     ms = _measurements(tree)
     units = units or _common_units(ms)
     out = {}
@@ -137,15 +157,21 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
         ds = _complete(convert_length(ds, units))
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
         curve = func(ds, **extra, **kw, reliable=False)
-        out[name] = _reliable_part(curve, ds, _curve_coord(curve), reliable)
+        coord = _curve_coord(curve)
+        curve = _reliable_part(curve, ds, coord, reliable)
+        out[name] = _statistically_reliable(curve, ds, coord, min_independent) if reliable else curve
     return out
 
 
 def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_DECADE, units: str | None = None,
-             reliable: bool = True) -> xr.Dataset:
+             reliable: bool = True, min_independent: float | None = None) -> xr.Dataset:
     """Average PSD of a twin: 1D PSDs (``C1D`` along x) or, with ``areal=True``, ``Ciso``.
 
-    ``areal=True`` needs every measurement to be an area scan.
+    ``areal=True`` needs every measurement to be an area scan. With ``reliable``, each
+    measurement contributes only where its scales are reliable: above its short cutoff
+    (paper §4.9) and in collocation bins holding at least ``min_independent`` independent
+    Fourier modes (default :data:`xtopo.analysis.reliability.MIN_INDEPENDENT`, see
+    :func:`~xtopo.analysis.reliability.independent_samples`).
     """
     from .analysis.psd import psd
 
@@ -154,35 +180,39 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
         lines = [n for n, ds in ms.items() if ds["height"].ndim != 2]
         if lines:
             raise XtopoError(f"areal averages need area scans only; line scans: {lines}")
-        curves = _per_measurement(tree, psd, {"kind": "iso"}, {}, units, window=window, reliable=reliable)
+        curves = _per_measurement(tree, psd, {"kind": "iso"}, {}, units, window=window, reliable=reliable,
+                                  min_independent=min_independent)
     else:
         curves = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, window=window,
-                                  reliable=reliable)
+                                  reliable=reliable, min_independent=min_independent)
     return average_curves(curves, per_decade=per_decade, method="bin")
 
 
-def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True) -> xr.Dataset:
-    """Average height-difference ACF of a twin (profiles along x)."""
+def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
+             min_independent: float | None = None) -> xr.Dataset:
+    """Average height-difference ACF of a twin (profiles along x); reliability as in :func:`twin_psd`."""
     from .analysis.acf import acf
 
-    curves = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable=reliable)
+    curves = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable=reliable,
+                              min_independent=min_independent)
     return average_curves(curves, per_decade=per_decade, method="bin")
 
 
-def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True) -> xr.Dataset:
-    """Average variable-bandwidth RMS height of a twin."""
+def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
+             min_independent: float | None = None) -> xr.Dataset:
+    """Average variable-bandwidth RMS height of a twin; reliability as in :func:`twin_psd`."""
     from .analysis.vbm import vbm
 
-    curves = _per_measurement(tree, vbm, {}, {}, units, reliable=reliable)
+    curves = _per_measurement(tree, vbm, {}, {}, units, reliable=reliable, min_independent=min_independent)
     return average_curves(curves, per_decade=per_decade)
 
 
 def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str | None = None,
-              reliable: bool = True) -> xr.Dataset:
+              reliable: bool = True, min_independent: float | None = None) -> xr.Dataset:
     """Average scale-dependent slope (``order=1``) or curvature (``order=2``) of a twin.
 
     Every measurement is evaluated at exactly the common collocation distances
-    (fractional scale factors by linear interpolation, §4.10).
+    (fractional scale factors by linear interpolation, §4.10); reliability as in :func:`twin_psd`.
     """
     from .analysis.sdrp import sdrp
 
@@ -199,8 +229,8 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
         ds = _complete(convert_length(ds, units))
         x = np.asarray(ds["x"].values, dtype=float)
         mine = grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9)) & (grid <= (x[-1] - x[0]) / 2)]
-        curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
-                                      reliable)
+        curve = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance", reliable)
+        curves[name] = _statistically_reliable(curve, ds, "distance", min_independent) if reliable else curve
     return average_curves(curves, points=grid)
 
 
