@@ -23,7 +23,7 @@ Backends (``backend=``): ``"pyfftw"`` (FFTW plans built once on preallocated, al
 buffers; no allocation per call) or ``"scipy"`` (``scipy.fft``, pocketfft caches its
 plans but allocates its outputs). ``"auto"`` takes pyFFTW when it is installed: planned
 FFTW transforms run 1.4–2× faster than pocketfft on 256²–2048² grids. FFTW plans are
-measured (``FFTW_MEASURE``) from 1024² on and estimated below, where measuring costs more
+measured (``FFTW_MEASURE``) from 256² on and estimated below, where measuring costs more
 than it saves in one solve; ``XTOPO_FFTW_PLANNER=estimate|measure`` overrides. Measured
 plans are remembered in the user cache directory (FFTW wisdom), so a grid is measured
 once per machine.
@@ -42,7 +42,7 @@ from .greens import free_greens, padded_shape, periodic_greens
 __all__ = ["Convolution", "choose_backend", "rfft_weights"]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
-_MEASURE_FROM = 1024 * 1024
+_MEASURE_FROM = 256 * 256
 _WISDOM = {"loaded": False}
 
 
@@ -180,11 +180,13 @@ class Convolution:
             fwd = [pyfftw.FFTW(r_in, spec, axes=axes, direction="FFTW_FORWARD", **kw)]
             bwd = [pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD", **destroy)]
         else:
+            # rows along x into the top half, the bottom half zeroed, then columns in place
+            # (in-place column transforms run ~3x faster than out-of-place ones here)
             ny = self.shape[0]
-            big_in = pyfftw.zeros_aligned((self.fft_shape[0], nxc), dtype=self.cdtype)
-            spec = pyfftw.empty_aligned((self.fft_shape[0], nxc), dtype=self.cdtype)
-            fwd = [pyfftw.FFTW(r_in, big_in[:ny], axes=(-1,), direction="FFTW_FORWARD", **kw),
-                   pyfftw.FFTW(big_in, spec, axes=(0,), direction="FFTW_FORWARD", **kw)]
+            spec = pyfftw.zeros_aligned((self.fft_shape[0], nxc), dtype=self.cdtype)
+            fwd = [pyfftw.FFTW(r_in, spec[:ny], axes=(-1,), direction="FFTW_FORWARD", **kw),
+                   spec[ny:],
+                   pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_FORWARD", **kw)]
             bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **kw),
                    pyfftw.FFTW(spec[:ny], r_out, axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
         if flag == "FFTW_MEASURE":
@@ -218,7 +220,10 @@ class Convolution:
         b = self._ensure()
         if self.backend == "pyfftw":
             for plan in self._plan[0]:
-                plan.execute()
+                if isinstance(plan, np.ndarray):
+                    plan.fill(0)  # the zero padding rows of a free-boundary spectrum
+                else:
+                    plan.execute()
             return b["spec"]
         w = self.workers
         if self.periodic or self.ndim == 1:

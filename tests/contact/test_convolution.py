@@ -1,0 +1,91 @@
+"""The convolution's halves (forward / Parseval energy / inverse) and the solver built on them."""
+
+import numpy as np
+import pytest
+
+from xtopo._kernels import convolution as conv_mod
+from xtopo._kernels.convolution import Convolution
+from xtopo._kernels.pk_solver import polonsky_keer
+
+SHAPES = [(6, 5), (8, 8), (7,), (12,)]
+
+
+@pytest.mark.parametrize("backend", ["scipy", "pyfftw"])
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("shape", SHAPES)
+def test_energy_is_parseval_of_the_convolution(shape, periodic, backend):
+    rng = np.random.default_rng(3)
+    c = Convolution(shape, (0.4, 0.9)[: len(shape)], 1.7, periodic=periodic, backend=backend)
+    p = rng.standard_normal(shape)
+    u = c(p).copy()
+    c.input[...] = p
+    energy = c.energy(c.forward())
+    np.testing.assert_allclose(energy, float(np.sum(p * u)), rtol=1e-12)
+    # the inverse of the buffered spectrum is the same convolution
+    c.input[...] = p
+    np.testing.assert_allclose(c.inverse(c.forward()), u, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("backend", ["scipy", "pyfftw"])
+@pytest.mark.parametrize("periodic", [True, False])
+def test_sparse_writes_through_buffer_index(periodic, backend):
+    """Writing a few pixels by flat index leaves the zero padding intact: same as a full call."""
+    shape = (5, 7)
+    c = Convolution(shape, (1.0, 1.0), periodic=periodic, backend=backend)
+    c.input_flat.fill(0)
+    idx = np.array([0, 8, 34])
+    c.input_flat[c.buffer_index(idx)] = [1.0, 2.0, -0.5]
+    p = np.zeros(shape)
+    p.flat[idx] = [1.0, 2.0, -0.5]
+    got = np.array(c.inverse(c.forward()))
+    c.input_flat.fill(0)
+    np.testing.assert_allclose(got, Convolution(shape, (1.0, 1.0), periodic=periodic, backend="scipy")(p),
+                               rtol=1e-12, atol=1e-15)
+
+
+def test_backend_choice():
+    assert conv_mod.choose_backend("auto") == "pyfftw"
+    assert conv_mod.choose_backend("scipy") == "scipy"
+    with pytest.raises(ValueError, match="unknown FFT backend"):
+        conv_mod.choose_backend("cufft")
+
+
+def test_measured_plans_are_remembered(tmp_path, monkeypatch):
+    """FFTW wisdom of a measured plan lands in the cache directory and is read back."""
+    monkeypatch.setenv("XTOPO_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("XTOPO_FFTW_PLANNER", "measure")
+    monkeypatch.setitem(conv_mod._WISDOM, "loaded", False)
+    c = Convolution((6, 10), (1.0, 1.0), periodic=True, backend="pyfftw")
+    c.input  # builds the plans
+    path = tmp_path / "fftw-wisdom.npz"
+    assert path.stat().st_size > 0
+    import pyfftw
+
+    with np.load(path) as stored:
+        assert stored["arr_0"].tobytes() == pyfftw.export_wisdom()[0]
+
+
+@pytest.mark.parametrize("backend", ["scipy", "pyfftw"])
+@pytest.mark.parametrize("periodic", [True, False])
+def test_solver_satisfies_complementarity(periodic, backend):
+    """p ≥ 0, g ≥ 0 and p·g = 0 within tol; the load is carried; backends agree."""
+    rng = np.random.default_rng(5)
+    n = 24
+    h = np.cumsum(np.cumsum(rng.standard_normal((n, n)), 0), 1) * 1e-3
+    w = h - h.max()
+    c = Convolution((n, n), (1 / n, 1 / n), periodic=periodic, backend=backend)
+    load = 2e-3
+    r = polonsky_keer(c, w, pixel_area=1 / n**2, load=load, tol=1e-10, maxiter=2000)
+    assert r.converged and r.iterations > 1
+    assert np.all(r.pressure >= 0)
+    np.testing.assert_allclose(r.load, load, rtol=1e-12)
+    gap = r.displacement - w - r.penetration
+    ptv = -w.min()
+    assert gap.min() > -1e-9 * ptv
+    np.testing.assert_allclose(gap[r.pressure > 0], 0, atol=1e-9 * ptv)
+    # the transforms per iteration: one forward of the direction, one convolution of the pressures
+    assert r.transforms <= 3 * r.iterations + 3
+    other = polonsky_keer(Convolution((n, n), (1 / n, 1 / n), periodic=periodic,
+                                      backend="scipy" if backend == "pyfftw" else "pyfftw"),
+                          w, pixel_area=1 / n**2, load=load, tol=1e-10, maxiter=2000)
+    np.testing.assert_allclose(other.pressure, r.pressure, rtol=1e-6, atol=1e-9 * r.pressure.max())
