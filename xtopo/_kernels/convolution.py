@@ -125,8 +125,9 @@ class Convolution:
     """
 
     def __init__(self, shape, spacing, modulus: float = 1.0, *, periodic: bool, dtype="float64",
-                 backend: str = "auto"):
+                 backend: str = "auto", greens: np.ndarray | None = None):
         self.shape = tuple(int(n) for n in shape)
+        self._geometry = (tuple(spacing), modulus)
         self.ndim = len(self.shape)
         self.periodic = bool(periodic)
         self.dtype = np.dtype(dtype)
@@ -134,8 +135,10 @@ class Convolution:
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
         self.backend = choose_backend(backend)
         self.workers = _fft.workers()
-        make = periodic_greens if self.periodic else free_greens
-        self.greens = make(self.shape, spacing, modulus, dtype=self.dtype)
+        if greens is None:
+            make = periodic_greens if self.periodic else free_greens
+            greens = make(self.shape, spacing, modulus)
+        self.greens = greens.astype(self.dtype, copy=False)
         m = float(np.prod(self.fft_shape))
         weights = rfft_weights(self.fft_shape[-1], self.greens.shape[-1])
         # Parseval: Σ x (G*x) = Σ_k w_k G_k |x̂_k|² / M, laid out like the interleaved re/im view of x̂
@@ -144,12 +147,29 @@ class Convolution:
         self._real_shape = self.shape[:-1] + (self.fft_shape[-1],)
         self._plan = None
         self._buffers = None
+        self._single = None
+
+    def single_precision(self) -> "Convolution":
+        """The same operator in float32 (itself when already float32), built once.
+
+        The solver takes the *energy* ``Σ t (G*t)`` of its search direction from it: the
+        step length needs a few significant digits, not sixteen, and a float32 transform
+        costs about half a float64 one.
+        """
+        if self.dtype == np.float32:
+            return self
+        if self._single is None:
+            spacing, modulus = self._geometry
+            self._single = Convolution(self.shape, spacing, modulus, periodic=self.periodic, dtype="float32",
+                                       backend=self.backend, greens=self.greens)
+        return self._single
 
     # -- plans and buffers ----------------------------------------------------------------------
     def __getstate__(self):
         state = dict(self.__dict__)
         state["_plan"] = None  # FFTW plans do not pickle; rebuilt on first use
         state["_buffers"] = None
+        state["_single"] = None
         return state
 
     def _ensure(self):
