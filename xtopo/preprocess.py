@@ -31,9 +31,9 @@ def _positions(h, dim):
 
 def _finish(obj, h_in, result, line: str):
     """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``."""
-    result = result.transpose(*h_in.dims)
+    # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
+    result = h_in.copy(data=result.transpose(*h_in.dims).data)
     result.attrs = dict(obj[h_in.name].attrs if isinstance(obj, xr.Dataset) else obj.attrs)
-    result.name = h_in.name
     if isinstance(obj, xr.Dataset):
         out = obj.copy(deep=False)
         out[h_in.name] = result

@@ -8,7 +8,13 @@ __all__ = ["log_edges", "bin_index", "BinPlan", "binned_mean"]
 
 
 def log_edges(lo: float, hi: float, nb_points: int) -> np.ndarray:
-    """``nb_points + 1`` logarithmically spaced bin edges covering ``[lo, hi]``."""
+    """``nb_points + 1`` logarithmically spaced bin edges covering ``[lo, hi]``.
+
+    ``hi`` below ``lo`` by round-off only (e.g. the one wavevector of a 1×2 map, computed
+    two ways) counts as ``hi == lo``.
+    """
+    if lo > 0 and lo * (1 - 1e-9) <= hi < lo:
+        hi = lo
     if not (lo > 0 and hi >= lo):
         raise ValueError(f"log bins need 0 < lo <= hi, got lo={lo}, hi={hi}")
     if hi == lo:

@@ -3,6 +3,8 @@
 ``A(ℓ) = (1/2) ⟨(h(r) - h(r+ℓ))²⟩`` averaged over all pairs inside the data.
 Periodic data wrap around; nonperiodic data are zero padded and every lag is
 normalised by its own number of pairs, so the FFT result equals the direct sum.
+A ≥ 0 by definition: FFT round-off below zero (at and near ``ℓ = 0``) is clipped,
+and ``A(0) = 0`` exactly.
 """
 
 from __future__ import annotations
@@ -44,13 +46,22 @@ def acf_profiles(h: np.ndarray, dx: float, *, periodic: bool, rows: int) -> np.n
         sq = sq.sum(axis=raxes)
     if periodic:
         k = n // 2 + 1
-        return (sq.sum(axis=-1, keepdims=True) - c[..., :k]) / (n * nrows)
+        a = (sq.sum(axis=-1, keepdims=True) - c[..., :k]) / (n * nrows)
+        a[..., 0] = 0.0
+        return _nonnegative(a)
     cs = np.zeros(sq.shape[:-1] + (n + 1,))
     np.cumsum(sq, axis=-1, out=cs[..., 1:])
     k = np.arange(n)
     head = cs[..., n - k]              # Σ_{m < n-k} h_m²
     tail = cs[..., -1:] - cs[..., k]   # Σ_{m >= k} h_m²
-    return (head + tail - 2 * c[..., :n]) / (2 * (n - k) * nrows)
+    a = (head + tail - 2 * c[..., :n]) / (2 * (n - k) * nrows)
+    a[..., 0] = 0.0
+    return _nonnegative(a)
+
+
+def _nonnegative(a: np.ndarray) -> np.ndarray:
+    """Clip round-off below zero in place (A ≥ 0); returns ``a``."""
+    return np.maximum(a, 0, out=a)
 
 
 def acf_offsets(ny: int, nx: int, dy: float, dx: float, *, periodic: bool) -> np.ndarray:
@@ -86,7 +97,9 @@ def acf_map(h: np.ndarray, *, periodic: bool) -> np.ndarray:
     if periodic:
         p = _power(_fft.rfftn(d, axes=(-2, -1), backend=_BACKEND))
         c = _fft.irfftn(p, s=(ny, nx), axes=(-2, -1), backend=_BACKEND)
-        return sq.mean(axis=(-2, -1), keepdims=True) - c / (nx * ny)
+        a = sq.mean(axis=(-2, -1), keepdims=True) - c / (nx * ny)
+        a[..., 0, 0] = 0.0
+        return _nonnegative(a)
     py = sfft.next_fast_len(2 * ny - 1, real=True)
     px = sfft.next_fast_len(2 * nx - 1, real=True)
     p = _power(_fft.rfftn(d, s=(py, px), axes=(-2, -1), backend=_BACKEND))
@@ -110,4 +123,5 @@ def acf_map(h: np.ndarray, *, periodic: bool) -> np.ndarray:
     npairs = (ny - np.arange(ny))[:, None] * (nx - np.abs(jx))[None, :]
     t -= 2 * c
     t /= 2 * npairs
-    return t
+    t[..., 0, nx - 1] = 0.0
+    return _nonnegative(t)

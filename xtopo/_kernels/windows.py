@@ -32,6 +32,8 @@ def radial_hann(ny: int, nx: int, dy: float, dx: float) -> np.ndarray:
 
     ``w(r) = cos²(π r / (2 r₀))`` for ``r < r₀`` and 0 outside, with ``r`` the
     physical distance from the centre of the map and ``r₀`` half the shorter side.
+    Maps with no pixel inside ``r₀`` (a single row/column, or two rows/columns whose
+    pixels all lie on the circle) get no window, like :func:`hann` for ``n < 3``.
     """
     y = (np.arange(ny) - (ny - 1) / 2) * dy
     x = (np.arange(nx) - (nx - 1) / 2) * dx
@@ -41,6 +43,6 @@ def radial_hann(ny: int, nx: int, dy: float, dx: float) -> np.ndarray:
     else:
         r = np.sqrt(y[:, None] ** 2 + x[None, :] ** 2)
         w = np.where(r < r0, np.cos(np.pi * np.minimum(r, r0) / (2 * r0)) ** 2, 0.0)
-        w /= np.sqrt(np.mean(w**2))
+        w = w / np.sqrt(np.mean(w**2)) if w.any() else np.ones((ny, nx))
     w.flags.writeable = False
     return w

@@ -11,7 +11,7 @@ from .._apply import apply_lateral
 from .._kernels import correlation as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
-from ..errors import GridError, XtopoError
+from ..errors import XtopoError
 from ._scale import finish, length_coord, log_bin, per_decade, prepare
 from .reliability import apply_reliability
 
@@ -74,8 +74,7 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
         out = finish(out, "acf", f"{u}2", "height-difference autocorrelation function", prep, "acf",
                      kind="1d", direction=dim)
     else:
-        if not prep.is_area:
-            raise GridError("acf(kind='iso') needs an area scan; use kind='1d' for line scans")
+        prep.check_iso("acf")
         ny, nx = h.sizes[Y], h.sizes[X]
         dy, dx = prep.spacing(Y), prep.spacing(X)
         plan = _iso_plan(ny, nx, dy, dx, prep.periodic, nb_points)

@@ -88,8 +88,10 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
     win = _use_window(window, prep.periodic)
     qunits = f"{u}-1"
     params = dict(kind=kind, window="hann" if win else "none", convention=convention)
-    if kind != "1d" and not prep.is_area:
+    if kind == "2d" and not prep.is_area:
         raise GridError(f"psd(kind={kind!r}) needs an area scan; use kind='1d' for line scans")
+    if kind == "iso":
+        prep.check_iso("psd")
     if kind == "1d":
         if convention == "persson" or equivalent_1d:
             raise XtopoError("convention='persson' and equivalent_1d apply to 2D/iso spectra only")

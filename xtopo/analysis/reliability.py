@@ -19,6 +19,7 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import X, Y, length_factor
+from ..errors import GridError
 from ._scale import POINTS_PER_DECADE, prepare
 
 __all__ = ["reliability_cutoff", "apply_reliability", "TIP_FACTOR"]
@@ -76,6 +77,12 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
         dims for a tip-radius criterion on a batch); NaN when the measurement
         has neither attribute. Attr ``method`` says which criterion was used.
         Lazy on dask inputs.
+
+    Raises
+    ------
+    GridError
+        If the tip-radius criterion is asked for on data with fewer than 3 points
+        along every lateral dim (no curvature can be formed).
     """
     prep = prepare(obj)
     units = prep.units
@@ -104,6 +111,10 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
                              kwargs=dict(dx=dx, etas=etas, periodic=prep.periodic, rows=len(other)),
                              what="reliability_cutoff")
         parts.append(curv.assign_coords(_eta=2 * etas * dx))
+    if not parts:
+        raise GridError(f"reliability_cutoff: the tip-radius criterion (eq. 13) needs at least 3 points along "
+                        f"{' or '.join(repr(d) for d in prep.lat)}, these data have {dict(h.sizes)}; remove the "
+                        "'tip_radius' attribute or pass reliable=False")
     # curvature criterion along every direction; the cutoffs of the directions are combined by max
     cut = None
     for curv in parts:

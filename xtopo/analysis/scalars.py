@@ -64,6 +64,15 @@ def scalars(obj) -> xr.Dataset:
     xarray.Dataset
         Heights in the measurement's length unit, slopes dimensionless, curvatures
         in inverse length; every variable has ``units`` and ``long_name``.
+
+    Notes
+    -----
+    A parameter is NaN exactly where it is undefined, never from a numerical failure:
+
+    * all parameters, when every height is missing;
+    * skewness and kurtosis (Ssk, Sku, Rsk, Rku), when the RMS height is 0 (a flat surface);
+    * slopes (Sdq, Rdq) of nonperiodic data with fewer than 2 samples along a direction,
+      curvatures (Sddq, Rddq) with fewer than 3 (SΔq and SΔ²q need both directions).
     """
     h = height_of(obj)
     lat = lateral_dims(h)

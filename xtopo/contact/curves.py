@@ -7,10 +7,9 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from .._kernels.pk_solver import polonsky_keer
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
-from .solve import _control, default_tol, result_units, to_dataset
+from .solve import _control, default_tol, result_units, run_solver, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution", "contact"]
 
@@ -53,8 +52,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     for v in values:
         kw = {{"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]: v}
         load, pen = _control(scene, kw.get("load"), kw.get("mean_pressure"), kw.get("penetration"))
-        res = polonsky_keer(scene.convolution, scene.w, pixel_area=scene.pixel_area, load=load, penetration=pen,
-                            hardness=scene.hardness, tol=tol, maxiter=int(maxiter), initial=previous)
+        res = run_solver(scene, load=load, penetration=pen, tol=tol, maxiter=maxiter, initial=previous)
         if not res.converged:
             warnings.warn(f"contact solve at {name[:-1]}={v:g} did not converge in {res.iterations} iterations "
                           f"(residual {res.residual:.3g} > tol {tol:g}); flagged converged=False",
@@ -65,7 +63,9 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     ds = xr.concat([st.set_coords(dim) for st in steps], dim=dim, data_vars="all", coords="minimal",
                    compat="override", combine_attrs="override")
     units = result_units(scene)
-    ds["stiffness"] = stiffness(ds, dim=dim).assign_attrs(units=units["stiffness"],
+    # penetrations are known to the solver tolerance (relative to the roughness, or the pixel for a flat)
+    scale = float(-scene.w.min()) or max(scene.spacing)
+    ds["stiffness"] = stiffness(ds, dim=dim, atol=tol * scale).assign_attrs(units=units["stiffness"],
                                                            long_name="contact stiffness dF/dδ")
     if gap_bins:
         ds["gap_distribution"] = gap_distribution(ds, bins=gap_bins)
@@ -73,17 +73,39 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     return append_history(ds, f"xtopo.contact.curve({name}={len(values)} values)")
 
 
-def stiffness(ds: xr.Dataset, dim: str = "load") -> xr.DataArray:
+def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataArray:
     """Contact stiffness ``dF/dδ`` along a curve, by second-order finite differences.
 
-    NaN where fewer than two distinct penetrations exist.
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A load curve (variables ``load`` and ``penetration`` along ``dim``).
+    dim : str
+        The curve's dimension.
+    atol : float
+        Penetration steps ``|Δδ| ≤ atol`` (length units) count as no change.
+
+    Returns
+    -------
+    xarray.DataArray
+        ``dF/dδ`` (one-sided at the ends, as :func:`numpy.gradient`); NaN where it is
+        undefined: next to a step in which the penetration does not change (full contact of
+        a periodic scene, where ``δ`` is fixed and the stiffness infinite) and for curves of
+        fewer than two points.
     """
     f = np.asarray(ds["load"].values, dtype=float)
     d = np.asarray(ds["penetration"].values, dtype=float)
-    if f.size < 2 or np.any(np.diff(d) == 0):
-        k = np.full(f.shape, np.nan)
-    else:
-        k = np.gradient(f, d)
+    k = np.full(f.shape, np.nan)
+    if f.size >= 2:
+        h = np.diff(d)
+        ok = np.abs(h) > atol
+        hs = np.where(ok, h, 1.0)
+        s = np.where(ok, np.diff(f) / hs, np.nan)  # slope of every step
+        k[0], k[-1] = s[0], s[-1]
+        h1, h2 = hs[:-1], hs[1:]
+        # np.gradient's second-order formula on a nonuniform grid, from the two step slopes
+        both = ok[:-1] & ok[1:] & (h1 + h2 != 0)
+        k[1:-1] = np.where(both, (h1 * s[1:] + h2 * s[:-1]) / np.where(both, h1 + h2, 1.0), np.nan)
     return xr.DataArray(k, dims=(dim,))
 
 

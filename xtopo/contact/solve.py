@@ -11,7 +11,7 @@ from .._kernels.pk_solver import polonsky_keer
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 
-__all__ = ["solve", "default_tol", "result_units"]
+__all__ = ["solve", "default_tol", "result_units", "run_solver"]
 
 #: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`).
 _DEFAULT_TOL = {np.dtype("float64"): 1e-6, np.dtype("float32"): 1e-5}
@@ -94,13 +94,33 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
     if scene.hardness is not None and load is not None and load >= scene.hardness * scene.nominal_area:
         raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
                            "the whole surface would flow; lower the load or raise the hardness")
-    res = polonsky_keer(scene.convolution, scene.w, pixel_area=scene.pixel_area, load=load, penetration=penetration,
-                        hardness=scene.hardness, tol=tol, maxiter=int(maxiter), initial=_initial(scene, initial))
+    res = run_solver(scene, load=load, penetration=penetration, tol=tol, maxiter=maxiter,
+                     initial=_initial(scene, initial))
     if not res.converged:
         warnings.warn(f"contact solve did not converge in {res.iterations} iterations (relative residual "
                       f"{res.residual:.3g} > tol {tol:g}); the result is flagged converged=False — raise maxiter or "
                       "tol, or start from a nearby solution (initial=)", ConvergenceWarning, stacklevel=3)
     return to_dataset(scene, res, tol)
+
+
+def run_solver(scene, *, load, penetration, tol, maxiter, initial):
+    """Polonsky–Keer on ``scene`` (returns a :class:`~xtopo._kernels.pk_solver.PKResult`).
+
+    With a hardness under load control the elastic problem is solved first: where its
+    pressures stay below the hardness it is also the solution of the capped problem
+    (the cap is inactive), and the capped solver is not needed.
+    """
+    kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=initial)
+    elastic = None
+    if scene.hardness is not None and load is not None and load > 0:
+        elastic = polonsky_keer(scene.convolution, scene.w, load=load, **kw)
+        if elastic.converged and float(np.max(elastic.pressure)) < scene.hardness:
+            return elastic
+    res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=scene.hardness, **kw)
+    if elastic is not None:
+        res["iterations"] += elastic.iterations
+        res["convolutions"] += elastic.convolutions
+    return res
 
 
 def to_dataset(scene, res, tol) -> xr.Dataset:
