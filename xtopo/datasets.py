@@ -623,13 +623,34 @@ def _example_twin_cached(seed: int):
 def example_twin(seed: int = 0) -> xr.DataTree:
     """The built-in example twin: simulated measurements of one ground-truth surface.
 
-    Seven measurements of an isotropic self-affine surface (Hurst exponent 0.8, roll-off
-    at 200 µm) spanning more than six decades of length: two stylus line scans
-    (5 mm and 0.5 mm, tip radii 5 µm and 1 µm), an optical area scan (1 mm, with a
-    resolution limit and missing data), three AFM area scans (50 µm, 5 µm, 0.5 µm,
-    with tip artifacts, noise and missing data) and a nonuniform cross-section
-    profile (200 nm). Each node carries the ground-truth PSD parameters
-    (see :func:`prescribed_psd`).
+    Seven measurements of an isotropic self-affine surface (Hurst exponent 0.8, flat
+    roll-off of the PSD above 200 µm, the surface's correlation length, which the
+    5 mm stylus scans sample) spanning more than six decades of length:
+
+    * two stylus campaigns of 8 parallel profiles each (5 mm and 0.5 mm long, 5000
+      points, profiles ``L/20`` apart, tip radii 5 µm and 1 µm, white noise), stored as
+      ``(y, x)`` maps whose rows are the profiles (1D PSDs and ACFs average over them);
+    * an optical area scan (1 mm, 256², lateral resolution 16 µm, noise, 3% missing data);
+    * three AFM area scans (50 µm, 5 µm, 0.5 µm, 256², spherical tips of 50, 20 and
+      10 nm applied by morphological dilation, noise, 2% missing data on one);
+    * a TEM cross-section contour (200 nm) digitised at 400 irregular points; its
+      ``resolution`` is 8 mean spacings, where linear interpolation between the
+      digitised points (a low-pass of about ``sinc⁴(qΔ/2)`` in power) costs < 10%.
+
+    Every measurement is taken at its own place on the specimen (independent
+    realisations) and its ground truth contains *all* wavelengths of the surface:
+    wavelengths shorter than half the window come from a periodic grid twice the
+    window's size (sampled at 2× or 4× the instrument's pixel density, so the
+    instrument aliases as a real one does), longer ones down to the roll-off from
+    randomised Fourier modes (``_long_modes``: exact expected correlations at any
+    distance), so a small scan carries the random tilt and curvature a real one
+    does. Stylus profiles share the 2D modes longer than their spacing. Each node
+    carries the ground-truth PSD parameters (see :func:`prescribed_psd`).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the whole twin (realisations, noise, missing data).
 
     Returns
     -------
