@@ -34,13 +34,15 @@ def twin_curves(ds):
 
 def bench_cache(repeats: int = 5) -> None:
     """Compute+store vs hit on a 1024² measurement, as a writeable array (hashed on every look-up)
-    and frozen (:func:`xtopo.cache.freeze`: immutable memory, hashed once)."""
+    frozen (:func:`xtopo.cache.freeze`: immutable memory, hashed once) and as a node of a twin
+    (``xtopo.twin`` stores measurements frozen)."""
     from xtopo.cache import freeze
 
     plain = xtopo.datasets.fractal_surface((1024, 1024), 1e-5, hurst=0.8, periodic=False, seed=1)
+    node = xtopo.twin({"m": plain})["m"].to_dataset()  # a twin stores its measurements frozen
     for label, func, kw in (("iso PSD", psd, {"kind": "iso"}), ("twin curves (PSD, ACF, VBM, SDRP)", twin_curves, {})):
         func(plain, **kw)  # warm-up (imports, FFT plans)
-        for data_label, ds in (("writeable", plain), ("frozen", freeze(plain))):
+        for data_label, ds in (("writeable", plain), ("frozen", freeze(plain)), ("twin-node", node)):
             with tempfile.TemporaryDirectory() as d:
                 compute, hit = [], []
                 for r in range(repeats):

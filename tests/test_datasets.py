@@ -115,9 +115,26 @@ def test_example_twin_spans_four_decades():
     sizes = [float(k.x.max() - k.x.min()) for k in kids]
     spacings = [float(np.min(np.diff(k.x.values))) for k in kids]
     assert max(sizes) / min(spacings) > 1e4
-    assert any(k.height.ndim == 1 and k.attrs.get("tip_radius") for k in kids)  # stylus
+    stylus = [k for k in kids if k.attrs.get("measurement_kind") == "profiles"]
+    assert stylus and all(k.height.sizes["y"] >= 4 and k.attrs.get("tip_radius") for k in stylus)  # profile sets
+    for k in stylus:  # parallel profiles L/20 apart
+        np.testing.assert_allclose(float(k.y[1] - k.y[0]), float(k.x[-1] - k.x[0] + k.x[1] - k.x[0]) / 20, rtol=1e-9)
     assert any(k.height.ndim == 2 and k.attrs.get("tip_radius") for k in kids)  # AFM
     assert any(k.attrs.get("grid") == "nonuniform" for k in kids)
     for k in kids:
         xtopo.validate(k)
     xr.testing.assert_identical(example_twin()["afm-5um"].to_dataset(), tree["afm-5um"].to_dataset())
+
+
+def test_long_modes_carry_the_band_power_of_the_truth():
+    """Randomised long-wavelength modes: E[Σ a²/2] = ∫ C_iso d²q/(2π)² over the band (no quadrature bias)."""
+    from xtopo.datasets import FractalPSD, _long_modes
+
+    truth = FractalPSD(hurst=0.8, prefactor=1.0, long_cutoff=2e-4)
+    q_low, q_split = 1e2, 4 * np.pi / 5e-6
+    rng = np.random.default_rng(0)
+    power = np.mean([np.sum(np.abs(_long_modes(truth, q_split, q_low, rng)[2]) ** 2) / 2 for _ in range(200)])
+    lq = np.linspace(np.log(q_low), np.log(q_split), 20001)
+    q = np.exp(lq)
+    exact = np.trapezoid(truth.c_native(q) * q * q, lq) / (2 * np.pi)
+    np.testing.assert_allclose(power, exact, rtol=0.02)

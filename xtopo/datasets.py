@@ -478,27 +478,105 @@ def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_rad
                               f"tip_radius={tip_radius}, noise={noise}, missing_fraction={missing_fraction}, seed={seed})")
 
 
-def _line_truth(truth: FractalPSD, n: int, dx: float, seed: int) -> np.ndarray:
-    """A nonperiodic profile of ``n`` points of the isotropic area surface with PSD ``truth``."""
-    gshape = (2 * n,)
-    q = np.abs(wavevectors(gshape[0], dx, real=True))
+def _long_modes(truth: FractalPSD, q_split: float, q_low: float, rng, *, per_decade: int = 8, angles: int = 16):
+    """Random Fourier modes of the isotropic field ``truth`` restricted to ``|q| < q_split``.
+
+    The half plane ``q_low ≤ |q| < q_split`` is cut into cells of equal width in ``ln q`` and
+    angle; each cell gets one mode at a uniformly random position inside it whose squared
+    amplitude is the cell's power at that position, ``a² = 4 C(q) q² Δ(ln q) Δθ / (2π)²``.
+    The expected height-height correlation of ``Σ a cos(q·r + φ)`` is then exactly that of
+    ``truth`` over the band (randomised quadrature: no discretisation bias at any distance,
+    unlike a periodic grid, which holds no wavelength longer than its period). Power below
+    ``q_low`` (a constant offset in the flat roll-off region) is left out.
+
+    Returns ``(qy, qx, c)`` with complex coefficients ``c = a e^{iφ}``.
+    """
+    decades = max(np.log10(q_split / q_low), 1e-9)
+    nr = max(1, int(np.ceil(decades * per_decade)))
+    dlnq = np.log(q_split / q_low) / nr
+    dth = np.pi / angles
+    lnq = np.log(q_low) + (np.arange(nr)[:, None] + rng.uniform(size=(nr, angles))) * dlnq
+    th = (np.arange(angles)[None, :] + rng.uniform(size=(nr, angles))) * dth
+    q = np.exp(lnq).ravel()
+    th = th.ravel()
+    amp = np.sqrt(4 * truth.c_native(q) * dlnq * dth) * q / (2 * np.pi)
+    c = amp * np.exp(2j * np.pi * rng.uniform(size=q.size))
+    return q * np.sin(th), q * np.cos(th), c
+
+
+def _eval_modes(modes, y: np.ndarray, x: np.ndarray, block: int = 4096) -> np.ndarray:
+    """``Σ_m Re(c_m e^{i(qy_m y + qx_m x)})`` on the grid ``y × x`` (separable: one matrix product per block)."""
+    qy, qx, c = modes
+    rows = c[None, :] * np.exp(1j * np.outer(y, qy))
+    out = np.empty((y.size, x.size))
+    for j in range(0, x.size, block):
+        out[:, j:j + block] = (rows @ np.exp(1j * np.outer(qx, x[j:j + block]))).real
+    return out
+
+
+def _c1d_above(truth: FractalPSD, qx: np.ndarray, q_split: float, nodes: int = 200) -> np.ndarray:
+    """1D PSD of profiles of ``truth`` restricted to 2D wavevectors ``|q| ≥ q_split``.
+
+    ``C1D(qx) - (2/π) ∫_0^{k0} C_iso(√(qx²+k²)) dk`` with ``k0 = √(q_split² - qx²)``.
+    """
+    qx = np.atleast_1d(np.asarray(qx, dtype=float))
+    k0 = np.sqrt(np.maximum(q_split**2 - qx**2, 0.0))
+    t, w = np.polynomial.legendre.leggauss(nodes)
+    k = 0.5 * k0[:, None] * (t[None, :] + 1)
+    inner = np.sum(w * truth.c_native(np.sqrt(qx[:, None] ** 2 + k**2)), axis=1) * 0.5 * k0
+    return np.maximum(truth.c1d(qx) - 2 * inner / np.pi, 0.0)
+
+
+def _area_truth(truth: FractalPSD, n: int, dx: float, rng) -> np.ndarray:
+    """An ``n × n`` window (spacing ``dx``) of the isotropic surface ``truth``, all wavelengths included.
+
+    Wavelengths shorter than half the window come from a periodic grid twice the window's
+    size, longer ones (down to the roll-off and beyond) from :func:`_long_modes`.
+    """
+    size = n * dx
+    q_split = 4 * np.pi / size
+    q = _grid_q((2 * n, 2 * n), (dx, dx))[0]
+    short = _synthesize((2 * n, 2 * n), (2 * size, 2 * size), np.where(q >= q_split, truth.c_native(q), 0.0), rng)
+    axis = np.arange(n) * dx
+    q_low = min(truth.q_long or np.inf, 2 * np.pi / size) / 100
+    return short[:n, :n] + _eval_modes(_long_modes(truth, q_split, q_low, rng), axis, axis)
+
+
+def _profiles_truth(truth: FractalPSD, rows: int, row_spacing: float, n: int, dx: float, rng) -> np.ndarray:
+    """``rows`` parallel profiles ``row_spacing`` apart, ``n`` points each, of the isotropic surface ``truth``.
+
+    2D wavevectors ``|q| < q_split = max(4π/L, 2π/row_spacing)`` are shared by the
+    profiles (:func:`_long_modes` evaluated on every row: the profiles are correlated at
+    long wavelengths as on a real surface); shorter ones are drawn independently per
+    profile on a periodic line twice the profile's length with the matching 1D spectrum
+    (:func:`_c1d_above`), as profiles further apart than the wavelength decorrelate.
+    """
+    length = n * dx
+    q_split = 4 * np.pi / length if rows == 1 else max(4 * np.pi / length, 2 * np.pi / row_spacing)
+    q = np.abs(wavevectors(2 * n, dx, real=True))
     qpos = q[q > 0]
     grid = np.geomspace(qpos.min(), qpos.max(), 256)
-    c1d = np.zeros_like(q)
-    c1d[q > 0] = np.exp(np.interp(np.log(qpos), np.log(grid), np.log(truth.c1d(grid))))
-    return _synthesize(gshape, (2 * n * dx,), c1d, np.random.default_rng(seed))[:n]
+    c = np.zeros_like(q)
+    c[q > 0] = np.exp(np.interp(np.log(qpos), np.log(grid), np.log(np.maximum(_c1d_above(truth, grid, q_split), 1e-300))))
+    short = np.stack([_synthesize((2 * n,), (2 * length,), c, rng)[:n] for _ in range(rows)])
+    q_low = min(truth.q_long or np.inf, 2 * np.pi / length) / 100
+    long = _eval_modes(_long_modes(truth, q_split, q_low, rng), np.arange(rows) * row_spacing, np.arange(n) * dx)
+    return short + long
 
 
-#: Instruments of the example twin: (name, kind, size [m], pixels, oversampling, tip radius [m], extra)
+#: Instruments of the example twin: (name, kind, size [m], pixels, oversampling, tip radius [m], extra).
+#: ``profiles``: parallel stylus profiles, ``pixels = (profiles, points)``, spaced ``size/20`` apart.
 _TWIN_PLAN = (
-    ("stylus-5mm", "line", 5e-3, 5000, 4, 5e-6, {"noise": 2e-9}),
-    ("stylus-500um", "line", 5e-4, 5000, 4, 1e-6, {"noise": 1e-9}),
+    ("stylus-5mm", "profiles", 5e-3, (8, 5000), 4, 5e-6, {"noise": 2e-9}),
+    ("stylus-500um", "profiles", 5e-4, (8, 5000), 4, 1e-6, {"noise": 1e-9}),
     ("optical-1mm", "area", 1e-3, 256, 2, None, {"resolution": 1.6e-5, "noise": 5e-9, "missing_fraction": 0.03}),
     ("afm-50um", "area", 5e-5, 256, 2, 5e-8, {"noise": 2e-10}),
     ("afm-5um", "area", 5e-6, 256, 2, 2e-8, {"noise": 1e-10, "missing_fraction": 0.02}),
     ("afm-500nm", "area", 5e-7, 256, 2, 1e-8, {}),
-    ("tem-profile-200nm", "nonuniform", 2e-7, 400, 10, None, {"resolution": 1e-9}),
+    ("tem-profile-200nm", "nonuniform", 2e-7, 400, 10, None, {"resolution_spacings": 8}),
 )
+#: spacing of the parallel stylus profiles, as a fraction of their length
+_PROFILE_SPACING = 1 / 20
 
 
 @functools.lru_cache(maxsize=2)
@@ -507,36 +585,37 @@ def _example_twin_cached(seed: int):
     nodes = {}
     for k, (name, kind, size, pixels, over, tip, extra) in enumerate(_TWIN_PLAN):
         s = seed * 1000 + k
+        rng = np.random.default_rng(s)
         extra = dict(extra)
         if kind == "area":
             n = pixels * over
             dx = size / n
-            gt = _synthesize((2 * n, 2 * n), (2 * size, 2 * size),
-                             truth.c_native(_grid_q((2 * n, 2 * n), (dx, dx))[0]), np.random.default_rng(s))[:n, :n]
-            surf = make_measurement(gt, spacing=dx, units="m")
+            surf = make_measurement(_area_truth(truth, n, dx, rng), spacing=dx, units="m")
             meas = measure(surf, pixels=pixels, tip_radius=tip, seed=s, instrument=name, **extra)
-        elif kind == "line":
-            n = pixels * over
-            dx = size / n
-            surf = make_measurement(_line_truth(truth, n, dx, s), spacing=dx, units="m")
-            meas = measure(surf, pixels=pixels, tip_radius=tip, seed=s, instrument=name, **extra)
+        elif kind == "profiles":
+            rows, points = pixels
+            n = points * over
+            dx, dy = size / n, size * _PROFILE_SPACING
+            surf = make_measurement(_profiles_truth(truth, rows, dy, n, dx, rng), spacing=(dy, dx), units="m")
+            meas = measure(surf, pixels=(rows, points), tip_radius=tip, seed=s, instrument=name, **extra)
         else:  # cross-section contour digitised at irregular positions
             n = pixels * over
             dx = size / n
-            line = _line_truth(truth, n, dx, s)
-            rng = np.random.default_rng(s)
+            line = _profiles_truth(truth, 1, 0.0, n, dx, rng)[0]
             x = np.sort(rng.choice(np.arange(1, n - 1), size=pixels - 2, replace=False)) * dx
             x = np.concatenate([[0.0], x + rng.uniform(-0.3, 0.3, x.size) * dx, [(n - 1) * dx]])
             h = np.interp(x, np.arange(n) * dx, line)
-            meas = make_measurement(h, x=x, units="m", instrument=name, resolution=extra.get("resolution"),
+            resolution = extra["resolution_spacings"] * float(np.mean(np.diff(x)))
+            meas = make_measurement(h, x=x, units="m", instrument=name, resolution=resolution,
                                     source="xtopo.datasets.example_twin")
         meas.attrs.update(truth.to_attrs())
         meas.attrs["title"] = name
         meas.attrs["measurement_kind"] = kind
         nodes[name] = meas
     root = xr.Dataset(attrs={"title": "example digital surface twin",
-                             "summary": "Seven simulated measurements (stylus, optical, AFM, cross-section) of one "
-                                        "self-affine surface (H = 0.8) spanning 5 mm down to 1 nm.",
+                             "summary": "Seven simulated measurements (stylus profiles, optical, AFM, cross-section) of "
+                                        "one self-affine surface (H = 0.8, roll-off at 200 µm) spanning 5 mm down to "
+                                        "1 nm.",
                              "Conventions": "CF-1.12, ACDD-1.3", **truth.to_attrs()})
     return root, nodes
 
@@ -544,13 +623,34 @@ def _example_twin_cached(seed: int):
 def example_twin(seed: int = 0) -> xr.DataTree:
     """The built-in example twin: simulated measurements of one ground-truth surface.
 
-    Seven measurements of an isotropic self-affine surface (Hurst exponent 0.8, roll-off
-    at 200 µm) spanning more than six decades of length: two stylus line scans
-    (5 mm and 0.5 mm, tip radii 5 µm and 1 µm), an optical area scan (1 mm, with a
-    resolution limit and missing data), three AFM area scans (50 µm, 5 µm, 0.5 µm,
-    with tip artifacts, noise and missing data) and a nonuniform cross-section
-    profile (200 nm). Each node carries the ground-truth PSD parameters
-    (see :func:`prescribed_psd`).
+    Seven measurements of an isotropic self-affine surface (Hurst exponent 0.8, flat
+    roll-off of the PSD above 200 µm, the surface's correlation length, which the
+    5 mm stylus scans sample) spanning more than six decades of length:
+
+    * two stylus campaigns of 8 parallel profiles each (5 mm and 0.5 mm long, 5000
+      points, profiles ``L/20`` apart, tip radii 5 µm and 1 µm, white noise), stored as
+      ``(y, x)`` maps whose rows are the profiles (1D PSDs and ACFs average over them);
+    * an optical area scan (1 mm, 256², lateral resolution 16 µm, noise, 3% missing data);
+    * three AFM area scans (50 µm, 5 µm, 0.5 µm, 256², spherical tips of 50, 20 and
+      10 nm applied by morphological dilation, noise, 2% missing data on one);
+    * a TEM cross-section contour (200 nm) digitised at 400 irregular points; its
+      ``resolution`` is 8 mean spacings, where linear interpolation between the
+      digitised points (a low-pass of about ``sinc⁴(qΔ/2)`` in power) costs < 10%.
+
+    Every measurement is taken at its own place on the specimen (independent
+    realisations) and its ground truth contains *all* wavelengths of the surface:
+    wavelengths shorter than half the window come from a periodic grid twice the
+    window's size (sampled at 2× or 4× the instrument's pixel density, so the
+    instrument aliases as a real one does), longer ones down to the roll-off from
+    randomised Fourier modes (``_long_modes``: exact expected correlations at any
+    distance), so a small scan carries the random tilt and curvature a real one
+    does. Stylus profiles share the 2D modes longer than their spacing. Each node
+    carries the ground-truth PSD parameters (see :func:`prescribed_psd`).
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the whole twin (realisations, noise, missing data).
 
     Returns
     -------

@@ -135,12 +135,18 @@ def _statistically_reliable(curve: xr.DataArray, ds: xr.Dataset, coord: str, min
 
 
 def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bool) -> xr.DataArray:
-    """Mask (never drop) the unreliable scales so every backend yields the same coordinates."""
+    """Mask (never drop) the unreliable scales so every backend yields the same coordinates.
+
+    Short-scale criteria: tip radius or resolution (paper §4.9) and, for spectra, the
+    sampling criterion :func:`~xtopo.analysis.reliability.sampling_cutoff`.
+    """
     if not reliable:
         return curve
-    from .analysis.reliability import reliability_cutoff
+    from .analysis.reliability import reliability_cutoff, sampling_cutoff
 
     cut = reliability_cutoff(ds)
+    if coord == "q":  # spectra also end where aliasing sets in
+        cut = np.fmax(cut, sampling_cutoff(ds, curve.attrs.get("direction", "x")))
     x = curve[coord]
     keep = (x <= 2 * np.pi / cut) if coord == "q" else (x >= cut)
     out = curve.where(keep | ~(cut > 0))

@@ -12,6 +12,7 @@ import os
 
 import xarray as xr
 
+from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import XtopoError
 from .io.netcdf import read_netcdf, tree_to_netcdf
@@ -48,6 +49,10 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
         The measurements of one surface. Paths are opened with
         :func:`xtopo.open_topography` (xtopo NetCDF files lazily, as dask arrays).
         Node names come from the mapping keys, else from ``title``/``source_file``.
+        A twin is an archive: in-memory data are stored as read-only copies
+        (:func:`xtopo.cache.freeze`), so the cache checksums each array once and
+        nothing can change a measurement behind the twin's back (write into a
+        ``.copy()`` instead). Lazy (dask) data stay lazy.
     name : str, optional
         Name of the surface (root attr ``title``).
     **attrs
@@ -69,7 +74,7 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
         while node in nodes:
             k += 1
             node = f"{base}_{k}"
-        nodes[node] = ds
+        nodes[node] = freeze(ds)
     if not nodes:
         raise XtopoError("a twin needs at least one measurement")
     root = {"Conventions": CONVENTIONS, **attrs}
@@ -117,7 +122,7 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
 
 
 def open_twin(path, engine: str | None = None) -> xr.DataTree:
-    """Restore a twin archived with :func:`to_netcdf` (data loaded into memory)."""
+    """Restore a twin archived with :func:`to_netcdf` (data loaded into read-only memory, as in :func:`twin`)."""
     try:
         tree = xr.open_datatree(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:
@@ -132,5 +137,5 @@ def open_twin(path, engine: str | None = None) -> xr.DataTree:
         ds.encoding = {}
         for v in ds.variables.values():
             v.encoding = {}
-        out[node.path] = ds
+        out[node.path] = freeze(ds) if "height" in ds else ds
     return xr.DataTree.from_dict(out)

@@ -22,7 +22,7 @@ from ..conventions import X, Y, length_factor
 from ..errors import GridError
 from ._scale import POINTS_PER_DECADE, prepare
 
-__all__ = ["reliability_cutoff", "apply_reliability", "TIP_FACTOR"]
+__all__ = ["reliability_cutoff", "apply_reliability", "sampling_cutoff", "TIP_FACTOR", "SAMPLING_FACTOR"]
 
 #: the constant ``c`` of eq. (13)
 TIP_FACTOR = 0.5
@@ -229,3 +229,41 @@ def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
         along = np.where(v > 0, length / v, np.inf)
         across = np.minimum(rows, width / v) if rows > 1 else 1.0
     return np.where(along >= 1, along * np.maximum(across, 1.0), 0.0)
+
+
+#: Shortest reliable wavelength of a sampled spectrum, in pixels (aliasing criterion of :func:`sampling_cutoff`).
+SAMPLING_FACTOR = 4
+
+
+def sampling_cutoff(obj, dim: str = X, *, factor: float = SAMPLING_FACTOR) -> float:
+    """Shortest wavelength at which a sampled measurement's spectrum is free of aliasing (spectra only).
+
+    A real surface keeps its roughness below the pixel size, and sampling it folds
+    the power of the wavevectors ``2k q_N ± q`` (``q_N = π/Δx``) onto ``q``. For a
+    self-affine 1D spectrum ``C1D ∝ q^(-1-2H)`` the folded share at ``q = 2q_N/f``
+    (wavelength ``f Δx``) is ``Σ_k (kf - 1)^(-1-2H) + (kf + 1)^(-1-2H)``: 8.5% at
+    ``f = 4`` for H = 0.8, but 2× at the Nyquist wavevector. Instrument noise (white,
+    ``C1D = σ² Δx``) also weighs most there. Spectra are therefore cut at
+    ``factor · Δx`` in addition to the tip/resolution criteria of §4.9 (which the paper
+    gives; this one it does not: it is the sampling theorem applied to rough data).
+    Real-space curves (ACF, SDRP, VBM) sample heights exactly and are not affected.
+    Nonuniform line scans use their mean spacing (their spectra are taken after
+    linear interpolation onto as many uniform points).
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        The measurement.
+    dim : {"x", "y"}
+        Direction of the profiles whose spectrum is cut.
+    factor : float
+        Shortest reliable wavelength in pixels (2 is the Nyquist wavelength).
+
+    Returns
+    -------
+    float
+        The cutoff wavelength in the measurement's length unit.
+    """
+    prep = prepare(obj)
+    n = prep.h.sizes[dim]
+    return float(factor) * prep.size(dim) / n
