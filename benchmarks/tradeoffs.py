@@ -25,10 +25,12 @@ fft_backend    scipy vs pyFFTW, 1 or 2 threads (30 CG iterations, plans built  s
 
 Errors are relative L2 norms of the pressure field (contact) or RMS of ``ln(measured/true)``
 (PSD, SDRP), averaged over seeds for the statistical quantities. Times are medians of
-``--repeat`` runs of the call the knob affects (contact: the solve, Green's function built
-beforehand). The knee of each swept curve is the point farthest below the chord joining its
-first (cheapest) and last (most expensive) knob value in log-log coordinates (each axis scaled to [0, 1]);
-where the knob does not change the time (PSD bins) it is the point of smallest error.
+``--repeat`` runs (default 5) of the call the knob affects (contact: the solve, Green's function built
+beforehand). The knee of each swept series is its cheapest knob value whose error is within
+10 % of the smallest error of the series (where the curve reaches its floor, e.g. the
+discretisation error of a Hertz contact); a series whose error still falls at its most
+expensive value has no knee in range; where the knob does not change the time (PSD bins) the
+knee is the point of smallest error.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ class Config:
 
     def __init__(self, quick: bool, repeat: int | None):
         self.quick = quick
-        self.repeat = repeat if repeat is not None else (1 if quick else 3)
+        self.repeat = repeat if repeat is not None else (1 if quick else 5)
         self.hertz_ppr = 8 if quick else 32  # pixels per contact radius of the Hertz reference case
         self.fractal_n = 64 if quick else 256
         self.psd_n = 128 if quick else 512
@@ -134,10 +136,10 @@ class Westergaard:
     """Periodic sinusoid ``A cos(2πx/λ)`` (line scan): analytic pressure (Johnson 1985, §13.2).
 
     The grid has ``spot_px`` pixels across the contact at p̄ = 0.3 p*; the error is averaged over
-    p̄/p* = 0.25, 0.3, 0.35 so that where the contact edge falls between pixels averages out.
+    nine loads p̄/p* = 0.2 … 0.4 so that where the contact edge falls between pixels averages out.
     """
 
-    RATIOS = (0.25, 0.3, 0.35)
+    RATIOS = tuple(np.linspace(0.2, 0.4, 9))
 
     def __init__(self, spot_px):
         width = 2 / np.pi * np.arcsin(np.sqrt(0.3))  # 2a/λ at p̄ = 0.3 p*
@@ -152,7 +154,8 @@ class Westergaard:
 
     def pressure(self, ratio):
         """``p(x) = 2 p̄ cos(πx/λ) sqrt(sin²(πa/λ) - sin²(πx/λ)) / sin²(πa/λ)``, ``sin²(πa/λ) = p̄/p* = ratio``."""
-        return 2 * self.pstar * np.cos(np.pi * self.x) * np.sqrt(np.clip(ratio - np.sin(np.pi * self.x) ** 2, 0, None))
+        inside = np.clip(ratio - np.sin(np.pi * self.x) ** 2, 0, None)
+        return 2 * self.pstar * np.cos(np.pi * self.x) * np.sqrt(inside)
 
     def solve(self, repeat):
         sc = Scene(self.ds)
@@ -233,16 +236,16 @@ def panel_grid(cfg):
     return rows
 
 
-def panel_dtype(cfg, hertz, fractals):
+def panel_scene_option(cfg, hertz, fractals, panel, option, values, default):
+    """One point per value of a :class:`Scene` keyword (``dtype``, ``preset``) on each contact problem."""
     rows = []
-    for dtype in ("float32", "float64"):
-        t, e = hertz.solve(hertz.scene(dtype=dtype), cfg.repeat)
-        rows.append(row("dtype", "Hertz", "dtype", dtype, t, e, "rel. L2 pressure error vs Hertz",
-                        dtype == "float64"))
+    for value in values:
+        t, e = hertz.solve(hertz.scene(**{option: value}), cfg.repeat)
+        rows.append(row(panel, "Hertz", option, value, t, e, "rel. L2 pressure error vs Hertz", value == default))
         for name, fr in fractals.items():
-            t, e = fr.solve(fr.scene(dtype=dtype), cfg.repeat)
-            rows.append(row("dtype", f"fractal {cfg.fractal_n}² {name}", "dtype", dtype, t, e,
-                            "rel. L2 pressure error vs tol=1e-11 solve", dtype == "float64"))
+            t, e = fr.solve(fr.scene(**{option: value}), cfg.repeat)
+            rows.append(row(panel, f"fractal {cfg.fractal_n}² {name}", option, value, t, e,
+                            "rel. L2 pressure error vs tol=1e-11 solve", value == default))
     return rows
 
 
@@ -377,24 +380,12 @@ def panel_fft_backend(cfg):
     return rows
 
 
-def panel_presets(cfg, hertz, fractals):
-    rows = []
-    for name in NAMES:
-        t, e = hertz.solve(hertz.scene(preset=name), cfg.repeat)
-        rows.append(row("preset", "Hertz", "preset", name, t, e, "rel. L2 pressure error vs Hertz",
-                        name == "default"))
-        for label, fr in fractals.items():
-            t, e = fr.solve(fr.scene(preset=name), cfg.repeat)
-            rows.append(row("preset", f"fractal {cfg.fractal_n}² {label}", "preset", name, t, e,
-                            "rel. L2 pressure error vs tol=1e-11 solve", name == "default"))
-    return rows
-
-
 # -- knees, table, figure ---------------------------------------------------------------------
 SWEPT = {"tol", "maxiter", "grid", "psd_bins", "boundary"}
+KNEE_WITHIN = 0.1  # a point is on the error floor within 10 % of the smallest error of its series
 
 
-def mark_knees(rows):
+def mark_knees(rows, within=KNEE_WITHIN):
     """Set ``knee=1`` on the knee of every swept series (see the module docstring)."""
     series = {}
     for r in rows:
@@ -403,15 +394,14 @@ def mark_knees(rows):
     for pts in series.values():
         if len(pts) < 3:
             continue
-        t = np.log([p["time_s"] for p in pts])
-        e = np.log([p["error"] for p in pts])
-        if t.max() - t.min() < np.log(1.5):  # the knob does not cost time: best error
+        t = np.array([p["time_s"] for p in pts])
+        e = np.array([p["error"] for p in pts])
+        if t.max() < 1.5 * t.min():  # the knob does not cost time: the best error
             k = int(np.argmin(e))
-        else:  # points in the order of the sweep (cheap to expensive knob values)
-            x = (t - t.min()) / (t.max() - t.min())
-            y = (e - e.min()) / max(e.max() - e.min(), 1e-300)
-            chord = y[0] + (y[-1] - y[0]) * (x - x[0]) / (x[-1] - x[0] if x[-1] != x[0] else 1.0)
-            k = int(np.argmax(chord - y))
+        else:  # sweep order = cheap to expensive: the first value on the error floor
+            k = int(np.flatnonzero(e <= (1 + within) * e.min())[0])
+            if k == len(pts) - 1:
+                continue  # the error still falls at the end of the sweep: no knee in range
         pts[k]["knee"] = 1
     return rows
 
@@ -427,8 +417,18 @@ def write_csv(rows, path):
 TITLES = {"tol": "solver tolerance tol", "maxiter": "solver maxiter", "grid": "pixels across a contact spot",
           "dtype": "float32 vs float64", "boundary": "free vs periodic boundary (sphere)",
           "psd_bins": "PSD log bins per decade", "psd_window": "PSD window (nonperiodic data)",
-          "sdrp": "SDRP: interpolated vs integer η", "fft_backend": "FFT backend and threads",
+          "sdrp": "SDRP: interpolated vs integer η", "fft_backend": "FFT backend and threads (same result)",
           "preset": "presets fast / default / accurate"}
+
+
+#: panels whose knob does not change the time: error against the knob value instead
+VALUE_AXIS = {"psd_bins"}
+#: panels of alternatives rather than a sweep: markers joined by a dashed line
+CATEGORICAL = {"dtype", "psd_window", "sdrp", "preset"}
+
+
+def _label(value):
+    return f"{value:g}" if isinstance(value, (int, float)) else str(value)
 
 
 def plot(rows, path):
@@ -440,33 +440,46 @@ def plot(rows, path):
     panels = list(dict.fromkeys(r["panel"] for r in rows))
     ncol = 4
     nrow = int(np.ceil(len(panels) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.6 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.4 * ncol, 3.7 * nrow), squeeze=False)
     for ax, panel in zip(axes.flat, panels):
         pr = [r for r in rows if r["panel"] == panel]
+        backend = panel == "fft_backend"
         for s in dict.fromkeys(r["series"] for r in pr):
             pts = [r for r in pr if r["series"] == s]
-            t = [p["time_s"] for p in pts]
-            e = [p["error"] for p in pts]
-            (line,) = ax.plot(t, e, "o-", ms=4, label=s)
-            for p in pts:
-                ax.annotate(f"{p['value']:g}" if isinstance(p["value"], (int, float)) else str(p["value"]),
-                            (p["time_s"], p["error"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
+            if backend:  # every backend gives the same answer (≤ 1e-13): time against the grid size
+                xy = [(p["value"], p["time_s"]) for p in pts]
+            elif panel in VALUE_AXIS:
+                xy = [(p["value"], p["error"]) for p in pts]
+            else:
+                xy = [(p["time_s"], p["error"]) for p in pts]
+            style = "o--" if panel in CATEGORICAL else "o-"
+            ax.plot(*zip(*xy), style, ms=4, lw=1, label=s)
+            for p, (x, y) in zip(pts, xy):
+                ax.annotate(_label(p["value"]), (x, y), fontsize=6, xytext=(3, 3), textcoords="offset points")
                 if p["default"]:
-                    ax.plot(p["time_s"], p["error"], "*", ms=13, mfc="none", mec="k", mew=1.2)
+                    ax.plot(x, y, "*", ms=13, mfc="none", mec="k", mew=1.2)
                 if p["knee"]:
-                    ax.plot(p["time_s"], p["error"], "D", ms=9, mfc="none", mec="r", mew=1.2)
+                    ax.plot(x, y, "D", ms=9, mfc="none", mec="r", mew=1.2)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_title(TITLES.get(panel, panel), fontsize=9)
-        ax.set_xlabel("time (s, median)", fontsize=8)
-        ax.set_ylabel(pr[0]["error_measure"], fontsize=7)
+        if backend:
+            ax.set_xlabel("grid (N², periodic), 30 CG iterations", fontsize=8)
+            ax.set_ylabel("time (s, median)", fontsize=8)
+        elif panel in VALUE_AXIS:
+            t = statistics.median(p["time_s"] for p in pr)
+            ax.set_xlabel(f"{pr[0]['knob']} (time flat: {1e3 * t:.1f} ms)", fontsize=8)
+            ax.set_ylabel(pr[0]["error_measure"], fontsize=7)
+        else:
+            ax.set_xlabel("time (s, median)", fontsize=8)
+            ax.set_ylabel(pr[0]["error_measure"], fontsize=7)
         ax.tick_params(labelsize=7)
         ax.legend(fontsize=6, loc="best")
     for ax in list(axes.flat)[len(panels):]:
         ax.axis("off")
-    fig.suptitle("xtopo speed vs accuracy (☆ default, ◇ knee)", fontsize=11)
+    fig.suptitle("xtopo speed vs accuracy (black star: default, red diamond: knee)", fontsize=11)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
@@ -482,7 +495,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="tiny sizes (seconds): a smoke test")
     ap.add_argument("--out", default=os.path.join(ROOT, "docs"), help="folder for tradeoffs.png / tradeoffs.csv")
-    ap.add_argument("--repeat", type=int, default=None, help="timing repeats (median); default 3 (quick: 1)")
+    ap.add_argument("--repeat", type=int, default=None, help="timing repeats (median); default 5 (quick: 1)")
     ap.add_argument("--only", nargs="*", default=None, help="run only these panels")
     args = ap.parse_args(argv)
     cfg = Config(args.quick, args.repeat)
@@ -490,29 +503,9 @@ def main(argv=None):
     t_start = time.perf_counter()
     print(f"load average at start {os.getloadavg()}, cpus {os.cpu_count()}, "
           f"XTOPO_FFT_THREADS={os.environ.get('XTOPO_FFT_THREADS', 'unset')}, repeat {cfg.repeat}")
-    warnings.simplefilter("ignore", ConvergenceWarning)  # maxiter sweeps stop early on purpose
-    hertz = Hertz(cfg.hertz_ppr)
-    fractals = {"periodic": Fractal(cfg.fractal_n, True), "free": Fractal(cfg.fractal_n, False)}
-    surfaces = {"periodic": _surfaces(cfg, True), "nonperiodic": _surfaces(cfg, False)}
-    panels = {
-        "tol": lambda: panel_tol(cfg, hertz, fractals["periodic"]),
-        "maxiter": lambda: panel_maxiter(cfg, fractals),
-        "grid": lambda: panel_grid(cfg),
-        "dtype": lambda: panel_dtype(cfg, hertz, fractals),
-        "boundary": lambda: panel_boundary(cfg),
-        "psd_bins": lambda: panel_psd_bins(cfg, surfaces),
-        "psd_window": lambda: panel_psd_window(cfg, surfaces),
-        "sdrp": lambda: panel_sdrp(cfg, surfaces),
-        "fft_backend": lambda: panel_fft_backend(cfg),
-        "preset": lambda: panel_presets(cfg, hertz, fractals),
-    }
-    rows = []
-    for name, fn in panels.items():
-        if args.only and name not in args.only:
-            continue
-        t0 = time.perf_counter()
-        rows += fn()
-        print(f"{name:>12}: {time.perf_counter() - t0:6.1f} s   (load {os.getloadavg()[0]:.2f})", flush=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)  # maxiter sweeps stop early on purpose
+        rows = run_panels(cfg, args.only)
     mark_knees(rows)
     csv_path = os.path.join(args.out, "tradeoffs.csv")
     png_path = os.path.join(args.out, "tradeoffs.png")
@@ -523,6 +516,34 @@ def main(argv=None):
           + "; ".join(f"{k}: {dict(v)}" for k, v in PRESETS["contact"].items()))
     print(f"wrote {csv_path} and {png_path} in {time.perf_counter() - t_start:.0f} s; "
           f"load average at end {os.getloadavg()}")
+    return rows
+
+
+def run_panels(cfg, only=None):
+    """Rows of every panel (or of those named in ``only``)."""
+    hertz = Hertz(cfg.hertz_ppr)
+    fractals = {"periodic": Fractal(cfg.fractal_n, True), "free": Fractal(cfg.fractal_n, False)}
+    surfaces = {"periodic": _surfaces(cfg, True), "nonperiodic": _surfaces(cfg, False)}
+    panels = {
+        "tol": lambda: panel_tol(cfg, hertz, fractals["periodic"]),
+        "maxiter": lambda: panel_maxiter(cfg, fractals),
+        "grid": lambda: panel_grid(cfg),
+        "dtype": lambda: panel_scene_option(cfg, hertz, fractals, "dtype", "dtype", ("float32", "float64"),
+                                            "float64"),
+        "boundary": lambda: panel_boundary(cfg),
+        "psd_bins": lambda: panel_psd_bins(cfg, surfaces),
+        "psd_window": lambda: panel_psd_window(cfg, surfaces),
+        "sdrp": lambda: panel_sdrp(cfg, surfaces),
+        "fft_backend": lambda: panel_fft_backend(cfg),
+        "preset": lambda: panel_scene_option(cfg, hertz, fractals, "preset", "preset", NAMES, "default"),
+    }
+    rows = []
+    for name, fn in panels.items():
+        if only and name not in only:
+            continue
+        t0 = time.perf_counter()
+        rows += fn()
+        print(f"{name:>12}: {time.perf_counter() - t0:6.1f} s   (load {os.getloadavg()[0]:.2f})", flush=True)
     return rows
 
 

@@ -1,6 +1,5 @@
 """Speed/accuracy presets (issue 9): the table, the resolver, and the contact API that uses them."""
 
-import importlib.util
 import pathlib
 import warnings
 
@@ -12,19 +11,14 @@ from xtopo.contact import Scene, contact
 from xtopo.contact.solve import default_tol, solver_settings
 from xtopo.errors import ConvergenceWarning, XtopoError
 
+from .test_tradeoffs import load_tradeoffs
+
 REPO = pathlib.Path(__file__).resolve().parents[1]
-
-
-def _tradeoffs():
-    spec = importlib.util.spec_from_file_location("tradeoffs", REPO / "benchmarks" / "tradeoffs.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 @pytest.fixture(scope="module")
 def tradeoffs():
-    return _tradeoffs()
+    return load_tradeoffs()
 
 
 def test_each_preset_maps_to_the_documented_knobs():

@@ -7,7 +7,8 @@ import pathlib
 REPO = pathlib.Path(__file__).resolve().parents[1]
 
 
-def _load():
+def load_tradeoffs():
+    """benchmarks/tradeoffs.py as a module (benchmarks/ is not a package)."""
     spec = importlib.util.spec_from_file_location("tradeoffs", REPO / "benchmarks" / "tradeoffs.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -15,7 +16,7 @@ def _load():
 
 
 def test_quick_run_writes_table_and_figure(tmp_path):
-    rows = _load().main(["--quick", "--out", str(tmp_path)])
+    rows = load_tradeoffs().main(["--quick", "--out", str(tmp_path)])
     table = list(csv.DictReader(open(tmp_path / "tradeoffs.csv")))
     assert len(table) == len(rows) > 0
     panels = {r["panel"] for r in table}
@@ -36,12 +37,15 @@ def test_quick_run_writes_table_and_figure(tmp_path):
 
 
 def test_knee_is_where_the_error_stops_falling():
-    mod = _load()
+    mod = load_tradeoffs()
     times = [1.0, 2.0, 3.0, 4.0, 5.0]
-    errors = [1.0, 0.1, 0.011, 0.0101, 0.0100]
+    errors = [1.0, 0.1, 0.0105, 0.0101, 0.0100]
     rows = [mod.row("tol", "s", "tol", v, t, e, "err") for v, t, e in zip(range(5), times, errors)]
     mod.mark_knees(rows)
     assert [r["knee"] for r in rows] == [0, 0, 1, 0, 0]
+    power_law = [mod.row("grid", "s", "px", v, t, 1 / t, "err") for v, t in zip(range(5), times)]
+    mod.mark_knees(power_law)
+    assert not any(r["knee"] for r in power_law)  # the error keeps falling: no knee
     flat = [mod.row("psd_bins", "s", "bins", v, 1.0, e, "err") for v, e in zip(range(3), (0.3, 0.1, 0.2))]
     mod.mark_knees(flat)
     assert [r["knee"] for r in flat] == [0, 1, 0]
