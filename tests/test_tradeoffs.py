@@ -4,6 +4,8 @@ import csv
 import importlib.util
 import pathlib
 
+import pytest
+
 REPO = pathlib.Path(__file__).resolve().parents[1]
 
 
@@ -15,6 +17,18 @@ def load_tradeoffs():
     return mod
 
 
+def test_quick_run_of_two_panels(tmp_path):
+    """The whole pipeline (panels, knees, CSV, PNG) on two cheap panels: a few seconds."""
+    rows = load_tradeoffs().main(["--quick", "--out", str(tmp_path), "--only", "psd_bins", "preset"])
+    table = list(csv.DictReader(open(tmp_path / "tradeoffs.csv")))
+    assert {r["panel"] for r in table} == {"psd_bins", "preset"} and len(table) == len(rows)
+    assert sum(r["knee"] == "1" for r in table) == 2  # one per PSD series
+    presets = {r["value"]: float(r["error"]) for r in table if r["panel"] == "preset" and r["series"] == "Hertz"}
+    assert set(presets) == {"fast", "default", "accurate"}
+    assert (tmp_path / "tradeoffs.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.slow  # 7-16 s on 2 shared cores
 def test_quick_run_writes_table_and_figure(tmp_path):
     rows = load_tradeoffs().main(["--quick", "--out", str(tmp_path)])
     table = list(csv.DictReader(open(tmp_path / "tradeoffs.csv")))
