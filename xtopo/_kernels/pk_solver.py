@@ -337,17 +337,20 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
              "best": None}
 
     def solve_at(delta):
-        res = polonsky_keer(conv, w, pixel_area=pixel_area, penetration=delta, hardness=hardness,
-                            tol=state["tol"], maxiter=maxiter, initial=state["p"])
-        for key in ("iterations", "convolutions", "transforms"):
-            state[key] += res[key]
-        state["solves"] += 1
+        while True:
+            cold = state["p"] is None
+            res = polonsky_keer(conv, w, pixel_area=pixel_area, penetration=delta, hardness=hardness,
+                                tol=state["tol"], maxiter=maxiter, initial=state["p"])
+            for key in ("iterations", "convolutions", "transforms"):
+                state[key] += res[key]
+            state["solves"] += 1
+            if res.iterations > 0 or cold or state["tol"] <= 1e-13:
+                break
+            # the warm start (the solution at another δ) already met the tolerance: its load
+            # is not F(δ). Resolve finer — near the root F changes fast within a small δ step
+            state["tol"] = max(state["tol"] * 0.1, 1e-13)
         if np.any(res.pressure):
             state["p"] = res.pressure
-        if res.iterations == 0:
-            # the warm start already met the tolerance: F(δ) is not resolved at this δ step;
-            # resolve it finer (near full plasticity F jumps by H·ΔA within a tiny δ window)
-            state["tol"] = max(state["tol"] * 0.1, 1e-13)
         f = res.load - load
         if res.converged and (state["best"] is None or abs(f) < abs(state["best"][1])):
             state["best"] = (res, f)

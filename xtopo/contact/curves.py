@@ -9,7 +9,7 @@ import xarray as xr
 
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
-from .solve import _control, default_tol, result_units, run_solver, to_dataset
+from .solve import _control, result_units, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution", "contact"]
 
@@ -21,8 +21,8 @@ def _sequence(name, values):
     return v
 
 
-def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int = 1000,
-          gap_bins: int = 50) -> xr.Dataset:
+def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
+          gap_bins: int = 50, preset: str | None = None) -> xr.Dataset:
     """Solve ``scene`` for each value of a sequence, each step starting from the previous solution.
 
     Parameters
@@ -30,7 +30,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     scene : xtopo.contact.Scene
     loads, mean_pressures, penetrations : array_like
         Exactly one sequence (units as in :func:`xtopo.contact.solve.solve`).
-    tol, maxiter : as in :func:`xtopo.contact.solve.solve`
+    tol, maxiter, preset : as in :func:`xtopo.contact.solve.solve`
     gap_bins : int
         Bins of the gap distribution (0 for none).
 
@@ -47,7 +47,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         raise ContactError("give exactly one of loads=, mean_pressures= or penetrations=")
     name, values = given[0]
     values = _sequence(name, values)
-    tol = default_tol(scene.dtype) if tol is None else float(tol)
+    tol, maxiter = solver_settings(scene, tol, maxiter, preset)
     steps, previous = [], None
     for v in values:
         kw = {{"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]: v}
@@ -137,17 +137,20 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
 
 
 def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
-            hardness: float | None = None, periodic: bool | None = None, counter=None, dtype="float64",
-            tol=None, maxiter: int = 1000) -> xr.Dataset:
+            hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
+            tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
     """Contact of ``topography`` on an elastic flat: a :class:`~xtopo.contact.Scene` solved in one call.
 
     A scalar ``load``/``mean_pressure``/``penetration`` gives one solution
     (:func:`~xtopo.contact.solve.solve`); a sequence gives a load curve
-    (:func:`curve`). Other parameters as in :class:`~xtopo.contact.Scene`.
+    (:func:`curve`). Other parameters as in :class:`~xtopo.contact.Scene`; ``preset``
+    (``"fast"``, ``"default"``, ``"accurate"``, :mod:`xtopo.presets`) sets ``dtype``,
+    ``tol`` and ``maxiter`` where they are not given.
     """
     from .scene import Scene
 
-    scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype)
+    scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
+                  preset=preset)
     control = {"load": load, "mean_pressure": mean_pressure, "penetration": penetration}
     given = {k: v for k, v in control.items() if v is not None}
     if len(given) != 1:

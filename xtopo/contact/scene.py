@@ -17,6 +17,7 @@ from .._kernels.convolution import Convolution, choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
 from ..errors import ContactError, GridError
+from ..presets import resolve as resolve_preset
 
 __all__ = ["Scene"]
 
@@ -65,17 +66,23 @@ class Scene:
     counter : xarray.Dataset or xarray.DataArray, optional
         A second rough surface on the same grid; the scene uses the compound topography
         ``h1 + h2`` (paper §5.2).
-    dtype : {"float64", "float32"}
-        Floating point type of the solver.
+    dtype : {"float64", "float32"}, optional
+        Floating point type of the solver; default from ``preset`` (``"float64"``).
     modulus_units : str, optional
         Units label of ``modulus`` (e.g. ``"GPa"``); default ``"E*"``.
     backend : {"auto", "scipy", "pyfftw"}
         FFT library (``"auto"``: by the size of the FFT grid, see :mod:`xtopo._kernels.fft`).
+    preset : {"fast", "default", "accurate"}, optional
+        Speed-versus-accuracy preset (:mod:`xtopo.presets`): sets ``dtype`` here and the
+        ``tol``/``maxiter`` of :meth:`solve` and :meth:`curve` unless those are given.
     """
 
     def __init__(self, topography, *, modulus: float = 1.0, hardness: float | None = None, periodic: bool | None = None,
-                 counter=None, dtype="float64", modulus_units: str | None = None, backend: str = "auto"):
+                 counter=None, dtype=None, modulus_units: str | None = None, backend: str = "auto",
+                 preset: str | None = None):
         h = _heights(topography, "topography")
+        dtype = resolve_preset("contact", preset, dtype=dtype)["dtype"]
+        self.preset = preset
         try:
             modulus = float(modulus)
         except (TypeError, ValueError):
@@ -177,25 +184,26 @@ class Scene:
             f"  elasticity: {green}",
             f"  material: E* = {self.modulus:g} {self.modulus_units}; {plastic}",
             f"  solver: Polonsky–Keer CG, {self.dtype.name}, FFT backend {self.backend} "
-            f"({'requested' if self.backend_request != 'auto' else 'planned FFTW when installed'})",
+            f"({'requested' if self.backend_request != 'auto' else 'planned FFTW when installed'})"
+            + (f", preset {self.preset!r}" if self.preset is not None else ""),
         ]
         lines += [f"  {r}" for r in self._reasons]
         return "\n".join(lines)
 
     # -- solving (implemented in solve.py / curves.py) ----------------------------------------
-    def solve(self, load=None, *, mean_pressure=None, penetration=None, tol=None, maxiter: int = 1000,
-              initial=None) -> xr.Dataset:
+    def solve(self, load=None, *, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
+              initial=None, preset: str | None = None) -> xr.Dataset:
         """Solve for one load, mean pressure or penetration; see :func:`xtopo.contact.solve.solve`."""
         from .solve import solve
 
         return solve(self, load=load, mean_pressure=mean_pressure, penetration=penetration, tol=tol,
-                     maxiter=maxiter, initial=initial)
+                     maxiter=maxiter, initial=initial, preset=preset)
 
-    def curve(self, loads=None, *, mean_pressures=None, penetrations=None, tol=None, maxiter: int = 1000,
-              gap_bins: int = 50) -> xr.Dataset:
+    def curve(self, loads=None, *, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
+              gap_bins: int = 50, preset: str | None = None) -> xr.Dataset:
         """Solve a sequence of loads (warm-started); see :func:`xtopo.contact.curves.curve`."""
         from .curves import curve
 
         return curve(self, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations, tol=tol,
-                     maxiter=maxiter, gap_bins=gap_bins)
+                     maxiter=maxiter, gap_bins=gap_bins, preset=preset)
 

@@ -10,16 +10,42 @@ import xarray as xr
 from .._kernels.pk_solver import polonsky_keer
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
+from ..presets import resolve as resolve_preset
 
-__all__ = ["solve", "default_tol", "result_units", "run_solver"]
+__all__ = ["solve", "default_tol", "solver_settings", "result_units", "run_solver"]
 
-#: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`).
-_DEFAULT_TOL = {np.dtype("float64"): 1e-6, np.dtype("float32"): 1e-5}
+#: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`): the knee of the
+#: error-vs-time curve (benchmarks/tradeoffs.py, docs/tradeoffs.md); it was 1e-6 for float64 before issue 9.
+_DEFAULT_TOL = {np.dtype("float64"): 1e-5, np.dtype("float32"): 1e-5}
 
 
 def default_tol(dtype) -> float:
-    """Tolerance used when ``tol=None``: 1e-6 (float64) / 1e-5 (float32) of the peak-to-valley height."""
+    """Tolerance used when ``tol=None`` and no preset: 1e-5 of the peak-to-valley height (float64 and float32)."""
     return _DEFAULT_TOL[np.dtype(dtype)]
+
+
+#: Smallest tolerance a preset may ask of a float32 solve (float32 cannot resolve less).
+_PRESET_TOL_FLOOR = {np.dtype("float64"): 0.0, np.dtype("float32"): 1e-6}
+
+
+def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, int]:
+    """``(tol, maxiter)`` of a solve of ``scene``: explicit values, else the preset's, else the defaults.
+
+    ``preset=None`` falls back to the scene's preset (:class:`~xtopo.contact.Scene`), then
+    ``"default"`` (:mod:`xtopo.presets`). A preset's tolerance is raised to 1e-6 for float32 scenes.
+    """
+    knobs = resolve_preset("contact", preset if preset is not None else getattr(scene, "preset", None),
+                           tol=tol, maxiter=maxiter)
+    if tol is None:
+        tol = default_tol(scene.dtype) if knobs["tol"] is None else max(knobs["tol"],
+                                                                          _PRESET_TOL_FLOOR[scene.dtype])
+    tol = float(tol)
+    if not tol > 0:
+        raise ContactError(f"tol must be positive, got {tol}")
+    maxiter = int(knobs["maxiter"])
+    if maxiter < 1:
+        raise ContactError(f"maxiter must be at least 1, got {maxiter}")
+    return tol, maxiter
 
 
 def result_units(scene) -> dict:
@@ -55,8 +81,8 @@ def _initial(scene, initial):
     return p
 
 
-def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int = 1000,
-          initial=None) -> xr.Dataset:
+def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
+          initial=None, preset: str | None = None) -> xr.Dataset:
     """Solve the contact of ``scene`` at one load, mean pressure or penetration.
 
     Parameters
@@ -72,12 +98,15 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
         Periodic scenes measure it with the mean displacement set to zero.
     tol : float, optional
         Largest violation of the contact conditions relative to the peak-to-valley height
-        (see :mod:`xtopo._kernels.pk_solver`); default :func:`default_tol`.
-    maxiter : int
-        Iteration limit. Non-convergence gives a :class:`~xtopo.errors.ConvergenceWarning`
-        and ``converged=False``.
+        (see :mod:`xtopo._kernels.pk_solver`); default from ``preset``, else :func:`default_tol`.
+    maxiter : int, optional
+        Iteration limit (default from ``preset``: 1000). Non-convergence gives a
+        :class:`~xtopo.errors.ConvergenceWarning` and ``converged=False``.
     initial : xarray.Dataset or array_like, optional
         Starting pressures (e.g. a previous result).
+    preset : {"fast", "default", "accurate"}, optional
+        Speed-versus-accuracy preset for ``tol`` and ``maxiter`` (:mod:`xtopo.presets`);
+        default the scene's preset. Explicit ``tol``/``maxiter`` win.
 
     Returns
     -------
@@ -88,9 +117,7 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
         ``converged``.
     """
     load, penetration = _control(scene, load, mean_pressure, penetration)
-    tol = default_tol(scene.dtype) if tol is None else float(tol)
-    if not tol > 0:
-        raise ContactError(f"tol must be positive, got {tol}")
+    tol, maxiter = solver_settings(scene, tol, maxiter, preset)
     if scene.hardness is not None and load is not None and load >= scene.hardness * scene.nominal_area:
         raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
                            "the whole surface would flow; lower the load or raise the hardness")
