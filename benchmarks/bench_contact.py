@@ -51,7 +51,7 @@ def peak_rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def fft_pair_time(shape, repeat=7):
+def fft_pair_time(shape, threads, repeat=7):
     """Fastest forward+inverse real FFT pair on ``shape`` available here (ms-resolution floor).
 
     Both scipy.fft (pocketfft) and a measured FFTW plan on aligned buffers, with the FFT threads the
@@ -59,9 +59,6 @@ def fft_pair_time(shape, repeat=7):
     """
     import scipy.fft as sfft
 
-    from xtopo._kernels import fft as xfft
-
-    threads = xfft.workers()
     a = np.random.default_rng(0).random(shape)
 
     def median_time(f):
@@ -102,7 +99,7 @@ def run_xtopo(n, periodic, tol, repeat, dtype="float64"):
         r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
         times.append(time.perf_counter() - t0)
     t = statistics.median(times)
-    pair = fft_pair_time(scene.fft_shape)
+    pair = fft_pair_time(scene.fft_shape, scene.convolution.workers)
     it = int(r.iterations)
     return dict(time=t, setup=setup, area=float(r.area_fraction), iterations=it, converged=bool(r.converged),
                 per_iteration=t / it, fft_pair=pair, it_per_fft=t / it / pair,

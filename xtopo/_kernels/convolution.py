@@ -43,6 +43,7 @@ __all__ = ["Convolution", "choose_backend", "rfft_weights"]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
 _MEASURE_FROM = 256 * 256
+_THREADS_FROM = 2048 * 2048
 _WISDOM = {"loaded": False}
 
 
@@ -66,6 +67,18 @@ def rfft_weights(n_last: int, half: int) -> np.ndarray:
     if n_last % 2 == 0:
         wts[-1] = 1.0
     return wts
+
+
+def _threads(fft_shape) -> int:
+    """FFT threads: ``XTOPO_FFT_THREADS`` when set, else all CPUs from 2048² on and one below.
+
+    Below 2048² a transform takes milliseconds and FFTW's threads synchronise more than they
+    compute: on a busy 2-core machine two threads made 256²–512² solves 5–8× slower
+    (benchmarks/tradeoffs.py), and on an idle one they gain little.
+    """
+    if os.environ.get("XTOPO_FFT_THREADS"):
+        return _fft.workers()
+    return _fft.workers() if int(np.prod(fft_shape)) >= _THREADS_FROM else 1
 
 
 def _planner(fft_shape) -> str:
@@ -134,7 +147,7 @@ class Convolution:
         self.cdtype = np.dtype(_COMPLEX[self.dtype])
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
         self.backend = choose_backend(backend)
-        self.workers = _fft.workers()
+        self.workers = _threads(self.fft_shape)
         if greens is None:
             make = periodic_greens if self.periodic else free_greens
             greens = make(self.shape, spacing, modulus)
