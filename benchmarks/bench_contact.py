@@ -176,7 +176,7 @@ def main():
         r = case("xtopo", args.big, "free", args.tol, 1)
         print(f"free {args.big}²: {json.dumps(r)}")
         return
-    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', 'all')}, "
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', 'auto: 1 below 2048²')}, "
           f"cpus {os.cpu_count()}")
     head = (f"{'grid':>14} {'package':>16} {'time s':>9} {'area':>9} {'iters':>6} {'conv':>5} {'RSS MB':>8}")
     print(head)
