@@ -27,12 +27,16 @@ def _decades(coord, mask):
     return np.log10(v.max() / v.min())
 
 
-RECOVERY_GAP = ("issue 6 open, statistical: every measurement of the example twin now sees all wavelengths of the "
-                "surface (H = 0.8) and spectra end 4 pixels above the pixel size (aliasing); seed 0 gives PSD median "
-                "7%, max 61% (bins at each measurement's long end hold only 10-30 independent modes: ±20-30% "
-                "scatter; min_independent=200 gives max 12-15% but only 2.6 decades), ACF median 18%, max 78%, SDRP "
-                "median 10%, max 32% (for H > 3/4 a window's height differences at ℓ are dominated by its single "
-                "realisation of the wavelengths longer than the window: relative scatter ~ (ℓ/L)^(2-2H))")
+RECOVERY_GAP = ("issue 6 open, span: each measurement contributes only where the predicted relative standard error "
+                "of its curve is <= 7.5% (reliability.stencil_error / 1/sqrt(modes)); seed 0: PSD median 6%, max 26% "
+                "(stylus-5mm's top bin at q = 1e6/m, 6 px above its 5 um tip: systematic, not statistical) over 2.6 "
+                "decades; ACF median 1%, max 3% but only 1.3 decades (H = 0.8 > 3/4: a scan's A(l) scatters like "
+                "(l/L)^(2-2H), dominated by its single realisation of the wavelengths longer than the scan; only the "
+                "rolled-off 5 mm stylus scans get below 7.5%). More scans of the same size do not extend a "
+                "per-measurement criterion; the paper's equal weights keep the criterion per measurement")
+
+#: loose statistical criterion (about 10 independent samples): the span of the old counting heuristic
+LOOSE = 0.3
 
 
 def _deviation(avg, ref):
@@ -44,13 +48,14 @@ def _deviation(avg, ref):
 
 
 @pytest.mark.parametrize("name", ["psd", "acf", "sdrp"])
-def test_twin_averages_span_decades_and_follow_truth_on_median(tree, truth, name):
-    """What the averages achieve today: ≥ 4 decades, median deviation from the truth ≤ 25%."""
-    avg = getattr(tree.topo, name)()
+def test_twin_averages_follow_truth_on_median(tree, truth, name):
+    """Reliable averages (predicted error <= 7.5%) follow the truth closely; loose ones span >= 4 decades."""
     ref = {"psd": truth.c1d, "acf": truth.acf, "sdrp": truth.slope}[name]
-    dev, decades = _deviation(avg, ref)
-    assert decades >= 4
-    assert float(dev.median()) <= 0.25
+    dev, decades = _deviation(getattr(tree.topo, name)(), ref)
+    assert float(dev.median()) <= 0.10
+    loose, loose_decades = _deviation(getattr(tree.topo, name)(max_error=LOOSE), ref)
+    assert loose_decades >= 4 and loose_decades > decades - 1e-9
+    assert float(loose.median()) <= 0.25
 
 
 @pytest.mark.xfail(strict=True, reason=RECOVERY_GAP)
@@ -65,13 +70,17 @@ def test_averaged_psd_recovers_truth(tree, truth):
 
 
 @pytest.mark.xfail(strict=True, reason=RECOVERY_GAP)
-def test_averaged_acf_and_sdrp_recover_truth(tree, truth):
+def test_averaged_acf_recovers_truth(tree, truth):
     acf = tree.topo.acf()
     ok = acf["count"] >= 1
     d = acf.distance.where(ok, drop=True)
     ratio = acf.average.sel(distance=d) / truth.acf(d.values)
-    assert _decades(acf.distance, ok) >= 4
     assert float(np.abs(ratio - 1).max()) <= 0.15
+    assert _decades(acf.distance, ok) >= 4
+
+
+def test_averaged_sdrp_slope_recovers_truth(tree, truth):
+    """Seed 0: within 15% at every reliable collocation point over > 4 decades (max 14%, 4.6 decades)."""
     slope = tree.topo.sdrp(order=1)
     ok = slope["count"] >= 1
     d = slope.distance.where(ok, drop=True)
@@ -113,22 +122,25 @@ def test_areal_average_only_for_area_scans(tree):
         tree.topo.psd(areal=True)
     areas = xtopo.twin({k: v.to_dataset() for k, v in tree.children.items()
                         if v.dataset.attrs["measurement_kind"] == "area"})  # not the stylus profile sets
-    iso = areas.topo.psd(areal=True, min_independent=0)
+    iso = areas.topo.psd(areal=True, max_error=np.inf)
     assert iso.average.attrs["units"] == "m4"
     assert int(iso["count"].max()) >= 2
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["psd", pytest.param("acf", marks=pytest.mark.xfail(
-    reason="seed 1: ACF median 32% (H = 0.8, single realisation of the long wavelengths per window)")), "sdrp"])
+@pytest.mark.parametrize("name", ["psd", "acf", "sdrp"])
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_other_seeds_span_decades_and_follow_truth_on_median(seed, name):
+def test_other_seeds_follow_truth(seed, name):
+    """Reliable averages: median <= 10%, max <= 40% (PSD: systematic tip/aliasing bins); loose ones span 4 decades."""
     tree = example_twin(seed)
     truth = prescribed_psd(tree)
     ref = {"psd": truth.c1d, "acf": truth.acf, "sdrp": truth.slope}[name]
-    dev, decades = _deviation(getattr(tree.topo, name)(), ref)
+    dev, _ = _deviation(getattr(tree.topo, name)(), ref)
+    assert float(dev.median()) <= 0.10, name
+    assert float(dev.max()) <= 0.40, name
+    loose, decades = _deviation(getattr(tree.topo, name)(max_error=LOOSE), ref)
     assert decades >= 4, name
-    assert float(dev.median()) <= 0.25, name
+    assert float(loose.median()) <= 0.25, name
 
 
 def test_bin_value_belongs_to_the_bin_centre():
@@ -144,7 +156,7 @@ def test_bin_value_belongs_to_the_bin_centre():
     np.testing.assert_allclose(out[ok], 3.0 * grid[ok] ** -2.6, rtol=1e-12)
 
 
-def test_bins_with_too_few_independent_modes_are_dropped(tree):
+def test_bins_with_too_large_predicted_error_are_dropped(tree):
     from xtopo.analysis.reliability import independent_samples
 
     ds = tree["afm-50um"].to_dataset()
@@ -154,8 +166,8 @@ def test_bins_with_too_few_independent_modes_are_dropped(tree):
     tem = tree["tem-profile-200nm"].to_dataset()
     line = independent_samples(tem, "q", 2 * np.pi * np.arange(5) / float(tem.x[-1] - tem.x[0]))
     np.testing.assert_allclose(line[1:], 0.5)  # one profile, Hann window
-    loose = tree.topo.psd(min_independent=0)
-    strict = tree.topo.psd(min_independent=1000)
+    loose = tree.topo.psd(max_error=np.inf)
+    strict = tree.topo.psd(max_error=0.02)
     assert int(strict["count"].sum()) < int(tree.topo.psd()["count"].sum()) < int(loose["count"].sum())
     low = loose.q.where(loose["count"] >= 1, drop=True).min()
     assert float(tree.topo.psd().q.where(tree.topo.psd()["count"] >= 1, drop=True).min()) > float(low)

@@ -517,14 +517,15 @@ def _eval_modes(modes, y: np.ndarray, x: np.ndarray, block: int = 4096) -> np.nd
 def _c1d_above(truth: FractalPSD, qx: np.ndarray, q_split: float, nodes: int = 200) -> np.ndarray:
     """1D PSD of profiles of ``truth`` restricted to 2D wavevectors ``|q| ≥ q_split``.
 
-    ``C1D(qx) - (2/π) ∫_0^{k0} C_iso(√(qx²+k²)) dk`` with ``k0 = √(q_split² - qx²)``.
+    ``C1D(qx) - (1/π) ∫_0^{k0} C_iso(√(qx²+k²)) dk`` with ``k0 = √(q_split² - qx²)`` (the part of
+    ``C1D = (1/π) ∫_0^∞ C_iso dk`` that the shared 2D modes below ``q_split`` do not carry).
     """
     qx = np.atleast_1d(np.asarray(qx, dtype=float))
     k0 = np.sqrt(np.maximum(q_split**2 - qx**2, 0.0))
     t, w = np.polynomial.legendre.leggauss(nodes)
     k = 0.5 * k0[:, None] * (t[None, :] + 1)
     inner = np.sum(w * truth.c_native(np.sqrt(qx[:, None] ** 2 + k**2)), axis=1) * 0.5 * k0
-    return np.maximum(truth.c1d(qx) - 2 * inner / np.pi, 0.0)
+    return np.maximum(truth.c1d(qx) - inner / np.pi, 0.0)
 
 
 def _area_truth(truth: FractalPSD, n: int, dx: float, rng) -> np.ndarray:

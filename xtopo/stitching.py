@@ -120,17 +120,32 @@ def _complete(ds: xr.Dataset) -> xr.Dataset:
     return ds
 
 
-def _statistically_reliable(curve: xr.DataArray, ds: xr.Dataset, coord: str, min_independent) -> xr.DataArray:
-    """Attach (spectra) or apply (real-space curves) the long-scale statistical criterion."""
-    from .analysis.reliability import MIN_INDEPENDENT, independent_samples
+def _statistically_reliable(curve: xr.DataArray, ds: xr.Dataset, coord: str, max_error, quantity: str) -> xr.DataArray:
+    """Attach (spectra) or apply (real-space curves) the long-scale statistical criterion.
 
-    n_min = MIN_INDEPENDENT if min_independent is None else float(min_independent)
-    n = independent_samples(ds, coord, curve[coord].values, dim=curve.attrs.get("direction", "x"))
+    Spectra: each wavevector carries its independent Fourier modes; a collocation bin
+    counts when its modes reach ``1/max_error²`` (relative error ``1/√N``). ACF and SDRP:
+    the predicted relative error of :func:`~xtopo.analysis.reliability.stencil_error`.
+    VBM: ``1/(2√N)`` with ``N`` independent windows.
+    """
+    from .analysis.reliability import MAX_RELATIVE_ERROR, independent_samples, stencil_error
+
+    tol = MAX_RELATIVE_ERROR if max_error is None else float(max_error)
+    direction = curve.attrs.get("direction", "x")
+    x = np.asarray(curve[coord].values, dtype=float)
     if coord == "q":
+        n = independent_samples(ds, coord, x, dim=direction)
         out = curve.assign_coords({_MODES: (coord, n, {"units": "1", "long_name": "independent Fourier modes"})})
+        out.attrs = dict(curve.attrs, min_independent=tol**-2 if tol > 0 else np.inf, max_error=tol)
+        return out
+    if quantity == "vbm":
+        n = independent_samples(ds, coord, x, dim=direction)
+        with np.errstate(divide="ignore"):
+            err = xr.DataArray(np.where(n > 0, 0.5 / np.sqrt(np.where(n > 0, n, 1.0)), np.inf), dims=coord)
     else:
-        out = curve.where(xr.DataArray(n >= n_min, dims=coord))
-    out.attrs = dict(curve.attrs, min_independent=n_min)
+        err = stencil_error(ds, x, quantity=quantity, dim=direction).rename(distance=coord).drop_vars(coord)
+    out = curve.where(err <= tol)
+    out.attrs = dict(curve.attrs, max_error=tol)
     return out
 
 
@@ -155,7 +170,7 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
 
 
 def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
-                     min_independent=None, **kw) -> dict:
+                     max_error=None, quantity: str = "psd", **kw) -> dict:
     ms = _measurements(tree)
     units = units or _common_units(ms)
     out = {}
@@ -165,18 +180,19 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
         curve = func(ds, **extra, **kw, reliable=False)
         coord = _curve_coord(curve)
         curve = _reliable_part(curve, ds, coord, reliable)
-        out[name] = _statistically_reliable(curve, ds, coord, min_independent) if reliable else curve
+        out[name] = _statistically_reliable(curve, ds, coord, max_error, quantity) if reliable else curve
     return out
 
 
 def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_DECADE, units: str | None = None,
-             reliable: bool = True, min_independent: float | None = None) -> xr.Dataset:
+             reliable: bool = True, max_error: float | None = None) -> xr.Dataset:
     """Average PSD of a twin: 1D PSDs (``C1D`` along x) or, with ``areal=True``, ``Ciso``.
 
     ``areal=True`` needs every measurement to be an area scan. With ``reliable``, each
     measurement contributes only where its scales are reliable: above its short cutoff
-    (paper §4.9) and in collocation bins holding at least ``min_independent`` independent
-    Fourier modes (default :data:`xtopo.analysis.reliability.MIN_INDEPENDENT`, see
+    (paper §4.9) and where its predicted relative standard error is at most ``max_error``
+    (default :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`): spectra in collocation
+    bins holding at least ``1/max_error²`` independent Fourier modes (see
     :func:`~xtopo.analysis.reliability.independent_samples`).
     """
     from .analysis.psd import psd
@@ -187,38 +203,46 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
         if lines:
             raise XtopoError(f"areal averages need area scans only; line scans: {lines}")
         curves = _per_measurement(tree, psd, {"kind": "iso"}, {}, units, window=window, reliable=reliable,
-                                  min_independent=min_independent)
+                                  max_error=max_error)
     else:
         curves = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, window=window,
-                                  reliable=reliable, min_independent=min_independent)
+                                  reliable=reliable, max_error=max_error)
     return average_curves(curves, per_decade=per_decade, method="bin")
 
 
 def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
-             min_independent: float | None = None) -> xr.Dataset:
-    """Average height-difference ACF of a twin (profiles along x); reliability as in :func:`twin_psd`."""
+             max_error: float | None = None) -> xr.Dataset:
+    """Average height-difference ACF of a twin (profiles along x).
+
+    Reliability as in :func:`twin_psd`; the long-scale criterion is the predicted relative
+    error of :func:`~xtopo.analysis.reliability.stencil_error` (at most ``max_error``).
+    """
     from .analysis.acf import acf
 
     curves = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable=reliable,
-                              min_independent=min_independent)
+                              max_error=max_error, quantity="acf")
     return average_curves(curves, per_decade=per_decade, method="bin")
 
 
 def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
-             min_independent: float | None = None) -> xr.Dataset:
-    """Average variable-bandwidth RMS height of a twin; reliability as in :func:`twin_psd`."""
+             max_error: float | None = None) -> xr.Dataset:
+    """Average variable-bandwidth RMS height of a twin.
+
+    Reliability as in :func:`twin_psd`; long-scale error ``1/(2√N)`` with ``N`` independent windows.
+    """
     from .analysis.vbm import vbm
 
-    curves = _per_measurement(tree, vbm, {}, {}, units, reliable=reliable, min_independent=min_independent)
+    curves = _per_measurement(tree, vbm, {}, {}, units, reliable=reliable, max_error=max_error, quantity="vbm")
     return average_curves(curves, per_decade=per_decade)
 
 
 def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str | None = None,
-              reliable: bool = True, min_independent: float | None = None) -> xr.Dataset:
+              reliable: bool = True, max_error: float | None = None) -> xr.Dataset:
     """Average scale-dependent slope (``order=1``) or curvature (``order=2``) of a twin.
 
     Every measurement is evaluated at exactly the common collocation distances
-    (fractional scale factors by linear interpolation, §4.10); reliability as in :func:`twin_psd`.
+    (fractional scale factors by linear interpolation, §4.10); reliability as in :func:`twin_acf`
+    (:func:`~xtopo.analysis.reliability.stencil_error` of the slope or curvature).
     """
     from .analysis.sdrp import sdrp
 
@@ -236,7 +260,8 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
         x = np.asarray(ds["x"].values, dtype=float)
         mine = grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9)) & (grid <= (x[-1] - x[0]) / 2)]
         curve = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance", reliable)
-        curves[name] = _statistically_reliable(curve, ds, "distance", min_independent) if reliable else curve
+        curves[name] = (_statistically_reliable(curve, ds, "distance", max_error, ("slope", "curvature")[order - 1])
+                        if reliable else curve)
     return average_curves(curves, points=grid)
 
 

@@ -19,10 +19,11 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import X, Y, length_factor
-from ..errors import GridError
+from ..errors import GridError, XtopoError
 from ._scale import POINTS_PER_DECADE, prepare
 
-__all__ = ["reliability_cutoff", "apply_reliability", "sampling_cutoff", "TIP_FACTOR", "SAMPLING_FACTOR"]
+__all__ = ["reliability_cutoff", "apply_reliability", "sampling_cutoff", "independent_samples", "stencil_error",
+           "TIP_FACTOR", "SAMPLING_FACTOR", "MAX_RELATIVE_ERROR"]
 
 #: the constant ``c`` of eq. (13)
 TIP_FACTOR = 0.5
@@ -173,11 +174,15 @@ def _is_lazy(da) -> bool:
     return da.chunks is not None
 
 
-#: Fewest independent samples a scale of one measurement needs to count as statistically reliable.
-#: The relative standard error of a power or mean-square estimate from N independent samples is
-#: about 1/√N: the default 10 drops the single-realisation tails (errors above ~30%) of each
-#: measurement while keeping the twin's span; 100 (10%) or more asks for well-sampled scales only.
-MIN_INDEPENDENT = 10
+#: Largest predicted relative standard error of a curve value that counts as statistically reliable
+#: (long-scale criterion of the twin averages): 7.5% keeps two standard errors within 15%.
+MAX_RELATIVE_ERROR = 0.075
+#: Share of a scan's length over which its own ACF serves as the variogram of :func:`stencil_error`
+#: (longer lags rest on few pairs and carry the scan's own tilt; beyond, a power law continues it).
+VARIOGRAM_FRACTION = 0.25
+#: Stencils ``(offsets in units of ℓ, weights)`` of the mean-square estimators of :func:`stencil_error`.
+_STENCILS = {"acf": ((0.0, 1.0), (-1.0, 1.0)), "slope": ((0.0, 1.0), (-1.0, 1.0)),
+             "curvature": ((-0.5, 0.0, 0.5), (1.0, -2.0, 1.0))}
 
 
 def _extent(prep, dim):
@@ -197,10 +202,11 @@ def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
     ``W`` contributes ``min(rows, 2kW/L + 1)`` of them. A Hann window (nonperiodic
     data) correlates neighbouring wavevectors and halves the count. Real-space curves
     (ACF, SDRP, VBM) at length ``ℓ`` hold ``L/ℓ`` independent stretches per profile and
-    ``min(rows, W/ℓ)`` independent rows. The average of a twin (paper §4.10) uses a scale
-    of a measurement only where this count reaches :data:`MIN_INDEPENDENT` (the
-    statistical counterpart of the short-scale criteria of §4.9, which ends each
-    measurement at its longest scales, where a single realisation scatters).
+    ``min(rows, W/ℓ)`` independent rows. The relative standard error of a power estimate
+    from ``N`` independent modes is ``1/√N``: the twin averages (paper §4.10) use a
+    spectrum's bin only where it reaches :data:`MAX_RELATIVE_ERROR`, and the VBM (an
+    RMS: half that error) likewise. ACF and SDRP use :func:`stencil_error` instead
+    (a count of stretches overstates their information when ``H > 3/4``).
 
     Parameters
     ----------
@@ -267,3 +273,95 @@ def sampling_cutoff(obj, dim: str = X, *, factor: float = SAMPLING_FACTOR) -> fl
     prep = prepare(obj)
     n = prep.h.sizes[dim]
     return float(factor) * prep.size(dim) / n
+
+
+def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction: float = VARIOGRAM_FRACTION) -> xr.DataArray:
+    """Predicted relative standard error of a measurement's ACF, scale-dependent slope or curvature (long-scale reliability).
+
+    These curves are means of a squared stencil ``D = Σ w_i h(x + a_i ℓ)`` (a height
+    difference for ``A(ℓ)`` and the slope, a second difference for the curvature) over
+    the scan. For a Gaussian surface with variogram ``γ`` the covariance of two stencils
+    a distance ``(s, d)`` apart is ``-Σ_ij w_i w_j γ(|(s + (a_i - a_j)ℓ, d)|)`` and the
+    variance of their mean over ``M`` points of ``R`` rows is ``2/(MR)² Σ (M-|s|)(R-|j|) Cov²``
+    (:func:`xtopo._kernels.estimator_error.mean_square_relative_error`). The variogram
+    holds every wavelength, also those longer than the scan, which for a self-affine
+    surface with ``H > 3/4`` dominate: the relative error then falls only like
+    ``(ℓ/L)^(2-2H)``, and parallel rows hardly help (they share the long wavelengths).
+    The variogram is the measurement's own 1D ACF (plug-in estimate) over the first
+    ``fraction`` of its length, continued by the power law of its outer half decade
+    (isotropy is assumed across rows). RMS quantities (slope, curvature) carry half the
+    relative error of their mean square.
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        The measurement (missing data filled first); nonuniform line scans are resampled.
+    lengths : array_like
+        Distances ``ℓ`` in the measurement's length unit (stencil length: ``ℓ`` of
+        ``A(ℓ)``, of the slope ``D^(η)``, or the full span ``2ηΔx`` of the curvature).
+    quantity : {"acf", "slope", "curvature"}
+        The estimator.
+    dim : {"x", "y"}
+        Profile direction.
+    fraction : float
+        Share of the scan's length whose ACF lags define the variogram.
+
+    Returns
+    -------
+    xarray.DataArray
+        ``relative_error`` on coord ``distance`` (NaN where the stencil does not fit);
+        lazy on dask inputs.
+    """
+    from .._kernels.estimator_error import mean_square_relative_error, variogram_from_samples
+    from .acf import acf
+
+    if quantity not in _STENCILS:
+        raise XtopoError(f"quantity must be one of {sorted(_STENCILS)}, got {quantity!r}")
+    offsets, weights = _STENCILS[quantity]
+    prep = prepare(obj)
+    n, dx = prep.h.sizes[dim], prep.spacing(dim)
+    other = [d for d in prep.lat if d != dim]
+    rows = prep.h.sizes[other[0]] if other else 1
+    dy = prep.spacing(other[0]) if other else 0.0
+    lengths = np.atleast_1d(np.asarray(lengths, dtype=float))
+    curve = acf(obj, kind="1d", dim=dim, reliable=False)
+    keep = max(3, int(np.ceil(fraction * n)))
+    curve = curve.isel(distance=slice(0, keep))
+    lags = np.asarray(curve["distance"].values, dtype=float)
+    # evaluate on at most 10 points per decade and interpolate log-log (the error varies slowly with ℓ)
+    pos = lengths[lengths > 0]
+    nodes = np.geomspace(pos.min(), pos.max(), max(2, int(np.ceil(10 * np.log10(pos.max() / pos.min()))) + 1)) \
+        if pos.size > 32 and pos.max() > pos.min() else lengths
+
+    def kernel(values):
+        flat = values.reshape(-1, values.shape[-1])
+        out = np.full((flat.shape[0], lengths.size), np.nan)
+        for i, row in enumerate(flat):
+            gamma = variogram_from_samples(row, lags)
+            if gamma is None:
+                continue
+            err = mean_square_relative_error(gamma, nodes, offsets=offsets, weights=weights, n=n, dx=dx,
+                                             rows=rows, row_spacing=dy)
+            if nodes is not lengths:
+                ok = np.isfinite(err) & (err > 0)
+                if ok.sum() >= 2:
+                    inside = (lengths >= nodes[ok].min()) & (lengths <= nodes[ok].max())
+                    err = np.where(inside, np.exp(np.interp(np.log(np.where(lengths > 0, lengths, 1.0)),
+                                                            np.log(nodes[ok]), np.log(err[ok]))), np.nan)
+                else:
+                    err = np.full(lengths.size, np.nan)
+            out[i] = err
+        return out.reshape(values.shape[:-1] + (lengths.size,))
+
+    err = xr.apply_ufunc(kernel, curve.drop_vars([c for c in curve.coords if c != "distance"]),
+                         input_core_dims=[["distance"]], output_core_dims=[["_out"]], exclude_dims={"distance"},
+                         dask="parallelized", output_dtypes=[float],
+                         dask_gufunc_kwargs={"output_sizes": {"_out": lengths.size}})
+    if quantity != "acf":
+        err = err / 2  # relative error of an RMS is half that of its mean square
+    err = err.rename({"_out": "distance"}).assign_coords(
+        distance=("distance", lengths, {"units": prep.units, "long_name": "distance"}))
+    err.name = "relative_error"
+    err.attrs = {"units": "1", "long_name": f"predicted relative standard error of the {quantity}",
+                 "variogram_fraction": float(fraction)}
+    return err
