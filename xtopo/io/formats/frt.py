@@ -17,8 +17,8 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, check_count
-from .._formatkit import pick_channel, reading, unix_time
 from ..registry import ChannelInfo, Format, register
+from ._common import pick_channel, reading, unix_time
 
 _MAGIC = b"FRTM_GLIDERV"
 _UNDEFINED = 1

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader
-from .._formatkit import clean_text, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, pick_channel, reading
 
 _MAGIC = b"Binary TrueMap Data File v2.0"
 _MAX_COMMENT = 4096
