@@ -4,6 +4,7 @@ underscore keeps the registry from importing it as one).
 * :func:`reading` (a context manager) and :func:`guarded` (the decorator built on it)
   turn any failure while parsing a file into a :class:`~xtopo.errors.ReaderError`
   naming the file.
+* :func:`sniff_magic` makes the sniffer of a format recognised by its first bytes.
 * :func:`pick_channel` resolves ``channel=`` (index or name) against a list of channel
   names or :class:`ChannelInfo`.
 * :func:`to_float` / :func:`to_int` / :func:`clean_text` convert header fields defensively.
@@ -29,7 +30,7 @@ from ..registry import ChannelInfo
 
 __all__ = ["reading", "guarded", "pick_channel", "to_float", "to_int", "clean_text", "length_unit", "value_unit",
            "unit_factor", "channel_info", "measurement", "unique_name", "iso_time", "parse_time", "unix_time",
-           "ChannelInfo", "HEIGHT_NAME_RE"]
+           "sniff_magic", "ChannelInfo", "HEIGHT_NAME_RE"]
 
 #: Channel names that denote topography (heights) rather than an auxiliary signal.
 HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|^z[ _(]", re.IGNORECASE)
@@ -82,6 +83,15 @@ def guarded(what: str):
         return wrapper
 
     return deco
+
+
+def sniff_magic(*magics: bytes):
+    """Sniffer ``(head, path) -> bool`` for a format whose files start with one of ``magics``."""
+
+    def sniff(head: bytes, path: str) -> bool:
+        return head.startswith(magics)
+
+    return sniff
 
 
 def to_float(path, text, what: str, default=None) -> float:

@@ -15,14 +15,13 @@ import numpy as np
 from ...conventions import make_measurement
 from .._binary import BinaryReader
 from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, pick_channel, reading
+from ._common import clean_text, pick_channel, reading, sniff_magic
 
 _MAGIC = b"AliconaImaging\x00\r\n"
 _TAG = 52
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+_sniff = sniff_magic(_MAGIC)
 
 
 def _parse(path):

@@ -25,7 +25,7 @@ import re
 from ...conventions import length_factor, make_measurement, normalize_units
 from .._binary import BinaryReader, check_count
 from ..registry import ChannelInfo, Format, register
-from ._common import parse_time, pick_channel, reading
+from ._common import parse_time, pick_channel, reading, sniff_magic
 
 _MAGIC = b"VCA DATA\x01\x00\x00\x55"
 _SCALARS = {0x01: "?", 0x04: "h", 0x05: "H", 0x06: "i", 0x07: "I", 0x0A: "q", 0x0B: "Q", 0x0C: "f", 0x0D: "d"}
@@ -39,8 +39,7 @@ class _Quantity(tuple):
     """``(value, symbol)`` of a quantity or unit item."""
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+_sniff = sniff_magic(_MAGIC)
 
 
 def _name(r):
