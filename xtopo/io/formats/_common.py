@@ -1,20 +1,25 @@
 """Helpers shared by the instrument readers (not a format module: the leading
 underscore keeps the registry from importing it as one).
 
-* :func:`guarded` turns any stray exception of a reader into a
-  :class:`~xtopo.errors.ReaderError` naming the file.
-* :func:`pick_channel` resolves ``channel=`` (index or name) against a channel list.
-* :func:`to_float` / :func:`to_int` convert header text defensively.
+* :func:`reading` (a context manager) and :func:`guarded` (the decorator built on it)
+  turn any failure while parsing a file into a :class:`~xtopo.errors.ReaderError`
+  naming the file.
+* :func:`sniff_magic` makes the sniffer of a format recognised by its first bytes.
+* :func:`pick_channel` resolves ``channel=`` (index or name) against a list of channel
+  names or :class:`ChannelInfo`.
+* :func:`to_float` / :func:`to_int` / :func:`clean_text` convert header fields defensively.
 * :func:`length_unit` / :func:`value_unit` spell instrument units the xtopo way.
+* :func:`iso_time`, :func:`parse_time`, :func:`unix_time` give acquisition times as ISO 8601.
 * :func:`measurement` builds the Dataset, also for channels whose values are not lengths.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import functools
 import math
-import os
+import numbers
 import re
 
 import numpy as np
@@ -23,9 +28,9 @@ from ...conventions import make_measurement, normalize_units
 from ...errors import ReaderError, UnitsError, UnsupportedFormatError, XtopoError
 from ..registry import ChannelInfo
 
-__all__ = ["guarded", "pick_channel", "to_float", "to_int", "length_unit", "value_unit",
-           "unit_factor", "channel_info", "measurement", "iso", "unique_name", "parse_time", "ChannelInfo",
-           "HEIGHT_NAME_RE"]
+__all__ = ["reading", "guarded", "pick_channel", "to_float", "to_int", "clean_text", "length_unit", "value_unit",
+           "unit_factor", "channel_info", "measurement", "unique_name", "iso_time", "parse_time", "unix_time",
+           "sniff_magic", "ChannelInfo", "HEIGHT_NAME_RE"]
 
 #: Channel names that denote topography (heights) rather than an auxiliary signal.
 HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|^z[ _(]", re.IGNORECASE)
@@ -38,32 +43,55 @@ _UNIT_SPELLINGS = {
 }
 
 
-def guarded(fmt_name: str):
-    """Decorate ``func(path, ...)`` so that only :class:`XtopoError` subclasses escape.
+@contextlib.contextmanager
+def reading(path, what: str):
+    """Context in which every failure to parse ``path`` becomes a :class:`ReaderError`.
 
-    Floating-point warnings are silenced inside: casting raw data that hold signalling
-    NaNs or huge values is not an error of the reader.
+    Floating-point warnings are silenced inside: raw instrument data may hold signalling
+    NaNs and extreme values, and casting them is not an error of the reader (scale
+    overflows are checked in :func:`measurement`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file being read (named in the message).
+    what : str
+        The format, e.g. ``"Wyko OPD"``, used in the message.
     """
+    try:
+        with np.errstate(all="ignore"):
+            yield
+    except ReaderError:
+        raise
+    except XtopoError as exc:  # e.g. a unit or grid the header states that makes no sense
+        raise ReaderError(path, f"invalid {what} header: {exc}") from None
+    except (MemoryError, RecursionError) as exc:
+        raise ReaderError(path, f"{what} reader gave up on malformed content: {type(exc).__name__}") from None
+    except Exception as exc:  # any parse failure of untrusted content
+        raise ReaderError(path, f"malformed {what} content ({type(exc).__name__}: {exc})") from exc
+
+
+def guarded(what: str):
+    """Decorate ``func(path, ...)`` so that it runs inside :func:`reading` ``(path, what)``."""
 
     def deco(func):
         @functools.wraps(func)
         def wrapper(path, *args, **kwargs):
-            try:
-                # raw instrument data may hold signalling NaNs and extreme values: casting them is
-                # not an error of the reader (scale overflows are checked in `measurement`)
-                with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-                    return func(path, *args, **kwargs)
-            except XtopoError:
-                raise
-            except (MemoryError, RecursionError) as exc:
-                raise ReaderError(path, f"{fmt_name} reader gave up on malformed content: "
-                                        f"{type(exc).__name__}") from None
-            except Exception as exc:  # a parse failure on corrupt content
-                raise ReaderError(path, f"malformed {fmt_name} content ({type(exc).__name__}: {exc})") from exc
+            with reading(path, what):
+                return func(path, *args, **kwargs)
 
         return wrapper
 
     return deco
+
+
+def sniff_magic(*magics: bytes):
+    """Sniffer ``(head, path) -> bool`` for a format whose files start with one of ``magics``."""
+
+    def sniff(head: bytes, path: str) -> bool:
+        return head.startswith(magics)
+
+    return sniff
 
 
 def to_float(path, text, what: str, default=None) -> float:
@@ -90,6 +118,11 @@ def to_int(path, text, what: str, default=None, minimum: int = 0) -> int:
     if default is not None:
         return default
     raise ReaderError(path, f"header field {what} is not an integer >= {minimum}: {text!r}")
+
+
+def clean_text(raw: bytes, encoding: str = "latin-1") -> str:
+    """Decode a NUL-padded fixed-size header string and strip blanks."""
+    return raw.split(b"\0", 1)[0].decode(encoding, errors="replace").strip()
 
 
 def value_unit(text) -> str:
@@ -131,28 +164,46 @@ def channel_info(index: int, name: str, shape, size, units: str, value_units: st
                        height_units=lu or value_units, is_height=bool(lu) and looks)
 
 
-def pick_channel(path, infos: list[ChannelInfo], channel) -> int:
-    """Index into ``infos`` for ``channel`` (``None``: first height channel, then the first one).
+def pick_channel(path, channels, channel) -> int:
+    """Position in ``channels`` of the requested ``channel``.
 
-    Names match case-insensitively; an ``int`` is a position in ``infos``.
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (named in error messages).
+    channels : sequence of str or ChannelInfo
+        The file's channels, by name or described.
+    channel : int, str or None
+        A position in ``channels``; a name (exact, else case-insensitive); or ``None`` for the
+        first height channel (:attr:`ChannelInfo.is_height`), else the first channel.
+
+    Raises
+    ------
+    ReaderError
+        If ``channels`` is empty.
+    UnsupportedFormatError
+        If ``channel`` names no channel or is out of range; the message lists the channels.
     """
-    if not infos:
-        raise ReaderError(path, "the file holds no readable image channel")
-    listing = ", ".join(f"{i}: {c.name!r}" for i, c in enumerate(infos))
+    names = [c if isinstance(c, str) else c.name for c in channels]
+    if not names:
+        raise ReaderError(path, "the file holds no readable channel")
+    listing = ", ".join(f"{i}: {n!r}" for i, n in enumerate(names))
     if channel is None:
-        for i, c in enumerate(infos):
-            if c.is_height:
+        return next((i for i, c in enumerate(channels) if getattr(c, "is_height", False)), 0)
+    if isinstance(channel, str):
+        want = channel.strip().lower()
+        if channel in names:
+            return names.index(channel)
+        for i, n in enumerate(names):
+            if n.lower() == want:
                 return i
-        return 0
-    if isinstance(channel, (int, np.integer)) and not isinstance(channel, bool):
-        if 0 <= int(channel) < len(infos):
-            return int(channel)
-        raise UnsupportedFormatError(path, f"channel index {channel} out of range; channels are {listing}")
-    want = str(channel).strip().lower()
-    for i, c in enumerate(infos):
-        if c.name.lower() == want:
-            return i
-    raise UnsupportedFormatError(path, f"no channel named {channel!r}; channels are {listing}")
+        raise UnsupportedFormatError(path, f"no channel named {channel!r}; channels are {listing}")
+    if not isinstance(channel, numbers.Integral) or isinstance(channel, bool):
+        raise UnsupportedFormatError(path, f"channel must be an index or a name, got {channel!r}; "
+                                           f"channels are {listing}")
+    if 0 <= int(channel) < len(names):
+        return int(channel)
+    raise UnsupportedFormatError(path, f"channel index {channel} out of range; channels are {listing}")
 
 
 def unique_name(label: str, seen: set) -> str:
@@ -164,9 +215,13 @@ def unique_name(label: str, seen: set) -> str:
     return name
 
 
-def iso(dt: datetime.datetime | None) -> str | None:
-    """ISO 8601 text of a datetime (``None`` passes through)."""
-    return None if dt is None else dt.isoformat()
+def iso_time(year, month=1, day=1, hour=0, minute=0, second=0) -> str | None:
+    """ISO 8601 text of a date/time, or ``None`` where the fields do not form a valid date."""
+    try:
+        return datetime.datetime(int(year), int(month), int(day), int(hour), int(minute),
+                                 int(second)).isoformat()
+    except (TypeError, ValueError, OverflowError):
+        return None
 
 
 def parse_time(text, *formats) -> str | None:
@@ -178,6 +233,17 @@ def parse_time(text, *formats) -> str | None:
         except ValueError:
             continue
     return None
+
+
+def unix_time(seconds) -> str | None:
+    """ISO 8601 (UTC) text of a POSIX timestamp; ``None`` for 0/unset or out-of-range values."""
+    try:
+        s = int(seconds)
+        if s <= 0 or s >= 0xFFFFFFFF:
+            return None
+        return datetime.datetime.fromtimestamp(s, tz=datetime.timezone.utc).isoformat()
+    except (TypeError, ValueError, OverflowError, OSError):
+        return None
 
 
 def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, value_units: str,
@@ -213,10 +279,3 @@ def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, va
     else:
         ds["height"].attrs["long_name"] = "height"
     return ds
-
-
-def file_size(path) -> int:
-    try:
-        return os.path.getsize(path)
-    except OSError as exc:
-        raise ReaderError(path, f"cannot be read: {exc}") from None

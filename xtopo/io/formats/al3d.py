@@ -14,20 +14,18 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader
-from .._formatkit import clean_text, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, pick_channel, reading, sniff_magic
 
 _MAGIC = b"AliconaImaging\x00\r\n"
 _TAG = 52
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+_sniff = sniff_magic(_MAGIC)
 
 
 def _parse(path):
     r = BinaryReader.from_file(path, magic=_MAGIC, not_this="not an Alicona AL3D file")
-    data = r.data
     r.seek(len(_MAGIC))
 
     def tag():

@@ -17,8 +17,8 @@ import numpy as np
 
 from ...conventions import length_factor, make_measurement, normalize_units
 from .._binary import BinaryReader, read_bytes
-from .._formatkit import pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import pick_channel, reading
 
 _MAGIC = "fileformat = bcr"
 _FORMATS = ("bcrstm", "bcrf", "bcrstm_unicode", "bcrf_unicode")

@@ -17,16 +17,15 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, check_count
-from .._formatkit import pick_channel, reading, unix_time
 from ..registry import ChannelInfo, Format, register
+from ._common import pick_channel, reading, sniff_magic, unix_time
 
 _MAGIC = b"FRTM_GLIDERV"
 _UNDEFINED = 1
 _HEIGHT_TYPES = {0x0004: "Topography", 0x0080: "Thickness", 0x0800: "Sample thickness", 0x1000: "AFM"}
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+_sniff = sniff_magic(_MAGIC)
 
 
 def _parse(path):

@@ -25,15 +25,14 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count, read_bytes
 from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, value_unit)
+from ._common import channel_info, guarded, length_unit, measurement, pick_channel, sniff_magic, value_unit
 
 _MAGIC = b"GWYP"
 _MAX_DEPTH = 64
 _SCALARS = {"b": ("<u1", 1), "c": ("<u1", 1), "i": ("<i4", 4), "q": ("<i8", 8), "d": ("<f8", 8)}
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+_sniff = sniff_magic(_MAGIC)
 
 
 class _Parser:

@@ -31,7 +31,7 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel)
+from ._common import channel_info, guarded, length_unit, measurement, parse_time, pick_channel
 
 _TYPES = {2: "f4", 4: "f8", 8: "i1", 16: "i2", 32: "i4", 8 | 64: "u1", 16 | 64: "u2", 32 | 64: "u4"}
 #: Value units of Asylum channels whose wave unit (usually "m") does not apply.

@@ -21,8 +21,7 @@ from ...errors import ReaderError
 from .._binary import read_bytes
 from .._tiff import TiffFile, head_tags
 from ..registry import Format, register
-from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, to_float, unique_name,
-                      value_unit)
+from ._common import channel_info, guarded, measurement, parse_time, pick_channel, to_float, unique_name, value_unit
 
 _GRID = (32832, 32833, 32834, 32835, 32838, 32839)
 _MAX_SLOTS = 64

@@ -20,8 +20,8 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from .._formatkit import clean_text, pick_channel, reading, unix_time
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, pick_channel, reading, unix_time
 
 _MAGICS = (b"\x88\x1b\x03\x6f", b"\x88\x1b\x03\x70", b"\x88\x1b\x03\x71")
 _PHASE_RES = {0: 4096, 1: 32768, 2: 131072}

@@ -19,14 +19,13 @@ import re
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, to_float, to_int, unique_name,
-                      value_unit)
+from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, sniff_magic, to_float, to_int,
+                      unique_name, value_unit)
 
 _DATA_RE = re.compile(rb"\ndata {2,}(BINARY_32|BINARY|ASCII\w*)\r?\n")
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(b"fileType      Image") or head.startswith(b"fileType      Spectroscopy")
+_sniff = sniff_magic(b"fileType      Image", b"fileType      Spectroscopy")
 
 
 def _parse(path):

@@ -30,10 +30,10 @@ import numpy as np
 from ...conventions import length_factor, make_measurement, normalize_units
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS
-from .._formatkit import pick_channel, reading
 from .._ole import OLE_MAGIC, OleFile
 from .._xml import child_text, parse_xml
 from ..registry import ChannelInfo, Format, register
+from ._common import pick_channel, reading
 
 _SURFACE, _SURFACE_DATA, _MASK, _HEIGHTS = 9012, 9062, 9056, 9049
 _MEASURED = 9

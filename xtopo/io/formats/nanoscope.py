@@ -34,16 +34,15 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel, to_float, to_int,
-                      unique_name, unit_factor, value_unit)
+from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel, sniff_magic, to_float,
+                      to_int, unique_name, unit_factor, value_unit)
 
 _END = b"\\*File list end"
 _VALUE_RE = re.compile(r"^([VCS])\s+(?:\[([^\]]*)\]\s*)?(?:\(([^)]*)\)\s*)?(.*)$")
 _NUM_UNIT_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(b"\\*File list") or head.startswith(b"?*File list")
+_sniff = sniff_magic(b"\\*File list", b"?*File list")
 
 
 def _parse_header(path, data: bytes) -> list[tuple[str, dict]]:

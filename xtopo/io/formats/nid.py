@@ -23,7 +23,7 @@ import re
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit)
+from ._common import channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit
 
 _MARK = b"#!"
 

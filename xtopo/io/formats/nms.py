@@ -16,8 +16,8 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from .._formatkit import clean_text, parse_time, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, parse_time, pick_channel, reading
 
 _HEADER = 3468
 _VERSION = b"OM_MS_2.0"
@@ -42,7 +42,7 @@ def _parse(path):
     if nx <= 0 or ny <= 0 or not (dx > 0 and dy > 0):
         raise r.error(f"invalid NMS grid {nx} x {ny} with spacing {dx} x {dy} nm")
     title = clean_text(data[52:52 + 64])
-    when = parse_time(clean_text(data[1076:1096]), ("%Y-%m-%dT%H:%M:%S", "%Y-%m-%dT%H:%M"))
+    when = parse_time(clean_text(data[1076:1096]), "%Y-%m-%dT%H:%M:%S", "%Y-%m-%dT%H:%M")
     return r, dict(n_low=n_low, n_high=n_high, f_low=f_low, f_high=f_high, nx=nx, ny=ny, dx=dx * 1e-3,
                    dy=dy * 1e-3, has_intensity=has_intensity > 0, title=title or "Height", time=when)
 

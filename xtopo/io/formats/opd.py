@@ -18,8 +18,8 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from .._formatkit import clean_text, parse_time, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, parse_time, pick_channel, reading
 
 _ENTRY = 24
 _TYPE_ARRAY, _TYPE_TEXT, _TYPE_SHORT, _TYPE_FLOAT, _TYPE_DOUBLE, _TYPE_LONG = 3, 5, 6, 7, 8, 12
@@ -110,7 +110,7 @@ def _read(path, *, channel=None):
             raise r.error("no 'Pixel_size' block: the lateral calibration is unknown")
         heights_mm = np.where(undefined, np.nan, raw) * (wavelength / mult * 1e-6)  # nm -> mm
         date, time = meta.get("Date"), meta.get("Time")
-        when = parse_time(f"{date} {time}", ("%m/%d/%Y %H:%M:%S", "%m/%d/%y %H:%M:%S")) if date and time else None
+        when = parse_time(f"{date} {time}", "%m/%d/%Y %H:%M:%S", "%m/%d/%y %H:%M:%S") if date and time else None
         return make_measurement(
             heights_mm, size=info.size, units="mm", mask=undefined, name=name,
             vendor="Veeco/Bruker (Wyko)", instrument="Wyko optical profiler",

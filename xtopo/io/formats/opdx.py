@@ -24,8 +24,8 @@ import re
 
 from ...conventions import length_factor, make_measurement, normalize_units
 from .._binary import BinaryReader, check_count
-from .._formatkit import parse_time, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import parse_time, pick_channel, reading, sniff_magic
 
 _MAGIC = b"VCA DATA\x01\x00\x00\x55"
 _SCALARS = {0x01: "?", 0x04: "h", 0x05: "H", 0x06: "i", 0x07: "I", 0x0A: "q", 0x0B: "Q", 0x0C: "f", 0x0D: "d"}
@@ -39,8 +39,7 @@ class _Quantity(tuple):
     """``(value, symbol)`` of a quantity or unit item."""
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+_sniff = sniff_magic(_MAGIC)
 
 
 def _name(r):
@@ -158,7 +157,7 @@ def _read(path, *, channel=None):
         z = r.array("f8", n, f"OPDx profile {name!r}", at=off + _ARRAY_PREFIX) * scale
         meta = {k.rsplit("/", 1)[-1]: v for k, v in tree.items() if k.startswith("/MetaData/") and isinstance(v, str)}
         when = parse_time(f"{meta.get('Date', '')} {meta.get('Time', '')}",
-                          ("%m/%d/%Y %H:%M:%S", "%m/%d/%Y %I:%M:%S %p", "%Y-%m-%d %H:%M:%S", "%d.%m.%Y %H:%M:%S"))
+                          "%m/%d/%Y %H:%M:%S", "%m/%d/%Y %I:%M:%S %p", "%Y-%m-%d %H:%M:%S", "%d.%m.%Y %H:%M:%S")
         tip_radius = None
         m = re.search(r"Radius:\s*([0-9.]+)\s*(\S+)", meta.get("StylusType", ""))
         if m and float(m.group(1)) > 0:

@@ -16,11 +16,12 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from .._formatkit import clean_text, parse_time, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, parse_time, pick_channel, reading
 
 _UNDEFINED = 1000001.0
 _TYPES = {1: "profile", 3: "topography"}
+_DATE_FORMAT = "%a %b %d %H:%M:%S %Y"  # ctime, e.g. "Tue Mar 15 10:12:01 2011"
 _HARDWARE = {0: "PLu", 1: "PLu 2300 XGA", 2: "PLu 2300 XGA T5", 3: "PLu 2300 SXGA", 4: "PLu 3300", 5: "DCM 3D",
              6: "PLu neox", 7: "DCM 3D rev. 2", 8: "PLu Apex (prototype)", 9: "S neox", 10: "DCM8",
              11: "PLu Apex"}
@@ -34,7 +35,7 @@ def _sniff(head: bytes, path: str) -> bool:
     date = clean_text(head[:128])
     rows, cols = r.unpack("2I", at=388)
     typ = r.unpack("I", at=428)
-    return (parse_time(date, ("%a %b %d %H:%M:%S %Y",)) is not None and typ in _TYPES
+    return (parse_time(date, _DATE_FORMAT) is not None and typ in _TYPES
             and 0 < rows <= 100000 and 0 < cols <= 100000)
 
 
@@ -77,7 +78,7 @@ def _read(path, *, channel=None):
             z.reshape(shape), spacing=(h["dy"], h["dx"]) if rows > 1 else h["dx"], units="um",
             mask=undefined.reshape(shape), vendor="Sensofar",
             instrument=_HARDWARE.get(h["hardware"]) if version_ok else None,
-            acquisition_time=parse_time(h["date"], ("%a %b %d %H:%M:%S %Y",)),
+            acquisition_time=parse_time(h["date"], _DATE_FORMAT),
             objective_code=h["objective"], comment=h["comment"] if h["comment"] not in ("", "(None)") else None,
             original_units="um")
 

@@ -15,8 +15,8 @@ import numpy as np
 
 from ...conventions import length_factor, make_measurement, normalize_units
 from .._binary import BinaryReader, read_bytes
-from .._formatkit import clean_text, iso_time, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, iso_time, pick_channel, reading
 
 _HEADER = ("12s4H30s30s5H8sH2i2iI3f16s16s16s16s16s16s16s16s16s3f3H12s7Hf10s2H128s3f34s")
 _NAMES = ("magic format nobjects version type object_name operator_name material acquisition range "

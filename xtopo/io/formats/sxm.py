@@ -26,14 +26,14 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, to_float, to_int, value_unit)
+from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, sniff_magic, to_float, to_int,
+                      value_unit)
 
 _END = b":SCANIT_END:"
 _TYPES = {"FLOAT": "f4", "INT": "i4", "UINT": "u4", "DOUBLE": "f8"}
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(b":NANONIS_VERSION:")
+_sniff = sniff_magic(b":NANONIS_VERSION:")
 
 
 def _parse(path):

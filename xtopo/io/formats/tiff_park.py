@@ -28,7 +28,7 @@ from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from .._tiff import TiffFile, head_tags
 from ..registry import Format, register
-from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, value_unit)
+from ._common import channel_info, guarded, measurement, parse_time, pick_channel, value_unit
 
 MAGIC = 0x0E031301
 _DTYPES = {0: "<i2", 1: "<i4", 2: "<f4"}

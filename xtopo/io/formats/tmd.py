@@ -9,15 +9,14 @@ from __future__ import annotations
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader
-from .._formatkit import clean_text, pick_channel, reading
 from ..registry import ChannelInfo, Format, register
+from ._common import clean_text, pick_channel, reading, sniff_magic
 
 _MAGIC = b"Binary TrueMap Data File v2.0"
 _MAX_COMMENT = 4096
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+_sniff = sniff_magic(_MAGIC)
 
 
 def _parse(path):

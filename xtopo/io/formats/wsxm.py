@@ -24,7 +24,8 @@ import re
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit)
+from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, unit_factor,
+                      value_unit)
 
 _DTYPES = {"short": "<i2", "integer": "<i4", "int": "<i4", "float": "<f4", "double": "<f8",
            "unsigned char": "u1", "char": "i1"}
@@ -90,8 +91,6 @@ def _parse(path):
 
 
 def _factor(path, unit, to):
-    from ._common import unit_factor
-
     f = unit_factor(length_unit(unit) or "?", to) if length_unit(unit) else None
     if f is None:
         raise ReaderError(path, f"WSxM Y Amplitude unit {unit!r} is not a length")

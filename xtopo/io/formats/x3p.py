@@ -30,9 +30,9 @@ import numpy as np
 from ...conventions import make_measurement
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS, check_count
-from .._formatkit import pick_channel, reading
 from .._xml import child, child_text, local_name, parse_xml
 from ..registry import ChannelInfo, Format, register
+from ._common import pick_channel, reading
 
 _DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
 #: deflate cannot compress better than about 1032:1; a member claiming more is a bomb
