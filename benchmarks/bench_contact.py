@@ -96,7 +96,7 @@ def run_xtopo(n, periodic, tol, repeat, dtype="float64"):
     times, r = [], None
     for _ in range(repeat):
         t0 = time.perf_counter()
-        r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+        r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000, callback=progress if n >= 2048 else None)
         times.append(time.perf_counter() - t0)
     t = statistics.median(times)
     pair = fft_pair_time(scene.fft_shape, scene.convolution.workers)
@@ -104,6 +104,12 @@ def run_xtopo(n, periodic, tol, repeat, dtype="float64"):
     return dict(time=t, setup=setup, area=float(r.area_fraction), iterations=it, converged=bool(r.converged),
                 per_iteration=t / it, fft_pair=pair, it_per_fft=t / it / pair,
                 convolutions=int(r.attrs["convolutions"]), backend=scene.backend, rss=peak_rss_mb())
+
+
+def progress(it, residual):
+    """Progress of a big solve on stderr (every 50 iterations)."""
+    if it % 50 == 0:
+        print(f"  iteration {it}: residual {residual:.3g}  (RSS {peak_rss_mb():.0f} MB)", file=sys.stderr, flush=True)
 
 
 def run_contactmechanics(n, periodic, tol, repeat):
@@ -149,13 +155,14 @@ def run_tamaas(n, periodic, tol, repeat):
 RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas}
 
 
-def case(pkg, n, boundary, tol, repeat):
+def case(pkg, n, boundary, tol, repeat, show_progress=False):
     cmd = [sys.executable, __file__, "--case", pkg, str(n), boundary, str(tol), str(repeat)]
-    out = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    out = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=None if show_progress else subprocess.PIPE, text=True,
+                         cwd=ROOT)
     for line in out.stdout.splitlines()[::-1]:
         if line.startswith("{"):
             return json.loads(line)
-    return {"error": (out.stderr.strip().splitlines() or ["?"])[-1][:120]}
+    return {"error": ((out.stderr or "").strip().splitlines() or ["?"])[-1][:120]}
 
 
 def main():
@@ -173,7 +180,7 @@ def main():
         print(json.dumps(RUNNERS[pkg](int(n), boundary == "periodic", float(tol), int(repeat))))
         return
     if args.big:
-        r = case("xtopo", args.big, "free", args.tol, 1)
+        r = case("xtopo", args.big, "free", args.tol, 1, show_progress=True)
         print(f"free {args.big}²: {json.dumps(r)}")
         return
     print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', 'auto: 1 below 2048²')}, "

@@ -89,3 +89,15 @@ def test_solver_satisfies_complementarity(periodic, backend):
                                       backend="scipy" if backend == "pyfftw" else "pyfftw"),
                           w, pixel_area=1 / n**2, load=load, tol=1e-10, maxiter=2000)
     np.testing.assert_allclose(other.pressure, r.pressure, rtol=1e-6, atol=1e-9 * r.pressure.max())
+
+
+def test_solve_reports_progress_through_callback():
+    from xtopo import datasets
+    from xtopo.contact import Scene
+
+    seen = []
+    ds = datasets.fractal_surface((32, 32), 1.0, hurst=0.8, rms_slope=0.1, seed=2, periodic=True, units="um")
+    r = Scene(ds).solve(mean_pressure=0.01, tol=1e-8, callback=lambda it, res: seen.append((it, res)))
+    assert [it for it, _ in seen] == list(range(len(seen)))
+    assert len(seen) == int(r.iterations) + 1
+    assert seen[-1][1] <= 1e-8 < seen[0][1]

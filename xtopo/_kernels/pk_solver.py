@@ -115,7 +115,8 @@ def _initial_pressure(conv, w, *, pixel_area, load, penetration, H, initial):
 
 
 def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, penetration: float | None = None,
-                  hardness: float | None = None, tol: float = 1e-8, maxiter: int = 1000, initial=None) -> PKResult:
+                  hardness: float | None = None, tol: float = 1e-8, maxiter: int = 1000, initial=None,
+                  callback=None) -> PKResult:
     """Solve eq. (20) for the pressures under ``w`` at prescribed ``load`` or ``penetration``.
 
     Parameters
@@ -137,6 +138,9 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         Largest number of iterations.
     initial : numpy.ndarray, optional
         Starting pressures (a previous solution).
+    callback : callable, optional
+        ``callback(iteration, residual)`` after every residual evaluation (progress of long
+        solves); its return value is ignored.
 
     Returns
     -------
@@ -236,6 +240,8 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             if opened.any():
                 res = max(res, float(np.max(g_pl[opened])))
         residual = res / scale
+        if callback is not None:
+            callback(it, residual)
         if residual <= tol:
             converged = True
             break

@@ -192,12 +192,12 @@ class Scene:
 
     # -- solving (implemented in solve.py / curves.py) ----------------------------------------
     def solve(self, load=None, *, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
-              initial=None, preset: str | None = None) -> xr.Dataset:
+              initial=None, preset: str | None = None, callback=None) -> xr.Dataset:
         """Solve for one load, mean pressure or penetration; see :func:`xtopo.contact.solve.solve`."""
         from .solve import solve
 
         return solve(self, load=load, mean_pressure=mean_pressure, penetration=penetration, tol=tol,
-                     maxiter=maxiter, initial=initial, preset=preset)
+                     maxiter=maxiter, initial=initial, preset=preset, callback=callback)
 
     def curve(self, loads=None, *, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
               gap_bins: int = 50, preset: str | None = None) -> xr.Dataset:

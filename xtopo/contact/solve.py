@@ -82,7 +82,7 @@ def _initial(scene, initial):
 
 
 def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
-          initial=None, preset: str | None = None) -> xr.Dataset:
+          initial=None, preset: str | None = None, callback=None) -> xr.Dataset:
     """Solve the contact of ``scene`` at one load, mean pressure or penetration.
 
     Parameters
@@ -107,6 +107,9 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
     preset : {"fast", "default", "accurate"}, optional
         Speed-versus-accuracy preset for ``tol`` and ``maxiter`` (:mod:`xtopo.presets`);
         default the scene's preset. Explicit ``tol``/``maxiter`` win.
+    callback : callable, optional
+        ``callback(iteration, residual)`` after every iteration of the elastic solver (progress
+        of long solves; not called inside the penetration search of a capped load-controlled solve).
 
     Returns
     -------
@@ -122,7 +125,7 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
         raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
                            "the whole surface would flow; lower the load or raise the hardness")
     res = run_solver(scene, load=load, penetration=penetration, tol=tol, maxiter=maxiter,
-                     initial=_initial(scene, initial))
+                     initial=_initial(scene, initial), callback=callback)
     if not res.converged:
         warnings.warn(f"contact solve did not converge in {res.iterations} iterations (relative residual "
                       f"{res.residual:.3g} > tol {tol:g}); the result is flagged converged=False — raise maxiter or "
@@ -130,7 +133,7 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
     return to_dataset(scene, res, tol)
 
 
-def run_solver(scene, *, load, penetration, tol, maxiter, initial):
+def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None):
     """Polonsky–Keer on ``scene`` (returns a :class:`~xtopo._kernels.pk_solver.PKResult`).
 
     With a hardness under load control the elastic problem is solved first: where its
@@ -140,9 +143,11 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial):
     kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=initial)
     elastic = None
     if scene.hardness is not None and load is not None and load > 0:
-        elastic = polonsky_keer(scene.convolution, scene.w, load=load, **kw)
+        elastic = polonsky_keer(scene.convolution, scene.w, load=load, callback=callback, **kw)
         if elastic.converged and float(np.max(elastic.pressure)) < scene.hardness:
             return elastic
+    if scene.hardness is None or load is None:
+        kw["callback"] = callback
     res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=scene.hardness, **kw)
     if elastic is not None:
         res["iterations"] += elastic.iterations
