@@ -122,7 +122,7 @@ def test_areal_average_only_for_area_scans(tree):
         tree.topo.psd(areal=True)
     areas = xtopo.twin({k: v.to_dataset() for k, v in tree.children.items()
                         if v.dataset.attrs["measurement_kind"] == "area"})  # not the stylus profile sets
-    iso = areas.topo.psd(areal=True, max_error=np.inf)
+    iso = areas.topo.psd(areal=True, reliable=False)
     assert iso.average.attrs["units"] == "m4"
     assert int(iso["count"].max()) >= 2
 
@@ -185,3 +185,35 @@ def test_spectra_end_four_pixels_above_the_pixel_size(tree):
     q = curve.q.where(curve.notnull(), drop=True)
     assert float(q.max()) <= 2 * np.pi / (SAMPLING_FACTOR * dx)
     assert float(q.max()) > 2 * np.pi / (SAMPLING_FACTOR * dx) / 1.3  # and reaches it (bins 10 per decade)
+
+
+def test_mean_takes_measurements_while_they_lower_its_predicted_error():
+    """σ_mean = √(Σσ²)/n over the measurements of smallest error; a much worse one is left out."""
+    from xtopo._kernels.collocation import select_for_mean
+
+    values = np.array([[1.0, 2.0, 3.0, np.nan], [1.0, 2.0, 3.0, 4.0], [np.nan] * 4])
+    errors = np.array([[0.1, 0.1, 0.5, 0.01], [0.1, 0.1, 0.5, np.nan], [0.1] * 4])
+    used, sigma = select_for_mean(values, errors)
+    np.testing.assert_array_equal(used, [[True, True, False, False], [True, True, False, False], [False] * 4])
+    np.testing.assert_allclose(sigma[:2], np.sqrt(0.02) / 2)
+    assert sigma[2] == np.inf
+    used, sigma = select_for_mean(np.ones((1, 3)), np.array([[0.1, 0.12, 0.14]]))  # all three lower it
+    assert used.all() and sigma[0] == pytest.approx(np.sqrt(0.01 + 0.0144 + 0.0196) / 3)
+
+
+def test_average_uses_measurements_until_its_error_is_smallest():
+    """average_curves: equal-weight mean of the selected curves; unreliable where σ_mean > max_error."""
+    from xtopo.stitching import average_curves
+
+    d = xr.DataArray(np.geomspace(1.0, 50.0, 18), dims="distance", attrs={"units": "m"})
+    curves = {k: xr.DataArray(v * d.values, dims="distance", coords={"distance": d}, attrs={"units": "m"})
+              for k, v in (("a", 1.0), ("b", 1.2), ("c", 3.0))}
+    errors = {"a": 0.05 + 0 * d, "b": 0.05 + 0.0005 * d, "c": 0.5 + 0 * d}
+    avg = average_curves(curves, points=d.values, errors=errors, max_error=0.075)
+    sigma = np.sqrt(0.05**2 + (0.05 + 0.0005 * d) ** 2) / 2
+    np.testing.assert_allclose(avg.relative_error.values, sigma.values)
+    np.testing.assert_array_equal(avg["count"].values, 2)
+    np.testing.assert_allclose(avg.average.values, 1.1 * d.values)
+    assert avg.curves.sel(measurement="c").isnull().all()
+    strict = average_curves(curves, points=d.values, errors=errors, max_error=0.03)
+    assert int(strict["count"].max()) == 0 and strict.average.isnull().all()
