@@ -34,7 +34,7 @@ RECOVERY_GAP = ("issue 6 open: the statistical criterion acts on the equal-weigh
                 "[~16, 64] with 3 replicates, less than the 10x between scan sizes, and the TEM sections (one "
                 "profile each, >= 0.47 error) never do, so 3.4 decades. ACF/SDRP: the worst points are AFM scans "
                 "selected alone because their plug-in predicted error (stencil_error from the scan's own ACF) is "
-                "low (afm-50um-3: 0.02 against 0.09 for its replicates) while the scan sits 12-16% low over a "
+                "low (afm-50um-3: 0.02-0.04 against 0.05-0.10 for its two replicates) while the scan sits 12-16% low over a "
                 "decade: the plug-in error of a single realisation is itself noisy, and choosing by it biases the "
                 "selection. Seeds 1-3: PSD max 15/17/12% over 3.4-3.5 decades, ACF 8/7/28% over 3.2/4.1/4.5, "
                 "SDRP 13/6/18% over 4.6/4.6/5.1")
