@@ -124,6 +124,10 @@ def test_example_twin_spans_four_decades():
     for k in kids:
         xtopo.validate(k)
     xr.testing.assert_identical(example_twin()["afm-5um"].to_dataset(), tree["afm-5um"].to_dataset())
+    # replicates: the same instrument at independent places
+    a, b = tree["afm-5um"].to_dataset(), tree["afm-5um-2"].to_dataset()
+    assert a.attrs["tip_radius"] == b.attrs["tip_radius"] and a.height.shape == b.height.shape
+    assert abs(float(np.corrcoef(a.height.fillna(0).values.ravel(), b.height.fillna(0).values.ravel())[0, 1])) < 0.5
 
 
 def test_long_modes_carry_the_band_power_of_the_truth():

@@ -567,14 +567,15 @@ def _profiles_truth(truth: FractalPSD, rows: int, row_spacing: float, n: int, dx
 
 #: Instruments of the example twin: (name, kind, size [m], pixels, oversampling, tip radius [m], extra).
 #: ``profiles``: parallel stylus profiles, ``pixels = (profiles, points)``, spaced ``size/20`` apart.
+#: ``extra["replicates"]``: measurements of that kind at independent places (names ``-2``, ``-3``, ... after the first).
 _TWIN_PLAN = (
-    ("stylus-5mm", "profiles", 5e-3, (8, 5000), 4, 5e-6, {"noise": 2e-9}),
-    ("stylus-500um", "profiles", 5e-4, (8, 5000), 4, 1e-6, {"noise": 1e-9}),
+    ("stylus-5mm", "profiles", 5e-3, (8, 5000), 4, 2e-6, {"noise": 2e-9, "replicates": 2}),
+    ("stylus-500um", "profiles", 5e-4, (8, 5000), 4, 1e-6, {"noise": 1e-9, "replicates": 2}),
     ("optical-1mm", "area", 1e-3, 256, 2, None, {"resolution": 1.6e-5, "noise": 5e-9, "missing_fraction": 0.03}),
-    ("afm-50um", "area", 5e-5, 256, 2, 5e-8, {"noise": 2e-10}),
-    ("afm-5um", "area", 5e-6, 256, 2, 2e-8, {"noise": 1e-10, "missing_fraction": 0.02}),
-    ("afm-500nm", "area", 5e-7, 256, 2, 1e-8, {}),
-    ("tem-profile-200nm", "nonuniform", 2e-7, 400, 10, None, {"resolution_spacings": 8}),
+    ("afm-50um", "area", 5e-5, 256, 2, 5e-8, {"noise": 2e-10, "replicates": 3}),
+    ("afm-5um", "area", 5e-6, 256, 2, 2e-8, {"noise": 1e-10, "missing_fraction": 0.02, "replicates": 3}),
+    ("afm-500nm", "area", 5e-7, 256, 2, 5e-9, {"replicates": 3}),
+    ("tem-profile-200nm", "nonuniform", 2e-7, 400, 10, None, {"resolution_spacings": 8, "replicates": 4}),
 )
 #: spacing of the parallel stylus profiles, as a fraction of their length
 _PROFILE_SPACING = 1 / 20
@@ -584,10 +585,12 @@ _PROFILE_SPACING = 1 / 20
 def _example_twin_cached(seed: int):
     truth = FractalPSD(hurst=0.8, prefactor=1.5e-4, long_cutoff=2e-4, dim=2)
     nodes = {}
-    for k, (name, kind, size, pixels, over, tip, extra) in enumerate(_TWIN_PLAN):
-        s = seed * 1000 + k
+    runs = [(k, f"{name}-{r + 1}" if r else name, r, row)
+            for k, (name, *row) in enumerate(_TWIN_PLAN) for r in range(row[-1].get("replicates", 1))]
+    for k, name, r, (kind, size, pixels, over, tip, extra) in runs:
+        s = seed * 1000 + 10 * k + r
         rng = np.random.default_rng(s)
-        extra = dict(extra)
+        extra = {key: v for key, v in extra.items() if key != "replicates"}
         if kind == "area":
             n = pixels * over
             dx = size / n
@@ -614,7 +617,7 @@ def _example_twin_cached(seed: int):
         meas.attrs["measurement_kind"] = kind
         nodes[name] = meas
     root = xr.Dataset(attrs={"title": "example digital surface twin",
-                             "summary": "Seven simulated measurements (stylus profiles, optical, AFM, cross-section) of "
+                             "summary": "A campaign of 18 simulated measurements (stylus profiles, optical, AFM, cross-sections) of "
                                         "one self-affine surface (H = 0.8, roll-off at 200 µm) spanning 5 mm down to "
                                         "1 nm.",
                              "Conventions": "CF-1.12, ACDD-1.3", **truth.to_attrs()})
@@ -624,17 +627,18 @@ def _example_twin_cached(seed: int):
 def example_twin(seed: int = 0) -> xr.DataTree:
     """The built-in example twin: simulated measurements of one ground-truth surface.
 
-    Seven measurements of an isotropic self-affine surface (Hurst exponent 0.8, flat
-    roll-off of the PSD above 200 µm, the surface's correlation length, which the
-    5 mm stylus scans sample) spanning more than six decades of length:
+    A campaign of 18 measurements of an isotropic self-affine surface (Hurst exponent 0.8,
+    flat roll-off of the PSD above 200 µm, the surface's correlation length, which the
+    5 mm stylus scans sample) spanning more than six decades of length, with replicates
+    where one measurement's statistics would not suffice (names ``-2``, ``-3``, ...):
 
-    * two stylus campaigns of 8 parallel profiles each (5 mm and 0.5 mm long, 5000
-      points, profiles ``L/20`` apart, tip radii 5 µm and 1 µm, white noise), stored as
+    * 2 + 2 stylus campaigns of 8 parallel profiles each (5 mm and 0.5 mm long, 5000
+      points, profiles ``L/20`` apart, tip radii 2 µm and 1 µm, white noise), stored as
       ``(y, x)`` maps whose rows are the profiles (1D PSDs and ACFs average over them);
     * an optical area scan (1 mm, 256², lateral resolution 16 µm, noise, 3% missing data);
-    * three AFM area scans (50 µm, 5 µm, 0.5 µm, 256², spherical tips of 50, 20 and
-      10 nm applied by morphological dilation, noise, 2% missing data on one);
-    * a TEM cross-section contour (200 nm) digitised at 400 irregular points; its
+    * 3 AFM area scans at each of 50 µm, 5 µm and 0.5 µm (256², spherical tips of 50, 20
+      and 5 nm applied by morphological dilation, noise, 2% missing data on the 5 µm ones);
+    * 4 TEM cross-section contours (200 nm) digitised at 400 irregular points each; their
       ``resolution`` is 8 mean spacings, where linear interpolation between the
       digitised points (a low-pass of about ``sinc⁴(qΔ/2)`` in power) costs < 10%.
 

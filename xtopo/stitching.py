@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from ._kernels.collocation import bin_mean, collocation_points, interp_loglog
+from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
 from .conventions import MASK, convert_length, lateral_dims, length_factor
 from .errors import XtopoError
 from .twins import measurements as _measurements
@@ -40,27 +40,49 @@ def _curve_coord(curve: xr.DataArray) -> str:
     return dims[0]
 
 
-def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str) -> xr.DataArray:
+def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str, error=None):
+    """``curve`` on the collocation ``grid``, and its predicted relative standard error there (or None).
+
+    Spectra (``method="bin"`` with independent modes): ``1/√N`` with ``N`` the modes of the
+    bin's reliable wavevectors. Other curves: their ``error`` (on the curve's points) binned or
+    interpolated like the curve, where the curve is reliable.
+    """
     x = np.asarray(curve[coord].values, dtype=float)
-    clean = curve.drop_vars([c for c in curve.coords if c != coord])
-    kwargs = dict(x=x, xnew=grid)
-    if method == "bin" and _MODES in curve.coords:  # spectra: independent modes add up within a bin
-        kwargs.update(weights=np.asarray(curve[_MODES].values), min_weight=curve.attrs["min_independent"])
     kernel = {"interp": interp_loglog, "bin": bin_mean}[method]
-    out = xr.apply_ufunc(kernel, clean, input_core_dims=[[coord]], output_core_dims=[["_grid"]],
-                         exclude_dims={coord}, kwargs=kwargs, dask="parallelized",
-                         output_dtypes=[float], dask_gufunc_kwargs={"output_sizes": {"_grid": grid.size}})
-    return out
+
+    def on_grid(da, func, **kw):
+        da = da.drop_vars([c for c in da.coords if c != coord])
+        return xr.apply_ufunc(func, da, input_core_dims=[[coord]], output_core_dims=[["_grid"]],
+                              exclude_dims={coord}, kwargs=dict(x=x, xnew=grid, **kw), dask="parallelized",
+                              output_dtypes=[float], dask_gufunc_kwargs={"output_sizes": {"_grid": grid.size}})
+
+    out = on_grid(curve, kernel)
+    if method == "bin" and _MODES in curve.coords:  # spectra: independent modes add up within a bin
+        return out, on_grid(curve, bin_error, weights=np.asarray(curve[_MODES].values))
+    if error is None:
+        return out, None
+    return out, on_grid(error.where(curve.notnull()), kernel)
 
 
-def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, method: str = "interp") -> xr.Dataset:
+def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, method: str = "interp",
+                   errors: dict | None = None, max_error: float | None = None) -> xr.Dataset:
     """Average 1D curves of several measurements at common log-spaced points.
+
+    Equal weight per measurement (paper §4.10, which leaves the weighting open). Where
+    the predicted relative standard errors of the curves are known (``errors``, or the
+    independent Fourier modes a spectrum from :func:`twin_psd` carries), the statistical
+    criterion applies to the *average*: at each collocation point the measurements are
+    taken in order of increasing predicted error as long as the next one lowers the
+    predicted relative standard error of their mean, ``σ_mean = √(Σ σ_i²)/n``
+    (measurements treated as independent), and the point is reliable where that
+    ``σ_mean ≤ max_error``. Without error information every finite value is used.
 
     Parameters
     ----------
     curves : dict of str to xarray.DataArray
         One curve per measurement, each with a single coordinate dim (``q``,
-        ``distance`` or ``bandwidth``) in the same units; NaN marks unreliable points.
+        ``distance`` or ``bandwidth``) in the same units; NaN marks scales a
+        measurement may not be used at (short-scale reliability, paper §4.9).
     per_decade : int
         Density of collocation points when ``points`` is not given.
     points : array_like, optional
@@ -69,14 +91,23 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         ``"interp"``: log-log interpolation of each curve (smooth or sparse curves:
         SDRP, VBM); ``"bin"``: mean of each curve's points in log bins around the
         collocation points (dense, noisy curves: PSD, ACF; paper §4.10).
+    errors : dict of str to xarray.DataArray, optional
+        Predicted relative standard error of each curve's points (same coordinate).
+    max_error : float, optional
+        Largest predicted relative standard error of a reliable average (default
+        :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`).
 
     Returns
     -------
     xarray.Dataset
-        ``average`` and ``count`` on the collocation coordinate, ``curves`` on
-        (``measurement``, coordinate) and ``reliability_cutoff`` per measurement
-        where the curves carry one.
+        ``average``, ``count`` (measurements used) and ``relative_error`` (predicted,
+        of the average) on the collocation coordinate; ``curves`` (the values used,
+        NaN elsewhere) and ``curve_error`` (each measurement's predicted relative
+        error) on (``measurement``, coordinate); ``reliability_cutoff`` per
+        measurement where the curves carry one.
     """
+    from .analysis.reliability import MAX_RELATIVE_ERROR
+
     if not curves:
         raise XtopoError("no curves to average")
     first = next(iter(curves.values()))
@@ -87,17 +118,37 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         grid = collocation_points(lo, hi, per_decade)
     else:
         grid = np.asarray(points, dtype=float)
+    tol = MAX_RELATIVE_ERROR if max_error is None else float(max_error)
     names = list(curves)
-    per = [_onto(curves[n], coord, grid, method) for n in names]
-    stacked = xr.concat(per, dim=xr.DataArray(names, dims="measurement", name="measurement"))
-    stacked = stacked.rename({"_grid": coord}).assign_coords({coord: (coord, grid, dict(first[coord].attrs))})
+    per = [_onto(curves[n], coord, grid, method, (errors or {}).get(n)) for n in names]
+    dim = xr.DataArray(names, dims="measurement", name="measurement")
+    coord_var = (coord, grid, dict(first[coord].attrs))
+
+    def stack(items):
+        return xr.concat(items, dim=dim).rename({"_grid": coord}).assign_coords({coord: coord_var})
+
+    stacked = stack([v for v, _ in per])
+    if all(e is None for _, e in per):
+        used = stacked.notnull()
+        err = xr.full_like(stacked, np.nan)
+        sigma = xr.where(used.any("measurement"), 0.0, np.inf)
+    else:
+        err = stack([xr.full_like(v, np.nan) if e is None else e for v, e in per])
+        used, sigma = xr.apply_ufunc(select_for_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
+                                     output_core_dims=[["measurement"], []], dask="parallelized",
+                                     output_dtypes=[bool, float], dask_gufunc_kwargs={"allow_rechunk": True})
+        used = used & (sigma <= tol)
+    stacked = stacked.where(used)
     stacked.attrs = {k: v for k, v in first.attrs.items() if k in ("units", "long_name")}
-    count = stacked.notnull().sum("measurement")
+    count = used.sum("measurement")
     total = stacked.fillna(0.0).sum("measurement")
     average = (total / count.where(count > 0)).assign_attrs(
         units=first.attrs.get("units", "1"), long_name=f"average {first.attrs.get('long_name', first.name or '')}".strip())
-    count.attrs = {"units": "1", "long_name": "number of measurements contributing"}
-    out = xr.Dataset({"average": average, "count": count, "curves": stacked})
+    count.attrs = {"units": "1", "long_name": "number of measurements used"}
+    sigma = sigma.where(count > 0).assign_attrs(units="1", long_name="predicted relative standard error of the average")
+    err.attrs = {"units": "1", "long_name": "predicted relative standard error of each curve"}
+    out = xr.Dataset({"average": average, "count": count, "relative_error": sigma, "curves": stacked,
+                      "curve_error": err})
     cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else xr.Variable((), np.nan)
             for c in curves.values()]
     if all(v.ndim == 0 for v in cuts):
@@ -106,8 +157,9 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         out["reliability_cutoff"] = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").assign_attrs(
             units=units, long_name="short reliability cutoff")
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
-                 "collocation_method": method,
-                 "weighting": "equal weight per measurement over its reliable scales"}
+                 "collocation_method": method, "max_error": tol,
+                 "weighting": "equal weight per measurement over its reliable scales; measurements in order of "
+                              "increasing predicted error while each lowers the predicted error of the mean"}
     return out
 
 
@@ -120,33 +172,29 @@ def _complete(ds: xr.Dataset) -> xr.Dataset:
     return ds
 
 
-def _statistically_reliable(curve: xr.DataArray, ds: xr.Dataset, coord: str, max_error, quantity: str) -> xr.DataArray:
-    """Attach (spectra) or apply (real-space curves) the long-scale statistical criterion.
+def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: str):
+    """Long-scale (statistical) information of a measurement's curve for the twin average.
 
-    Spectra: each wavevector carries its independent Fourier modes; a collocation bin
-    counts when its modes reach ``1/max_error²`` (relative error ``1/√N``). ACF and SDRP:
-    the predicted relative error of :func:`~xtopo.analysis.reliability.stencil_error`.
-    VBM: ``1/(2√N)`` with ``N`` independent windows.
+    Spectra: each wavevector carries its independent Fourier modes (relative error ``1/√N``
+    of a bin holding ``N``). ACF and SDRP: the predicted relative error of
+    :func:`~xtopo.analysis.reliability.stencil_error`. VBM: ``1/(2√N)`` with ``N``
+    independent windows. Returns the curve (spectra: with the modes as a coordinate)
+    and the error on the curve's points (None for spectra).
     """
-    from .analysis.reliability import MAX_RELATIVE_ERROR, independent_samples, stencil_error
+    from .analysis.reliability import independent_samples, stencil_error
 
-    tol = MAX_RELATIVE_ERROR if max_error is None else float(max_error)
     direction = curve.attrs.get("direction", "x")
     x = np.asarray(curve[coord].values, dtype=float)
     if coord == "q":
         n = independent_samples(ds, coord, x, dim=direction)
-        out = curve.assign_coords({_MODES: (coord, n, {"units": "1", "long_name": "independent Fourier modes"})})
-        out.attrs = dict(curve.attrs, min_independent=tol**-2 if tol > 0 else np.inf, max_error=tol)
-        return out
+        return curve.assign_coords({_MODES: (coord, n, {"units": "1", "long_name": "independent Fourier modes"})}), None
     if quantity == "vbm":
         n = independent_samples(ds, coord, x, dim=direction)
         with np.errstate(divide="ignore"):
             err = xr.DataArray(np.where(n > 0, 0.5 / np.sqrt(np.where(n > 0, n, 1.0)), np.inf), dims=coord)
     else:
         err = stencil_error(ds, x, quantity=quantity, dim=direction).rename(distance=coord).drop_vars(coord)
-    out = curve.where(err <= tol)
-    out.attrs = dict(curve.attrs, max_error=tol)
-    return out
+    return curve, err.assign_coords({coord: curve[coord]})
 
 
 def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bool) -> xr.DataArray:
@@ -170,30 +218,38 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
 
 
 def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
-                     max_error=None, quantity: str = "psd", **kw) -> dict:
+                     quantity: str = "psd", **kw) -> tuple[dict, dict]:
     ms = _measurements(tree)
     units = units or _common_units(ms)
-    out = {}
+    curves, errors = {}, {}
     for name, ds in ms.items():
         ds = _complete(convert_length(ds, units))
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
         curve = func(ds, **extra, **kw, reliable=False)
         coord = _curve_coord(curve)
-        curve = _reliable_part(curve, ds, coord, reliable)
-        out[name] = _statistically_reliable(curve, ds, coord, max_error, quantity) if reliable else curve
-    return out
+        curves[name] = _reliable_part(curve, ds, coord, reliable)
+        if reliable:
+            curves[name], errors[name] = _predicted_error(curves[name], ds, coord, quantity)
+    return curves, errors
+
+
+_CRITERION = """With ``reliable``, a measurement may be used only above its short cutoff (tip radius or
+    resolution, paper §4.9; spectra also 4 pixels above the pixel size,
+    :func:`~xtopo.analysis.reliability.sampling_cutoff`). The statistical criterion applies
+    to the average (see :func:`average_curves`): among the usable measurements, those of
+    smallest predicted relative standard error are averaged with equal weight as long as each
+    lowers the predicted error of the mean, and a collocation point is reliable where that
+    error is at most ``max_error`` (default :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`);
+    ``count`` gives the measurements used."""
 
 
 def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_DECADE, units: str | None = None,
              reliable: bool = True, max_error: float | None = None) -> xr.Dataset:
     """Average PSD of a twin: 1D PSDs (``C1D`` along x) or, with ``areal=True``, ``Ciso``.
 
-    ``areal=True`` needs every measurement to be an area scan. With ``reliable``, each
-    measurement contributes only where its scales are reliable: above its short cutoff
-    (paper §4.9) and where its predicted relative standard error is at most ``max_error``
-    (default :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`): spectra in collocation
-    bins holding at least ``1/max_error²`` independent Fourier modes (see
-    :func:`~xtopo.analysis.reliability.independent_samples`).
+    ``areal=True`` needs every measurement to be an area scan. {criterion} A spectrum's
+    predicted error in a collocation bin is ``1/√N`` with ``N`` the independent Fourier modes of
+    its reliable wavevectors there (:func:`~xtopo.analysis.reliability.independent_samples`).
     """
     from .analysis.psd import psd
 
@@ -202,38 +258,37 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
         lines = [n for n, ds in ms.items() if ds["height"].ndim != 2]
         if lines:
             raise XtopoError(f"areal averages need area scans only; line scans: {lines}")
-        curves = _per_measurement(tree, psd, {"kind": "iso"}, {}, units, window=window, reliable=reliable,
-                                  max_error=max_error)
+        curves, errors = _per_measurement(tree, psd, {"kind": "iso"}, {}, units, reliable, window=window)
     else:
-        curves = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, window=window,
-                                  reliable=reliable, max_error=max_error)
-    return average_curves(curves, per_decade=per_decade, method="bin")
+        curves, errors = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
+                                          window=window)
+    return average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
 
 
 def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
              max_error: float | None = None) -> xr.Dataset:
     """Average height-difference ACF of a twin (profiles along x).
 
-    Reliability as in :func:`twin_psd`; the long-scale criterion is the predicted relative
-    error of :func:`~xtopo.analysis.reliability.stencil_error` (at most ``max_error``).
+    {criterion} A measurement's predicted error is that of
+    :func:`~xtopo.analysis.reliability.stencil_error`.
     """
     from .analysis.acf import acf
 
-    curves = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable=reliable,
-                              max_error=max_error, quantity="acf")
-    return average_curves(curves, per_decade=per_decade, method="bin")
+    curves, errors = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
+                                      quantity="acf")
+    return average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
 
 
 def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
              max_error: float | None = None) -> xr.Dataset:
     """Average variable-bandwidth RMS height of a twin.
 
-    Reliability as in :func:`twin_psd`; long-scale error ``1/(2√N)`` with ``N`` independent windows.
+    {criterion} A measurement's predicted error is ``1/(2√N)`` with ``N`` independent windows.
     """
     from .analysis.vbm import vbm
 
-    curves = _per_measurement(tree, vbm, {}, {}, units, reliable=reliable, max_error=max_error, quantity="vbm")
-    return average_curves(curves, per_decade=per_decade)
+    curves, errors = _per_measurement(tree, vbm, {}, {}, units, reliable, quantity="vbm")
+    return average_curves(curves, per_decade=per_decade, errors=errors, max_error=max_error)
 
 
 def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str | None = None,
@@ -241,8 +296,9 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     """Average scale-dependent slope (``order=1``) or curvature (``order=2``) of a twin.
 
     Every measurement is evaluated at exactly the common collocation distances
-    (fractional scale factors by linear interpolation, §4.10); reliability as in :func:`twin_acf`
-    (:func:`~xtopo.analysis.reliability.stencil_error` of the slope or curvature).
+    (fractional scale factors by linear interpolation, §4.10). {criterion} A measurement's
+    predicted error is that of :func:`~xtopo.analysis.reliability.stencil_error` of the
+    slope or curvature.
     """
     from .analysis.sdrp import sdrp
 
@@ -254,15 +310,21 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
         lo = min(lo, float(np.min(np.diff(x))))
         hi = max(hi, float(x[-1] - x[0]) / 2)
     grid = collocation_points(lo, hi, per_decade)
-    curves = {}
+    curves, errors = {}, {}
     for name, ds in ms.items():
         ds = _complete(convert_length(ds, units))
         x = np.asarray(ds["x"].values, dtype=float)
         mine = grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9)) & (grid <= (x[-1] - x[0]) / 2)]
-        curve = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance", reliable)
-        curves[name] = (_statistically_reliable(curve, ds, "distance", max_error, ("slope", "curvature")[order - 1])
-                        if reliable else curve)
-    return average_curves(curves, points=grid)
+        curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
+                                      reliable)
+        if reliable:
+            curves[name], errors[name] = _predicted_error(curves[name], ds, "distance",
+                                                          ("slope", "curvature")[order - 1])
+    return average_curves(curves, points=grid, errors=errors, max_error=max_error)
+
+
+for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):
+    _f.__doc__ = _f.__doc__.format(criterion=_CRITERION)
 
 
 def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:

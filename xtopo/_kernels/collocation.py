@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["interp_loglog", "collocation_points", "bin_mean"]
+__all__ = ["interp_loglog", "collocation_points", "bin_mean", "bin_error", "select_for_mean"]
 
 
 def collocation_points(lo: float, hi: float, per_decade: int) -> np.ndarray:
@@ -61,11 +61,8 @@ def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, weights=None, min_w
     centers = np.asarray(xnew, dtype=float)
     w = np.ones_like(x) if weights is None else np.asarray(weights, dtype=float)
     lc = np.log(centers)
-    half = (lc[1] - lc[0]) / 2 if lc.size > 1 else 0.5
-    edges = np.exp(np.concatenate([[lc[0] - half], (lc[1:] + lc[:-1]) / 2, [lc[-1] + half]]))
-    idx = np.searchsorted(edges, x, side="right") - 1
+    idx = _bin_index(x, centers)
     nb = centers.size
-    idx = np.where((idx >= 0) & (idx < nb) & (x > 0), idx, nb)
     lx = np.log(np.where(x > 0, x, 1.0))
     flat = y.reshape(-1, y.shape[-1])
     out = np.full((flat.shape[0], nb), np.nan)
@@ -82,8 +79,66 @@ def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, weights=None, min_w
     return out.reshape(y.shape[:-1] + (nb,))
 
 
+def _bin_index(x: np.ndarray, centers: np.ndarray) -> np.ndarray:
+    """Log bin of each ``x`` around ``centers`` (edges at the geometric midpoints, half a bin beyond
+    the ends); ``len(centers)`` for samples outside every bin."""
+    lc = np.log(centers)
+    half = (lc[1] - lc[0]) / 2 if lc.size > 1 else 0.5
+    edges = np.exp(np.concatenate([[lc[0] - half], (lc[1:] + lc[:-1]) / 2, [lc[-1] + half]]))
+    idx = np.searchsorted(edges, x, side="right") - 1
+    return np.where((idx >= 0) & (idx < centers.size) & (x > 0), idx, centers.size)
+
+
+def bin_error(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, weights) -> np.ndarray:
+    """Relative standard error ``1/√N`` of the log bins of :func:`bin_mean`, where ``N`` sums the
+    ``weights`` (independent samples) of the finite samples of ``y[..., n]`` in a bin (``inf`` if 0)."""
+    y = np.asarray(y, dtype=float)
+    centers = np.asarray(xnew, dtype=float)
+    idx = _bin_index(np.asarray(x, dtype=float), centers)
+    w = np.broadcast_to(np.asarray(weights, dtype=float), idx.shape)
+    flat = y.reshape(-1, y.shape[-1])
+    out = np.zeros((flat.shape[0], centers.size))
+    for i, row in enumerate(flat):
+        ok = np.isfinite(row)
+        out[i] = np.bincount(idx[ok], weights=w[ok], minlength=centers.size + 1)[:centers.size]
+    with np.errstate(divide="ignore"):
+        return 1 / np.sqrt(out.reshape(y.shape[:-1] + (centers.size,)))
+
+
+def select_for_mean(values: np.ndarray, errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which of ``values[..., m]`` enter an equal-weight mean, and its predicted relative standard error.
+
+    The finite values are taken in order of increasing predicted relative error
+    ``errors[..., m]`` (NaN: unknown, treated as infinite) as long as the next one lowers the
+    error of the mean of independent estimates, ``σ_mean = √(Σ σ_i²)/n``.
+
+    Returns
+    -------
+    used : numpy.ndarray of bool, shape ``[..., m]``
+    sigma : numpy.ndarray, shape ``[...]``
+        ``σ_mean`` of the selection (``inf`` where no value is finite).
+    """
+    values = np.asarray(values, dtype=float)
+    err = np.where(np.isfinite(values), np.nan_to_num(np.asarray(errors, dtype=float), nan=np.inf), np.inf)
+    order = np.argsort(err, axis=-1, kind="stable")
+    s = np.take_along_axis(err, order, axis=-1)
+    n = np.arange(1, s.shape[-1] + 1)
+    with np.errstate(invalid="ignore", over="ignore"):
+        sigma = np.sqrt(np.cumsum(s**2, axis=-1)) / n
+    finite = np.isfinite(values).any(axis=-1)
+    # the prefix grows while each next value lowers sigma (NaN comparisons from inf - inf are False)
+    lowers = np.concatenate([np.ones(s.shape[:-1] + (1,), bool), sigma[..., 1:] < sigma[..., :-1]], axis=-1)
+    take = np.logical_and.accumulate(lowers, axis=-1) & np.isfinite(s)
+    k = take.sum(axis=-1)
+    best = np.where(k > 0, np.take_along_axis(sigma, np.maximum(k - 1, 0)[..., None], axis=-1)[..., 0], np.inf)
+    used = np.zeros_like(take)
+    np.put_along_axis(used, order, take, axis=-1)
+    return used, np.where(finite, best, np.inf)
+
+
 def _loglog_line(lx: np.ndarray, y: np.ndarray, lxnew: np.ndarray) -> np.ndarray:
-    """Piecewise log-log linear through ``(lx, y)``, extended by the end segments; ``y`` as is where
+    """Piecewise log-log linear through ``(lx, y)``; beyond an end, the line from the end point with
+    the slope of the segment next to the end one (the end value's scatter is not levered out); ``y`` as is where
     a log is undefined (non-positive values or a single point)."""
     if lx.size < 2 or np.any(y <= 0):
         return y
@@ -91,4 +146,13 @@ def _loglog_line(lx: np.ndarray, y: np.ndarray, lxnew: np.ndarray) -> np.ndarray
     j = np.clip(np.searchsorted(lx, lxnew) - 1, 0, lx.size - 2)
     dx = lx[j + 1] - lx[j]
     t = np.where(dx > 0, (lxnew - lx[j]) / np.where(dx > 0, dx, 1.0), 0.0)
-    return np.exp(ly[j] + t * (ly[j + 1] - ly[j]))
+    out = ly[j] + t * (ly[j + 1] - ly[j])
+    if lx.size >= 3:  # beyond an end: from the end point with the slope of the next segment inward
+        out = np.where(lxnew < lx[0], ly[0] + _slope(lx, ly, 1) * (lxnew - lx[0]), out)
+        out = np.where(lxnew > lx[-1], ly[-1] + _slope(lx, ly, -3) * (lxnew - lx[-1]), out)
+    return np.exp(out)
+
+
+def _slope(lx: np.ndarray, ly: np.ndarray, j: int) -> float:
+    dx = lx[j + 1] - lx[j]
+    return float((ly[j + 1] - ly[j]) / dx) if dx > 0 else 0.0
