@@ -26,6 +26,15 @@ from .errors import GridError, XtopoError
 __all__ = ["FractalPSD", "fractal_surface", "prescribed_psd", "sphere", "sinusoid", "measure", "example_twin"]
 
 
+
+@functools.lru_cache(maxsize=8)
+def _gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights on [-1, 1] (cached: numpy solves an eigenproblem each time)."""
+    t, w = np.polynomial.legendre.leggauss(nodes)
+    t.flags.writeable = False
+    w.flags.writeable = False
+    return t, w
+
 @dataclasses.dataclass(frozen=True)
 class FractalPSD:
     """Isotropic self-affine PSD with roll-off and short-wavelength cutoff.
@@ -77,7 +86,7 @@ class FractalPSD:
         q = np.atleast_1d(np.abs(np.asarray(q, dtype=float)))
         kmax = np.sqrt(np.maximum(self.q_short**2 - q**2, 0.0)) if np.isfinite(self.q_short) else None
         # Gauss-Legendre in t with k = q_ref * sinh(t) resolves the kink at q_L and the tail.
-        t, w = np.polynomial.legendre.leggauss(nodes)
+        t, w = _gauss_legendre(nodes)
         out = np.empty_like(q)
         for i, qi in enumerate(q):
             scale = max(qi, self.q_long, 1e-300)
@@ -522,7 +531,7 @@ def _c1d_above(truth: FractalPSD, qx: np.ndarray, q_split: float, nodes: int = 2
     """
     qx = np.atleast_1d(np.asarray(qx, dtype=float))
     k0 = np.sqrt(np.maximum(q_split**2 - qx**2, 0.0))
-    t, w = np.polynomial.legendre.leggauss(nodes)
+    t, w = _gauss_legendre(nodes)
     k = 0.5 * k0[:, None] * (t[None, :] + 1)
     inner = np.sum(w * truth.c_native(np.sqrt(qx[:, None] ** 2 + k**2)), axis=1) * 0.5 * k0
     return np.maximum(truth.c1d(qx) - inner / np.pi, 0.0)
@@ -575,7 +584,7 @@ _TWIN_PLAN = (
     ("afm-50um", "area", 5e-5, 256, 2, 5e-8, {"noise": 2e-10, "replicates": 3}),
     ("afm-5um", "area", 5e-6, 256, 2, 2e-8, {"noise": 1e-10, "missing_fraction": 0.02, "replicates": 3}),
     ("afm-500nm", "area", 5e-7, 256, 2, 5e-9, {"replicates": 3}),
-    ("tem-profile-200nm", "nonuniform", 2e-7, 400, 10, None, {"resolution_spacings": 8, "replicates": 4}),
+    ("tem-profile-1um", "nonuniform", 1e-6, 4000, 4, None, {"resolution_spacings": 12, "replicates": 10}),
 )
 #: spacing of the parallel stylus profiles, as a fraction of their length
 _PROFILE_SPACING = 1 / 20
@@ -585,9 +594,9 @@ _PROFILE_SPACING = 1 / 20
 def _example_twin_cached(seed: int):
     truth = FractalPSD(hurst=0.8, prefactor=1.5e-4, long_cutoff=2e-4, dim=2)
     nodes = {}
-    runs = [(k, f"{name}-{r + 1}" if r else name, r, row)
+    runs = [(k, f"{name}-{r + 1}" if r else name, name, r, row)
             for k, (name, *row) in enumerate(_TWIN_PLAN) for r in range(row[-1].get("replicates", 1))]
-    for k, name, r, (kind, size, pixels, over, tip, extra) in runs:
+    for k, name, instrument, r, (kind, size, pixels, over, tip, extra) in runs:
         s = seed * 1000 + 10 * k + r
         rng = np.random.default_rng(s)
         extra = {key: v for key, v in extra.items() if key != "replicates"}
@@ -595,22 +604,22 @@ def _example_twin_cached(seed: int):
             n = pixels * over
             dx = size / n
             surf = make_measurement(_area_truth(truth, n, dx, rng), spacing=dx, units="m")
-            meas = measure(surf, pixels=pixels, tip_radius=tip, seed=s, instrument=name, **extra)
+            meas = measure(surf, pixels=pixels, tip_radius=tip, seed=s, instrument=instrument, **extra)
         elif kind == "profiles":
             rows, points = pixels
             n = points * over
             dx, dy = size / n, size * _PROFILE_SPACING
             surf = make_measurement(_profiles_truth(truth, rows, dy, n, dx, rng), spacing=(dy, dx), units="m")
-            meas = measure(surf, pixels=(rows, points), tip_radius=tip, seed=s, instrument=name, **extra)
-        else:  # cross-section contour digitised at irregular positions
+            meas = measure(surf, pixels=(rows, points), tip_radius=tip, seed=s, instrument=instrument, **extra)
+        else:  # cross-section contour digitised at irregular positions (jittered about a regular step)
             n = pixels * over
             dx = size / n
             line = _profiles_truth(truth, 1, 0.0, n, dx, rng)[0]
-            x = np.sort(rng.choice(np.arange(1, n - 1), size=pixels - 2, replace=False)) * dx
-            x = np.concatenate([[0.0], x + rng.uniform(-0.3, 0.3, x.size) * dx, [(n - 1) * dx]])
+            step = (n - 1) * dx / (pixels - 1)
+            x = (np.arange(pixels) + np.concatenate([[0.0], rng.uniform(-0.35, 0.35, pixels - 2), [0.0]])) * step
             h = np.interp(x, np.arange(n) * dx, line)
             resolution = extra["resolution_spacings"] * float(np.mean(np.diff(x)))
-            meas = make_measurement(h, x=x, units="m", instrument=name, resolution=resolution,
+            meas = make_measurement(h, x=x, units="m", instrument=instrument, resolution=resolution,
                                     source="xtopo.datasets.example_twin")
         meas.attrs.update(truth.to_attrs())
         meas.attrs["title"] = name

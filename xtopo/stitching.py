@@ -217,11 +217,53 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     return out.assign_coords(reliability_cutoff=cut.variable)
 
 
+def _setting(ds: xr.Dataset) -> tuple:
+    """Instrument and scan setting of a measurement: replicates (same instrument, points, extent,
+    tip and resolution) share one predicted error in the twin averages (see :func:`_pool_errors`)."""
+    def sig(v):  # 6 significant digits: digitised positions and derived lengths agree to rounding
+        return None if v is None else float(f"{float(v):.6g}")
+
+    dims = lateral_dims(ds["height"])
+    return (ds.attrs.get("instrument"), ds.attrs.get("tip_radius_units"), ds["x"].attrs.get("units"),
+            tuple(ds.sizes[d] for d in dims), tuple(sig(ds[d].values[-1] - ds[d].values[0]) for d in dims),
+            sig(ds.attrs.get("tip_radius")), sig(ds.attrs.get("resolution")))
+
+
+def _pool_errors(errors: dict, settings: dict) -> dict:
+    """Replace each measurement's plug-in predicted error by the mean over its replicates.
+
+    The plug-in error of :func:`~xtopo.analysis.reliability.stencil_error` rests on the
+    measurement's own curve, one realisation: it is itself noisy, and a selection by it
+    (:func:`average_curves`) would favour the scans that happen to look precise (a scan whose
+    long wavelengths happen to be weak shows a low curve *and* a low predicted error). The
+    error of an estimator is a property of the instrument's setting, not of the realisation:
+    replicates (same :func:`_setting`) share the mean of their plug-in errors, so they enter an
+    average together or not at all.
+    """
+    groups: dict = {}
+    for name, err in errors.items():
+        if err is not None:
+            groups.setdefault(settings[name], []).append(name)
+    out = dict(errors)
+    for names in groups.values():
+        if len(names) < 2:
+            continue
+        first = errors[names[0]]
+        coord = first.dims[0]
+        if any(errors[n].sizes != first.sizes or not np.allclose(errors[n][coord].values, first[coord].values,
+                                                                  rtol=1e-9) for n in names[1:]):
+            continue
+        pooled = sum(errors[n].variable for n in names) / len(names)
+        for n in names:
+            out[n] = errors[n].copy(data=pooled.data)
+    return out
+
+
 def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
                      quantity: str = "psd", **kw) -> tuple[dict, dict]:
     ms = _measurements(tree)
     units = units or _common_units(ms)
-    curves, errors = {}, {}
+    curves, errors, settings = {}, {}, {}
     for name, ds in ms.items():
         ds = _complete(convert_length(ds, units))
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
@@ -230,7 +272,8 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
         curves[name] = _reliable_part(curve, ds, coord, reliable)
         if reliable:
             curves[name], errors[name] = _predicted_error(curves[name], ds, coord, quantity)
-    return curves, errors
+            settings[name] = _setting(ds)
+    return curves, _pool_errors(errors, settings)
 
 
 _CRITERION = """With ``reliable``, a measurement may be used only above its short cutoff (tip radius or
@@ -310,9 +353,10 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
         lo = min(lo, float(np.min(np.diff(x))))
         hi = max(hi, float(x[-1] - x[0]) / 2)
     grid = collocation_points(lo, hi, per_decade)
-    curves, errors = {}, {}
+    curves, errors, settings = {}, {}, {}
     for name, ds in ms.items():
         ds = _complete(convert_length(ds, units))
+        settings[name] = _setting(ds)
         x = np.asarray(ds["x"].values, dtype=float)
         mine = grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9)) & (grid <= (x[-1] - x[0]) / 2)]
         curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
@@ -320,7 +364,7 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
         if reliable:
             curves[name], errors[name] = _predicted_error(curves[name], ds, "distance",
                                                           ("slope", "curvature")[order - 1])
-    return average_curves(curves, points=grid, errors=errors, max_error=max_error)
+    return average_curves(curves, points=grid, errors=_pool_errors(errors, settings), max_error=max_error)
 
 
 for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):
