@@ -27,18 +27,6 @@ def _decades(coord, mask):
     return np.log10(v.max() / v.min())
 
 
-RECOVERY_GAP = ("issue 6 open: the statistical criterion acts on the equal-weight average (sigma_mean <= 7.5%, "
-                "measurements by increasing predicted error while each lowers it) over a campaign with replicates; "
-                "seed 0 (median/max/span): PSD 3.5%/14.0%/3.40 decades, ACF 2.0%/23.5%/4.30, SDRP slope "
-                "1.6%/16.1%/4.59. PSD: a 256-px area scan's bins reach 1/sqrt(N) <= 7.5% only over k = 2pi/L x "
-                "[~16, 64] with 3 replicates, less than the 10x between scan sizes, and the TEM sections (one "
-                "profile each, >= 0.47 error) never do, so 3.4 decades. ACF/SDRP: the worst points are AFM scans "
-                "selected alone because their plug-in predicted error (stencil_error from the scan's own ACF) is "
-                "low (afm-50um-3: 0.02-0.04 against 0.05-0.10 for its two replicates) while the scan sits 12-16% low over a "
-                "decade: the plug-in error of a single realisation is itself noisy, and choosing by it biases the "
-                "selection. Seeds 1-3: PSD max 15/17/12% over 3.4-3.5 decades, ACF 8/7/28% over 3.2/4.1/4.5, "
-                "SDRP 13/6/18% over 4.6/4.6/5.1")
-
 #: loose statistical criterion (about 10 independent samples): the span of the old counting heuristic
 LOOSE = 0.3
 
@@ -62,7 +50,6 @@ def test_twin_averages_follow_truth_on_median(tree, truth, name):
     assert float(loose.median()) <= 0.25
 
 
-@pytest.mark.xfail(strict=True, reason=RECOVERY_GAP)
 def test_averaged_psd_recovers_truth(tree, truth):
     avg = tree.topo.psd()
     ok = avg["count"] >= 1
@@ -73,7 +60,6 @@ def test_averaged_psd_recovers_truth(tree, truth):
     assert avg.average.attrs["units"] == "m3"
 
 
-@pytest.mark.xfail(strict=True, reason=RECOVERY_GAP)
 def test_averaged_acf_recovers_truth(tree, truth):
     acf = tree.topo.acf()
     ok = acf["count"] >= 1
@@ -83,7 +69,6 @@ def test_averaged_acf_recovers_truth(tree, truth):
     assert _decades(acf.distance, ok) >= 4
 
 
-@pytest.mark.xfail(strict=True, reason=RECOVERY_GAP)
 def test_averaged_sdrp_slope_recovers_truth(tree, truth):
     slope = tree.topo.sdrp(order=1)
     ok = slope["count"] >= 1
@@ -135,13 +120,19 @@ def test_areal_average_only_for_area_scans(tree):
 @pytest.mark.parametrize("name", ["psd", "acf", "sdrp"])
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_other_seeds_follow_truth(seed, name):
-    """Reliable averages: median <= 10%, max <= 40% (PSD: systematic tip/aliasing bins); loose ones span 4 decades."""
+    """Other realisations: reliable averages span >= 4 decades, median <= 5%, max <= 20%.
+
+    Seeds 1-3 (max/median/span): PSD 15.2/17.6/12.5% (4.0/4.1/3.7%, 4.3 decades), ACF 12.3/7.3/16.2%
+    (2.5/2.6/2.2%, 5.8-5.9), SDRP 11.7/4.0/11.2% (2.9/1.6/1.7%, 5.8): single collocation points
+    exceed 15% where sigma_mean is near 7.5% (a 2-sigma excursion) or at the top bin of an AFM size.
+    """
     tree = example_twin(seed)
     truth = prescribed_psd(tree)
     ref = {"psd": truth.c1d, "acf": truth.acf, "sdrp": truth.slope}[name]
-    dev, _ = _deviation(getattr(tree.topo, name)(), ref)
-    assert float(dev.median()) <= 0.10, name
-    assert float(dev.max()) <= 0.40, name
+    dev, decades = _deviation(getattr(tree.topo, name)(), ref)
+    assert decades >= 4, name
+    assert float(dev.median()) <= 0.05, name
+    assert float(dev.max()) <= 0.20, name
     loose, decades = _deviation(getattr(tree.topo, name)(max_error=LOOSE), ref)
     assert decades >= 4, name
     assert float(loose.median()) <= 0.25, name
@@ -167,7 +158,7 @@ def test_bins_with_too_large_predicted_error_are_dropped(tree):
     q = 2 * np.pi * np.arange(5) / float(ds.x[-1] - ds.x[0] + (ds.x[1] - ds.x[0]))
     n = independent_samples(ds, "q", q)
     assert n[0] == 0 and np.all(np.diff(n) > 0)  # more rows are independent at shorter wavelengths
-    tem = tree["tem-profile-200nm"].to_dataset()
+    tem = tree["tem-profile-1um"].to_dataset()
     line = independent_samples(tem, "q", 2 * np.pi * np.arange(5) / float(tem.x[-1] - tem.x[0]))
     np.testing.assert_allclose(line[1:], 0.5)  # one profile, Hann window
     loose = tree.topo.psd(max_error=np.inf)

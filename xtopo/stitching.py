@@ -230,15 +230,16 @@ def _setting(ds: xr.Dataset) -> tuple:
 
 
 def _pool_errors(errors: dict, settings: dict) -> dict:
-    """Replace each measurement's plug-in predicted error by the mean over its replicates.
+    """Replace each measurement's plug-in predicted error by the median over its replicates.
 
     The plug-in error of :func:`~xtopo.analysis.reliability.stencil_error` rests on the
     measurement's own curve, one realisation: it is itself noisy, and a selection by it
     (:func:`average_curves`) would favour the scans that happen to look precise (a scan whose
     long wavelengths happen to be weak shows a low curve *and* a low predicted error). The
     error of an estimator is a property of the instrument's setting, not of the realisation:
-    replicates (same :func:`_setting`) share the mean of their plug-in errors, so they enter an
-    average together or not at all.
+    replicates (same :func:`_setting`) share the median of their plug-in errors (robust to the
+    scan whose own long-wavelength tilt inflates its plug-in variogram), so they enter an average
+    together or not at all.
     """
     groups: dict = {}
     for name, err in errors.items():
@@ -253,7 +254,10 @@ def _pool_errors(errors: dict, settings: dict) -> dict:
         if any(errors[n].sizes != first.sizes or not np.allclose(errors[n][coord].values, first[coord].values,
                                                                   rtol=1e-9) for n in names[1:]):
             continue
-        pooled = sum(errors[n].variable for n in names) / len(names)
+        stack = xr.Variable.concat([errors[n].variable for n in names], dim="_replicate")
+        if stack.chunks is not None:
+            stack = stack.chunk({"_replicate": -1})
+        pooled = stack.median("_replicate")
         for n in names:
             out[n] = errors[n].copy(data=pooled.data)
     return out
@@ -281,7 +285,9 @@ _CRITERION = """With ``reliable``, a measurement may be used only above its shor
     :func:`~xtopo.analysis.reliability.sampling_cutoff`). The statistical criterion applies
     to the average (see :func:`average_curves`): among the usable measurements, those of
     smallest predicted relative standard error are averaged with equal weight as long as each
-    lowers the predicted error of the mean, and a collocation point is reliable where that
+    lowers the predicted error of the mean (ACF, SDRP: replicates of one instrument setting share
+    the median of their plug-in errors, so that no scan is chosen for looking precise), and a
+    collocation point is reliable where that
     error is at most ``max_error`` (default :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`);
     ``count`` gives the measurements used."""
 
