@@ -48,7 +48,7 @@ import numpy as np
 
 __all__ = ["polonsky_keer", "PKResult"]
 
-_FREE, _ELASTIC, _PLASTIC = 0, 1, 2
+_NONE = np.empty(0, np.intp)
 
 
 class PKResult(dict):
@@ -178,11 +178,8 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
 
     # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
     p0 = p0.reshape(-1)
-    state = np.zeros(p0.size, np.int8)
     idx = np.flatnonzero(p0 > 0) if H is None else np.flatnonzero((p0 > 0) & (p0 < H))
     pl = np.empty(0, np.intp) if H is None else np.flatnonzero(p0 >= H)
-    state[idx] = _ELASTIC
-    state[pl] = _PLASTIC
     pI = p0[idx]
     del p0
     tI = np.zeros(idx.size, dtype)
@@ -221,24 +218,28 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     it = 0
     for it in range(maxiter + 1):
         np.subtract(u, w, out=d)
-        dI = df[idx]
+        dI = np.take(df, idx)
         nI = idx.size
         if load_control and nI:
             delta = float(np.sum(dI, dtype=np.float64)) / nI
         gI = dI - dtype.type(delta)
-        # overlaps outside the CG set (free points with g < 0); plastic points whose gap opened
-        np.less(d, dtype.type(delta), out=mask)
-        cand = np.flatnonzero(mask)
-        over = cand[state[cand] == _FREE]
-        g_over = df[over] - dtype.type(delta)
         res = float(np.max(np.abs(gI))) if nI else 0.0
-        if over.size:
-            res = max(res, -float(np.min(g_over)))
+        # plastic points whose gap opened
         if pl.size:
-            g_pl = df[pl] - dtype.type(delta)
+            g_pl = np.take(df, pl) - dtype.type(delta)
             opened = g_pl > 0
             if opened.any():
                 res = max(res, float(np.max(g_pl[opened])))
+        # overlaps outside the contact (free points with g < 0): hide the contact, then compare
+        df[idx] = np.inf
+        df[pl] = np.inf
+        np.less(d, dtype.type(delta), out=mask)
+        if mask.any():
+            over = np.flatnonzero(mask)
+            g_over = np.take(df, over) - dtype.type(delta)
+            res = max(res, -float(np.min(g_over)))
+        else:
+            over = _NONE
         residual = res / scale
         if callback is not None:
             callback(it, residual)
@@ -273,7 +274,6 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         if pl.size and opened.any():
             leave = pl[opened]
             joined.append((leave, H - step * g_pl[opened]))
-            state[leave] = _FREE
             pl = pl[~opened]
         # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic)
         keep = pI > 0
@@ -281,9 +281,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             capped = pI >= H
             keep &= ~capped
         if not keep.all():
-            state[idx[~keep]] = _FREE
             if H is not None and capped.any():
-                state[idx[capped]] = _PLASTIC
                 pl = np.concatenate([pl, idx[capped]])
             idx, pI, tI = idx[keep], pI[keep], tI[keep]
         restart = bool(joined)
@@ -291,12 +289,10 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             if H is not None:
                 full = value >= H
                 if full.any():
-                    state[where[full]] = _PLASTIC
                     pl = np.concatenate([pl, where[full]])
                     where, value = where[~full], value[~full]
             pos = value > 0
             where, value = where[pos], value[pos]
-            state[where] = _ELASTIC
             idx = np.concatenate([idx, where])
             pI = np.concatenate([pI, value.astype(dtype, copy=False)])
             tI = np.concatenate([tI, np.zeros(where.size, dtype)])
