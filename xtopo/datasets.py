@@ -155,12 +155,10 @@ def _grid_q(shape, spacings):
 
 def _rfft_weights(shape):
     """Multiplicity of each rfft mode in the full spectrum (1 or 2)."""
+    from ._kernels.spectra import rfft_multiplicity
+
     n = shape[-1]
-    w = np.full(n // 2 + 1, 2.0)
-    w[0] = 1.0
-    if n % 2 == 0:
-        w[-1] = 1.0
-    return np.broadcast_to(w, tuple(shape[:-1]) + (n // 2 + 1,))
+    return np.broadcast_to(rfft_multiplicity(1, n), tuple(shape[:-1]) + (n // 2 + 1,))
 
 
 def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = None, rms_slope: float | None = None,

@@ -38,8 +38,9 @@ import scipy.fft as sfft
 
 from . import fft as _fft
 from .greens import free_greens, padded_shape, periodic_greens
+from .spectra import rfft_multiplicity
 
-__all__ = ["Convolution", "choose_backend", "rfft_weights"]
+__all__ = ["Convolution", "choose_backend"]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
 _MEASURE_FROM = 256 * 256
@@ -58,15 +59,6 @@ def choose_backend(backend: str = "auto") -> str:
     except ImportError:  # pragma: no cover - pyfftw is a dependency
         return "scipy"
     return "pyfftw"
-
-
-def rfft_weights(n_last: int, half: int) -> np.ndarray:
-    """Multiplicity of each ``rfft`` column in the full spectrum (1 for ``q=0`` and Nyquist, else 2)."""
-    wts = np.full(half, 2.0)
-    wts[0] = 1.0
-    if n_last % 2 == 0:
-        wts[-1] = 1.0
-    return wts
 
 
 def _threads(fft_shape) -> int:
@@ -153,7 +145,7 @@ class Convolution:
             greens = make(self.shape, spacing, modulus)
         self.greens = greens.astype(self.dtype, copy=False)
         m = float(np.prod(self.fft_shape))
-        weights = rfft_weights(self.fft_shape[-1], self.greens.shape[-1])
+        weights = rfft_multiplicity(1, self.fft_shape[-1])
         # Parseval: Σ x (G*x) = Σ_k w_k G_k |x̂_k|² / M, laid out like the interleaved re/im view of x̂
         # (one contiguous pass; twice the memory of G but faster than strided real/imag passes)
         self._energy_weights = np.repeat(self.greens * (weights / m).astype(self.dtype), 2, axis=-1)

@@ -62,14 +62,19 @@ def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int) -> np.nda
     return c
 
 
-def psd_map(h: np.ndarray, dy: float, dx: float, *, window: bool) -> np.ndarray:
-    """C2D on the full (q_y, q_x) grid in ascending order (``fftshift``), shape ``(..., ny, nx)``."""
+def _demeaned_map(h, dy, dx, window):
+    """Heights of a map less their mean, radially Hann-windowed when asked (checked finite)."""
     check_finite(h, "psd")
-    ny, nx = h.shape[-2:]
     d = h - h.mean(axis=(-2, -1), keepdims=True)
     if window:
-        d *= radial_hann(ny, nx, dy, dx)
-    p = _power(_fft.fftn(d, axes=(-2, -1), backend=BACKEND))
+        d *= radial_hann(*h.shape[-2:], dy, dx)
+    return d
+
+
+def psd_map(h: np.ndarray, dy: float, dx: float, *, window: bool) -> np.ndarray:
+    """C2D on the full (q_y, q_x) grid in ascending order (``fftshift``), shape ``(..., ny, nx)``."""
+    ny, nx = h.shape[-2:]
+    p = _power(_fft.fftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
     return np.fft.fftshift(p * (dx * dy / (nx * ny)), axes=(-2, -1))
 
 
@@ -91,10 +96,6 @@ def rfft_multiplicity(ny: int, nx: int) -> np.ndarray:
 
 def psd_iso(h: np.ndarray, dy: float, dx: float, *, window: bool, plan) -> np.ndarray:
     """Radially averaged C2D over the bins of ``plan`` (a :class:`~.binning.BinPlan` on :func:`rfft_abs_q`)."""
-    check_finite(h, "psd")
     ny, nx = h.shape[-2:]
-    d = h - h.mean(axis=(-2, -1), keepdims=True)
-    if window:
-        d *= radial_hann(ny, nx, dy, dx)
-    p = _power(_fft.rfftn(d, axes=(-2, -1), backend=BACKEND))
+    p = _power(_fft.rfftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
     return plan.mean(p) * (dx * dy / (nx * ny))
