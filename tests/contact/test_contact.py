@@ -139,6 +139,31 @@ def test_full_contact_and_zero_load():
     assert float(zero.area_fraction) == 0.0 and bool(zero.converged)
 
 
+def test_periodic_penetration_beyond_mean_plane_is_an_error():
+    """Periodic G has no q=0 mode: pushing past the mean plane needs infinite pressure (no solution)."""
+    amp = 0.01
+    scene = Scene(datasets.sinusoid((16, 32), 1.0, amplitude=amp, units="um"))
+    below = scene.solve(penetration=0.9 * amp)  # max − mean height of a sinusoid = its amplitude
+    assert bool(below.converged) and float(below.area_fraction) < 1.0
+    with pytest.raises(ContactError, match="mean plane"):
+        scene.solve(penetration=1.01 * amp)
+    with pytest.raises(ContactError, match="mean plane"):
+        scene.curve(penetrations=[0.5 * amp, 2 * amp])
+    capped = Scene(datasets.sinusoid((16, 32), 1.0, amplitude=amp, units="um"), hardness=0.01).solve(
+        penetration=2 * amp)  # a hardness bounds the pressure: every point flows
+    assert bool(capped.converged) and float(capped.area_fraction) == 1.0
+
+
+def test_flat_square_punch_under_penetration():
+    """A rigid flat square punch (side L) pressed by δ: every pixel in contact, F = β (2/√π) E* δ L
+    with β = 1.012 for a square (Pharr, Oliver & Brotzen 1992). Used to come back as no contact."""
+    flat = datasets.sphere((32, 32), 1.0, 1.0, kind="paraboloid", units="um")
+    flat["height"] = flat.height * 0
+    r = Scene(flat).solve(penetration=0.01)
+    assert bool(r.converged) and float(r.area_fraction) == 1.0
+    np.testing.assert_allclose(float(r["load"]), 1.012 * 2 / np.sqrt(np.pi) * 0.01, rtol=0.01)
+
+
 def test_nonconvergence_is_flagged():
     surf = datasets.fractal_surface((64, 64), 1.0, hurst=0.8, rms_slope=0.1, seed=5, units="um")
     with pytest.warns(ConvergenceWarning):

@@ -66,6 +66,13 @@ def _control(scene, load, mean_pressure, penetration):
                 raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
             if name != "penetration" and float(v) < 0:
                 raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
+    if penetration is not None and scene.periodic and scene.hardness is None:
+        limit = -float(np.mean(scene.w, dtype=np.float64))
+        if float(penetration) >= limit:
+            raise ContactError(
+                f"penetration {float(penetration):g} reaches the mean plane of the periodic surface (its highest "
+                f"point is {limit:g} above the mean): a periodic elastic solid is pushed there only by an "
+                "infinite pressure; prescribe load= or mean_pressure= instead")
     if mean_pressure is not None:
         load = float(mean_pressure) * scene.nominal_area
     return (None if load is None else float(load)), (None if penetration is None else float(penetration))
