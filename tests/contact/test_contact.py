@@ -164,6 +164,26 @@ def test_flat_square_punch_under_penetration():
     np.testing.assert_allclose(float(r["load"]), 1.012 * 2 / np.sqrt(np.pi) * 0.01, rtol=0.01)
 
 
+@pytest.mark.parametrize(("periodic", "hurst", "slope", "cutoff", "seed", "hardness", "mean_pressure"), [
+    # the warm start from a shallower penetration joined 13 000 points at once, all past the hardness,
+    # and cycled (old solver: 42 000 iterations, not converged)
+    (False, 0.9096383206133929, 0.06549280561336016, 2.029396489931454, 202168, 0.05, 0.025),
+    # a bracket end whose load came from a looser inner tolerance than the final one (the
+    # non-restarting CG with the old bracketing: stuck 1.04e-4 from the load at tol 1e-4)
+    (True, 0.6892740811646629, 0.2292171889825911, 3.388413774427282, 245569, 0.02, 7.352453787351764e-05),
+])
+def test_capped_load_control_converges(periodic, hurst, slope, cutoff, seed, hardness, mean_pressure):
+    n = 128
+    surf = datasets.fractal_surface((n, n), 1.0, hurst=hurst, rms_slope=slope, short_cutoff=cutoff / n, seed=seed,
+                                    periodic=periodic, units="um")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        r = Scene(surf, hardness=hardness).solve(mean_pressure=mean_pressure, tol=1e-4)
+    assert bool(r.converged) and int(r.iterations) < 1000
+    np.testing.assert_allclose(float(r.mean_pressure), mean_pressure, rtol=1e-4)
+    assert float(r.pressure.max()) <= hardness
+
+
 def test_nonconvergence_is_flagged():
     surf = datasets.fractal_surface((64, 64), 1.0, hurst=0.8, rms_slope=0.1, seed=5, units="um")
     with pytest.warns(ConvergenceWarning):
