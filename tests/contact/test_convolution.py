@@ -101,3 +101,13 @@ def test_solve_reports_progress_through_callback():
     assert [it for it, _ in seen] == list(range(len(seen)))
     assert len(seen) == int(r.iterations) + 1
     assert seen[-1][1] <= 1e-8 < seen[0][1]
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("shape", [(32, 48), (33,)])
+def test_self_stiffness_is_the_displacement_under_a_unit_impulse(periodic, shape):
+    conv = Convolution(shape, (0.5, 0.7)[: len(shape)], 2.0, periodic=periodic)
+    centre = tuple(n // 2 for n in shape)
+    p = np.zeros(shape)
+    p[centre] = 1.0
+    np.testing.assert_allclose(conv.self_stiffness, conv(p)[centre], rtol=1e-12)

@@ -153,6 +153,18 @@ class Convolution:
         self._plan = None
         self._buffers = None
         self._single = None
+        self._self_stiffness = None
+
+    @property
+    def self_stiffness(self) -> float:
+        """``G(0)``: the displacement of a pixel under a unit pressure on itself (length/modulus units).
+
+        A unit impulse has ``|x̂| = 1`` at every frequency, so by Parseval its energy is the mean of
+        the Green's function over the FFT grid (rfft multiplicities counted) — no transform needed.
+        """
+        if self._self_stiffness is None:
+            self._self_stiffness = float(np.sum(self._energy_weights, dtype=np.float64)) / 2
+        return self._self_stiffness
 
     def single_precision(self) -> "Convolution":
         """The same operator in float32 (itself when already float32), built once.

@@ -209,7 +209,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
 
     # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
     # the step of joining points when no CG step exists (e.g. fully plastic)
-    kii = float(conv.energy(_unit_spectrum(conv, shape)))
+    kii = conv.self_stiffness
     tau_fallback = 0.25 / kii if kii > 0 else 0.0
 
     u = displacement()
@@ -335,18 +335,6 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     if load_control and idx.size:
         delta = float(np.mean((u.reshape(-1) - wf)[idx], dtype=np.float64))
     return result(p, u, delta, it, residual, converged)
-
-
-def _unit_spectrum(conv, shape):
-    """Spectrum of a unit pressure on one pixel (its energy is the self-stiffness ``G(0)``)."""
-    flat = conv.input_flat
-    flat.fill(0)
-    centre = np.ravel_multi_index(tuple(n // 2 for n in shape), shape)
-    i = conv.buffer_index(np.array([centre]))
-    flat[i] = 1
-    spec = conv.forward()
-    flat[i] = 0
-    return spec
 
 
 def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, initial):
