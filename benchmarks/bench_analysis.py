@@ -14,23 +14,16 @@ xtopo/SurfaceTopography time ratio (< 1: xtopo faster).
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
+import os
+import sys
 
 import numpy as np
 
 import xtopo  # noqa: F401
 from xtopo.datasets import fractal_surface
 
-
-def _timeit(fn, repeats):
-    fn()  # warm-up (plans, caches, imports)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _timing import median_time  # noqa: E402
 
 
 def cases(ds, st_topo, n):
@@ -69,8 +62,8 @@ def main(argv=None):
         for name, (fx, fs) in cases(ds, st_topo, n).items():
             if args.only and name not in args.only:
                 continue
-            tx = _timeit(fx, args.repeats)
-            ts = _timeit(fs, args.repeats)
+            tx = median_time(fx, args.repeats)
+            ts = median_time(fs, args.repeats)
             print(f"{n:>6} {name:<12} {tx:>10.4f} {ts:>10.4f} {tx / ts:>7.2f}", flush=True)
 
 

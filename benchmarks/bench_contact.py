@@ -38,6 +38,9 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, ROOT)
+sys.path.insert(0, HERE)
+
+from _timing import median_time  # noqa: E402
 
 MEAN_PRESSURE = 0.005  # p/E*; with an rms slope of 0.1 this gives roughly 10 % contact
 
@@ -63,16 +66,7 @@ def fft_pair_time(shape, threads, repeat=7):
 
     a = np.random.default_rng(0).random(shape)
 
-    def median_time(f):
-        f()
-        ts = []
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            f()
-            ts.append(time.perf_counter() - t0)
-        return statistics.median(ts)
-
-    best = median_time(lambda: sfft.irfftn(sfft.rfftn(a, workers=threads), s=shape, workers=threads))
+    best = median_time(lambda: sfft.irfftn(sfft.rfftn(a, workers=threads), s=shape, workers=threads), repeat)
     try:
         import pyfftw
     except ImportError:
@@ -84,7 +78,7 @@ def fft_pair_time(shape, threads, repeat=7):
     bwd = pyfftw.FFTW(spec, r_out, axes=tuple(range(len(shape))), direction="FFTW_BACKWARD",
                       flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"), threads=threads)
     r_in[...] = a
-    return min(best, median_time(lambda: (fwd.execute(), bwd.execute())))
+    return min(best, median_time(lambda: (fwd.execute(), bwd.execute()), repeat))
 
 
 def transform_floor(conv, repeat=7):
@@ -100,17 +94,8 @@ def transform_floor(conv, repeat=7):
     for c in {id(conv): conv, id(single): single}.values():
         c.input[...] = rng.random(conv.shape)
 
-    def median_time(f):
-        f()
-        ts = []
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            f()
-            ts.append(time.perf_counter() - t0)
-        return statistics.median(ts)
-
-    direction = median_time(lambda: single.energy(single.forward())) if single is not conv else 0.0
-    return direction + median_time(lambda: conv.inverse(conv.forward()))
+    direction = median_time(lambda: single.energy(single.forward()), repeat) if single is not conv else 0.0
+    return direction + median_time(lambda: conv.inverse(conv.forward()), repeat)
 
 
 def run_xtopo(n, periodic, tol, repeat, dtype="float64"):
