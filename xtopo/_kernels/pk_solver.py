@@ -220,8 +220,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         p_mean = (float(np.sum(pI, dtype=np.float64)) + (H or 0) * pl.size) / w.size
         scale = max(float(np.max(np.abs(u))), p_mean * kii) or 1.0
     delta = float(penetration) if not load_control else 0.0
-    restart = True
-    G_old = 1.0
+    G_old = 0.0
     residual = math.inf
     converged = False
     it = 0
@@ -261,18 +260,17 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         tau = 0.0
         if nI:
             G = _dot(gI, gI)
-            if restart or G_old <= 0 or tI.size != nI:
-                tI = gI.copy()
-            else:
-                tI *= dtype.type(G / G_old)
+            # conjugate to the last direction (t starts at 0, and is 0 on points that just joined);
+            # one that is no longer downhill — the sets moved under it — restarts from g
+            for beta in (G / G_old if G_old > 0 else 0.0, 0.0):
+                tI *= dtype.type(beta)
                 tI += gI
-            if load_control:
-                tI -= dtype.type(np.sum(tI, dtype=np.float64) / nI)
-            G_old = G
-            slope = _dot(gI, tI)
-            if not slope > 0:  # the sets moved under the old direction: not downhill any more
-                tI = gI - dtype.type(np.sum(gI, dtype=np.float64) / nI) if load_control else gI.copy()
+                if load_control:
+                    tI -= dtype.type(np.sum(tI, dtype=np.float64) / nI)
                 slope = _dot(gI, tI)
+                if slope > 0:
+                    break
+            G_old = G
             ebuf.put((idx, tI))
             counts["fft"] += 1
             denom = econv.energy(econv.forward())
@@ -309,7 +307,6 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             if H is not None and capped.any():
                 pl = np.concatenate([pl, idx[capped]])
             idx, pI, tI = idx[keep], pI[keep], tI[keep]
-        restart = False
         for where, value in joined:
             if H is not None:
                 full = value >= H
