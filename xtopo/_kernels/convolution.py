@@ -176,10 +176,14 @@ class Convolution:
         if self.dtype == np.float32:
             return self
         if self._single is None:
-            spacing, modulus = self._geometry
-            self._single = Convolution(self.shape, spacing, modulus, periodic=self.periodic, dtype="float32",
-                                       backend=self.backend, greens=self.greens)
+            self._single = self.replica("float32")
         return self._single
+
+    def replica(self, dtype=None) -> "Convolution":
+        """A new operator on the same grid (own buffers and plans; ``dtype`` defaults to this one's)."""
+        spacing, modulus = self._geometry
+        return Convolution(self.shape, spacing, modulus, periodic=self.periodic, dtype=dtype or self.dtype,
+                           backend=self.backend, greens=self.greens)
 
     # -- plans and buffers ----------------------------------------------------------------------
     def __getstate__(self):
@@ -232,7 +236,7 @@ class Convolution:
         # FFTW does not normalise the inverse: fold 1/M into the Green's function
         gmul = (self.greens / self.dtype.type(np.prod(self.fft_shape))).astype(self.dtype)
         self._buffers = {"in": r_in, "active": r_in[..., : self.shape[-1]], "spec": spec, "gmul": gmul,
-                         "out": r_out[..., : self.shape[-1]]}
+                         "out": r_out[..., : self.shape[-1]], "out_full": r_out}
 
     # -- the two halves ---------------------------------------------------------------------------
     @property
@@ -244,6 +248,14 @@ class Convolution:
     def input_flat(self) -> np.ndarray:
         """The whole input buffer, flattened (index it with :meth:`buffer_index`)."""
         return self._ensure()["in"].reshape(-1)
+
+    @property
+    def output_flat(self) -> np.ndarray:
+        """The whole real output buffer of :meth:`inverse`, flattened (index it with :meth:`buffer_index`).
+
+        Valid after :meth:`inverse` (its values are those of the last call).
+        """
+        return self._ensure()["out_full"].reshape(-1)
 
     def buffer_index(self, flat_index: np.ndarray) -> np.ndarray:
         """Positions in :attr:`input_flat` of flat indices of the active grid."""
@@ -297,9 +309,11 @@ class Convolution:
         if self.periodic or self.ndim == 1:
             axes = tuple(range(-self.ndim, 0))
             r = sfft.irfftn(spectrum, s=self.fft_shape, axes=axes, workers=w, overwrite_x=True)
-            return r[..., :n] if self.ndim == 1 else r
-        f = sfft.ifft(spectrum, axis=0, workers=w, overwrite_x=True)[: self.shape[0]]
-        return sfft.irfft(f, n=self.fft_shape[-1], axis=-1, workers=w, overwrite_x=True)[:, :n]
+        else:
+            f = sfft.ifft(spectrum, axis=0, workers=w, overwrite_x=True)[: self.shape[0]]
+            r = sfft.irfft(f, n=self.fft_shape[-1], axis=-1, workers=w, overwrite_x=True)
+        b["out_full"] = r
+        return r[..., :n]
 
     # -- whole convolution ----------------------------------------------------------------------
     def __call__(self, p: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:

@@ -58,11 +58,15 @@ import numpy as np
 __all__ = ["polonsky_keer", "PKResult"]
 
 _NONE = np.empty(0, np.intp)
+#: A float32 increment is trusted while the residual stays above this fraction of its value at the last
+#: exact (working-precision) evaluation.
+_REFRESH = 1e-3
 
 
 class PKResult(dict):
     """Dict with keys ``pressure``, ``displacement``, ``gap``, ``penetration``, ``load``,
-    ``iterations``, ``residual``, ``converged``, ``convolutions``, ``plastic``."""
+    ``iterations``, ``residual``, ``converged``, ``convolutions``, ``transforms``,
+    ``exact_convolutions`` (those in the working precision), ``plastic``."""
 
     __getattr__ = dict.__getitem__
 
@@ -92,6 +96,155 @@ class _Buffer:
         for i, (_, v) in zip(idx, pairs):
             self.flat[i] = v
         self.set = np.concatenate(idx) if len(idx) > 1 else idx[0]
+
+
+def _flatnonzero_sparse(mask: np.ndarray) -> np.ndarray:
+    """``np.flatnonzero`` of a flat bool array with few true entries: scans 8 bytes at a time."""
+    n8 = mask.size - mask.size % 8
+    words = np.flatnonzero(mask[:n8].view(np.uint64))
+    rows, cols = np.nonzero(mask[:n8].reshape(-1, 8)[words])
+    found = words[rows] * 8 + cols
+    tail = np.flatnonzero(mask[n8:])
+    return np.concatenate([found, tail + n8]) if tail.size else found
+
+
+class _Displacements:
+    """The iterate's gaps: exact at a reference, single-precision increments in between.
+
+    With reference pressures ``p_ref`` whose displacements ``u_ref = G * p_ref`` were computed
+    in the working precision, ``u = u_ref + G * (p - p_ref)`` where the increment is a float32
+    convolution. Its rounding (~1e-7 of the increment) shrinks with the increment, which
+    shrinks with the residual: refreshing the reference whenever the residual has fallen by
+    :data:`_REFRESH`, and before convergence is declared, keeps the gaps accurate well below
+    the residual, at the price of a float32 instead of a float64 convolution per iteration.
+
+    Buffers kept up to date point by point (only where the sets or pressures change):
+
+    * the increment's input ``p - p_ref`` (zero right after a refresh);
+    * the search direction's input (``t`` on the CG set, zero elsewhere), a second float32
+      operator, so neither is cleared and rewritten each iteration;
+    * ``c = u_ref - w - δ_ref`` on the active grid in the working precision, and in float32
+      with ``+inf`` on the contact (the overlap test of the free points, one pass).
+    """
+
+    def __init__(self, conv, w, counts):
+        self.conv = conv
+        self.mixed = conv.dtype != np.float32
+        self.low = conv.single_precision() if self.mixed else conv.replica()
+        self.direction = self.low.replica()
+        self.w = w.reshape(-1)
+        self.counts = counts
+        n = self.w.size
+        self.c = np.empty(n, w.dtype)
+        self.c_low = np.empty(w.shape, self.low.dtype)   # active-grid shape, like the output view
+        self.d_low = np.empty(w.shape, self.low.dtype)
+        self.mask = np.empty(n, bool)
+        self.p_ref = np.zeros(n, w.dtype)
+        self.support = _NONE
+        self.delta_ref = 0.0
+        self.fresh = True                                 # no increment since the last refresh
+        for c in (self.low, self.direction):
+            c.input_flat.fill(0)
+        self._index = self.low.buffer_index
+
+    # -- the reference ------------------------------------------------------------------------
+    def refresh(self, idx, pI, pl, H, delta):
+        """Make the current pressures the reference: one convolution in the working precision."""
+        flat = self.conv.input_flat
+        flat.fill(0)
+        flat[self.conv.buffer_index(idx)] = pI
+        if pl.size:
+            flat[self.conv.buffer_index(pl)] = H
+        self.counts["exact"] += 1
+        self.counts["conv"] += 1
+        self.counts["fft"] += 2
+        u = self.conv.inverse(self.conv.forward())
+        np.subtract(u, self.w.reshape(u.shape), out=self.c.reshape(u.shape))
+        self.c -= self.c.dtype.type(delta)
+        cl = self.c_low.reshape(-1)
+        cl[...] = self.c
+        self.hide(idx)
+        self.hide(pl)
+        self.p_ref[self.support] = 0
+        self.p_ref[idx] = pI
+        if pl.size:
+            self.p_ref[pl] = H
+        self.support = np.concatenate([idx, pl]) if pl.size else idx.copy()
+        self.delta_ref = float(delta)
+        self.low.input_flat.fill(0)
+        self.fresh = True
+
+    def hide(self, where):
+        """Leave points out of the overlap test (they joined the contact)."""
+        self.c_low.reshape(-1)[where] = np.inf
+
+    def show(self, where):
+        """Put free points back into the overlap test."""
+        self.c_low.reshape(-1)[where] = self.c[where]
+
+    # -- the iterate --------------------------------------------------------------------------
+    def update(self, idx, pI, changed):
+        """Increment ``G * (p - p_ref)`` of the current pressures (one float32 convolution).
+
+        ``changed``: ``(points, pressure)`` pairs of points that left the CG set or joined the
+        plastic one since the last call (their pressure is now 0 or the hardness).
+        """
+        flat, pr, ix = self.low.input_flat, self.p_ref, self._index
+        dt = flat.dtype
+        for where, value in changed:
+            if where.size:
+                flat[ix(where)] = (value - pr[where]).astype(dt, copy=False)
+        flat[ix(idx)] = (pI - pr[idx]).astype(dt, copy=False)
+        self.counts["conv"] += 1
+        self.counts["fft"] += 2
+        self.inc2d = self.low.inverse(self.low.forward())
+        self.fresh = False
+
+    def at(self, where):
+        """``u - w - δ_ref`` at flat indices (working precision)."""
+        d = np.take(self.c, where)
+        if not self.fresh:
+            d += np.take(self.low.output_flat, self._index(where))
+        return d
+
+    def below(self, level, hidden):
+        """Flat indices of the free points where ``u - w - δ_ref < level``."""
+        if self.fresh:   # exact: the working-precision gaps with the contact left out
+            d = self.c.copy()
+            for h in hidden:
+                d[h] = np.inf
+            np.less(d, d.dtype.type(level), out=self.mask)
+        else:
+            np.add(self.c_low, self.inc2d, out=self.d_low)
+            np.less(self.d_low.reshape(-1), self.d_low.dtype.type(level), out=self.mask)
+        return _flatnonzero_sparse(self.mask)
+
+    def set_direction(self, idx, tI, gone):
+        """Write the search direction (``tI`` on ``idx``, zero on the points ``gone`` from the set)
+        and return its energy ``Σ t (G*t)`` (one float32 forward transform)."""
+        flat, ix = self.direction.input_flat, self._index
+        if gone.size:
+            flat[ix(gone)] = 0
+        flat[ix(idx)] = tI.astype(flat.dtype, copy=False)
+        self.counts["fft"] += 1
+        return self.direction.energy(self.direction.forward())
+
+    def energy_of(self, pairs):
+        """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
+        transform); the direction buffer is cleared — the next :meth:`set_direction` rewrites it."""
+        flat, ix = self.direction.input_flat, self._index
+        flat.fill(0)
+        for where, value in pairs:
+            flat[ix(where)] = value
+        self.counts["fft"] += 1
+        e = self.direction.energy(self.direction.forward())
+        for where, _ in pairs:
+            flat[ix(where)] = 0
+        return e
+
+    def displacement(self):
+        """Dense exact displacements ``u`` (right after a refresh)."""
+        return self.c + self.w + self.c.dtype.type(self.delta_ref)
 
 
 def _initial_pressure(conv, w, *, pixel_area, load, penetration, H, initial):
@@ -167,14 +320,15 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     shape = w.shape
     H = None if hardness is None else dtype.type(hardness)
     load_control = load is not None
-    counts = {"conv": 0, "fft": 0}
+    counts = {"conv": 0, "fft": 0, "exact": 0}
 
     def result(p, u, delta, it, res, ok):
         g = u - w - dtype.type(delta)
         plastic = (p >= H) if H is not None else np.zeros(shape, bool)
         return PKResult(pressure=p, displacement=u, gap=np.maximum(g, 0), penetration=float(delta),
                         load=float(pixel_area * np.sum(p, dtype=np.float64)), iterations=it, residual=float(res),
-                        converged=bool(ok), convolutions=counts["conv"], transforms=counts["fft"], plastic=plastic)
+                        converged=bool(ok), convolutions=counts["conv"], transforms=counts["fft"],
+                        exact_convolutions=counts["exact"], plastic=plastic)
 
     if load_control and load <= 0:
         z = np.zeros(shape, dtype)
@@ -192,63 +346,54 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     pI = p0[idx]
     del p0
     tI = np.zeros(idx.size, dtype)
-    wf = w.reshape(-1)
-    d = np.empty(shape, dtype)
-    df = d.reshape(-1)
-    mask = np.empty(shape, bool)
-    buf = _Buffer(conv)
-    # the step length's denominator Σ t (G*t) in single precision (exact u keeps the iterates honest)
-    econv = conv.single_precision() if hasattr(conv, "single_precision") else conv
-    ebuf = _Buffer(econv) if econv is not conv else buf
-
-    def displacement():
-        buf.put((idx, pI), (pl, H if H is not None else 0))
-        counts["conv"] += 1
-        counts["fft"] += 2
-        return conv.inverse(conv.forward())
+    disp = _Displacements(conv, w, counts)
 
     # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
     # the step of joining points when no CG step exists (e.g. fully plastic)
     kii = conv.self_stiffness
     tau_fallback = 0.25 / kii if kii > 0 else 0.0
 
-    u = displacement()
+    delta = float(penetration) if not load_control else 0.0
+    disp.refresh(idx, pI, pl, H, delta)
     scale = _length_scale(w)
     if not scale > 0:
         # a flat surface: the deformation by the starting pressures (at least one pixel's own
         # indentation under their mean — a periodic flat under uniform pressure does not move)
         p_mean = (float(np.sum(pI, dtype=np.float64)) + (H or 0) * pl.size) / w.size
-        scale = max(float(np.max(np.abs(u))), p_mean * kii) or 1.0
-    delta = float(penetration) if not load_control else 0.0
+        scale = max(float(np.max(np.abs(disp.displacement()))), p_mean * kii) or 1.0
     G_old = 0.0
+    gone = _NONE
     residual = math.inf
     converged = False
     it = 0
-    for it in range(maxiter + 1):
-        np.subtract(u, w, out=d)
-        dI = np.take(df, idx)
+    while True:
+        # gaps relative to the reference: g = (u - w - δ_ref) - (δ - δ_ref)
+        dI = disp.at(idx)
         nI = idx.size
         if load_control and nI:
-            delta = float(np.sum(dI, dtype=np.float64)) / nI
-        gI = dI - dtype.type(delta)
+            delta = disp.delta_ref + float(np.sum(dI, dtype=np.float64)) / nI
+        shift = dtype.type(delta - disp.delta_ref)
+        gI = dI - shift
         res = float(np.max(np.abs(gI))) if nI else 0.0
         # plastic points whose gap opened
         if pl.size:
-            g_pl = np.take(df, pl) - dtype.type(delta)
+            g_pl = disp.at(pl) - shift
             opened = g_pl > 0
             if opened.any():
                 res = max(res, float(np.max(g_pl[opened])))
-        # overlaps outside the contact (free points with g < 0): hide the contact, then compare
-        df[idx] = np.inf
-        df[pl] = np.inf
-        np.less(d, dtype.type(delta), out=mask)
-        if mask.any():
-            over = np.flatnonzero(mask)
-            g_over = np.take(df, over) - dtype.type(delta)
+        # overlaps outside the contact (free points with g < 0)
+        over = disp.below(shift, (idx, pl))
+        if over.size:
+            g_over = disp.at(over) - shift
             res = max(res, -float(np.min(g_over)))
-        else:
-            over = _NONE
         residual = res / scale
+        if disp.fresh:
+            refresh_below = residual * _REFRESH
+        elif disp.mixed and residual <= max(tol, refresh_below):
+            # the increment's float32 rounding scales with it: before trusting a small residual,
+            # and whenever it has fallen by _REFRESH, evaluate in the working precision
+            disp.refresh(idx, pI, pl, H, delta)
+            continue
         if callback is not None:
             callback(it, residual)
         if residual <= tol:
@@ -256,6 +401,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             break
         if it == maxiter:
             break
+        it += 1
         # conjugate direction on the CG set
         tau = 0.0
         if nI:
@@ -271,9 +417,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
                 if slope > 0:
                     break
             G_old = G
-            ebuf.put((idx, tI))
-            counts["fft"] += 1
-            denom = econv.energy(econv.forward())
+            denom = disp.set_direction(idx, tI, gone)
             if denom > 0 and slope > 0:
                 tau = slope / denom
                 pI -= dtype.type(tau) * tI
@@ -286,35 +430,50 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             # more points join than the CG set holds (a warm start far from the solution, the first
             # iterations): the CG step says nothing about them and may push them all past the hardness
             # and back. Take the steepest-descent step of the joining points, Σ g² / Σ g (G*g), at most
-            ebuf.put(*moving)
-            counts["fft"] += 1
-            energy = econv.energy(econv.forward())
+            energy = disp.energy_of(moving)
             if energy > 0:
                 step = min(step, dtype.type(sum(_dot(g, g) for _, g in moving) / energy))
         joined = []
         if over.size:
-            joined.append((over, -step * g_over))
+            joined.append((over, -step * g_over, False))
         if pl.size and opened.any():
-            leave = pl[opened]
-            joined.append((leave, H - step * g_pl[opened]))
+            joined.append((pl[opened], H - step * g_pl[opened], True))
             pl = pl[~opened]
-        # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic)
+        # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic); `changed` collects the
+        # points whose pressure became 0 or H (the increment's input), `gone` those that left the set
+        changed = []
         keep = pI > 0
         if H is not None:
             capped = pI >= H
             keep &= ~capped
+        gone = _NONE
         if not keep.all():
+            gone = idx[~keep]
             if H is not None and capped.any():
                 pl = np.concatenate([pl, idx[capped]])
+                changed.append((idx[capped], H))
+                freed = idx[~keep & ~capped]
+            else:
+                freed = gone
+            changed.append((freed, 0))
+            disp.show(freed)
             idx, pI, tI = idx[keep], pI[keep], tI[keep]
-        for where, value in joined:
+        for where, value, was_plastic in joined:
             if H is not None:
                 full = value >= H
                 if full.any():
                     pl = np.concatenate([pl, where[full]])
+                    if not was_plastic:
+                        changed.append((where[full], H))
+                        disp.hide(where[full])
                     where, value = where[~full], value[~full]
             pos = value > 0
+            if was_plastic and not pos.all():
+                changed.append((where[~pos], 0))
+                disp.show(where[~pos])
             where, value = where[pos], value[pos]
+            if not was_plastic:
+                disp.hide(where)
             idx = np.concatenate([idx, where])
             pI = np.concatenate([pI, value.astype(dtype, copy=False)])
             tI = np.concatenate([tI, np.zeros(where.size, dtype)])
@@ -322,15 +481,17 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             total = pixel_area * float(np.sum(pI, dtype=np.float64))
             if total > 0:
                 pI *= dtype.type(load / total)
-        u = displacement()
+        disp.update(idx, pI, changed)
+    if not disp.fresh:  # the returned displacements are exact convolutions of the pressures
+        disp.refresh(idx, pI, pl, H, delta)
     p = np.zeros(w.size, dtype)
     p[idx] = pI
     if pl.size:
         p[pl] = H
     p = p.reshape(shape)
-    u = np.array(u, dtype=dtype)
+    u = disp.displacement().reshape(shape)
     if load_control and idx.size:
-        delta = float(np.mean((u.reshape(-1) - wf)[idx], dtype=np.float64))
+        delta = float(np.mean((u.reshape(-1) - w.reshape(-1))[idx], dtype=np.float64))
     return result(p, u, delta, it, residual, converged)
 
 
@@ -350,7 +511,7 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
     at a looser tolerance is solved again before it is trusted (its load may be off by
     more than the target accuracy, and the bracket may not hold the root at all).
     """
-    state = {"p": initial, "iterations": 0, "convolutions": 0, "transforms": 0, "solves": 0, "tol": tol,
+    state = {"p": initial, "iterations": 0, "convolutions": 0, "transforms": 0, "exact_convolutions": 0, "solves": 0, "tol": tol,
              "best": None}
 
     def solve_at(delta):
@@ -358,7 +519,7 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
             cold = state["p"] is None
             res = polonsky_keer(conv, w, pixel_area=pixel_area, penetration=delta, hardness=hardness,
                                 tol=state["tol"], maxiter=maxiter, initial=state["p"])
-            for key in ("iterations", "convolutions", "transforms"):
+            for key in ("iterations", "convolutions", "transforms", "exact_convolutions"):
                 state[key] += res[key]
             state["solves"] += 1
             if res.iterations > 0 or cold or state["tol"] <= 1e-13:
@@ -423,7 +584,7 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
                                        maxiter=maxiter, initial=state["p"]), hi[1])
     res, f_best = state["best"]
     load_err = abs(f_best) / load
-    for key in ("iterations", "convolutions", "transforms", "solves"):
+    for key in ("iterations", "convolutions", "transforms", "exact_convolutions", "solves"):
         res[key] = state[key]
     res["residual"] = max(res.residual, load_err)
     res["converged"] = bool(res.converged and load_err <= tol)

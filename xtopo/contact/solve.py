@@ -157,8 +157,8 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
         kw["callback"] = callback
     res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=scene.hardness, **kw)
     if elastic is not None:
-        res["iterations"] += elastic.iterations
-        res["convolutions"] += elastic.convolutions
+        for key in ("iterations", "convolutions", "transforms", "exact_convolutions"):
+            res[key] += elastic[key]
     return res
 
 
