@@ -29,15 +29,19 @@ fractal surfaces (69 instead of 379 on 1024², tol 1e-6; benchmarks/bench_contac
 to the same solution: the sets change in nearly every iteration, so restarting reduces
 the method to steepest descent.
 
-Cost per iteration: the denominator ``Σ t (G*t)`` comes from the spectrum of ``t`` by
-Parseval (a forward transform, no inverse; in single precision — a step length needs a
-few digits, and a float32 transform costs about half a float64 one), and ``u`` is the
-exact convolution of the projected pressures (a forward and an inverse transform, in the
-working precision) — about 1.3 FFT pairs, whatever the projection changed, and no drift
-of ``u``: the residual and the convergence test always see exact displacements. Everything else works on the index arrays
-of the contact and plastic sets (a fraction of the grid) but for three passes over the
-grid: ``u - w``, the overlap test and its indices. The transform buffers are written
-only where the pressures or the direction are non-zero.
+Cost per iteration (:class:`_Displacements`): three float32 transforms — the forward
+transform of ``t`` whose spectrum gives the denominator ``Σ t (G*t)`` by Parseval (no
+inverse), and the forward and inverse transforms of the pressure increment ``p - p_ref``
+since the last exact reference ``u_ref = G * p_ref`` (working precision). A float32
+transform costs 0.25–0.4 of a float64 forward+inverse pair, so the transforms of an
+iteration cost about one float64 pair; the reference is refreshed (one working-precision
+convolution) each time the residual has fallen by three decades and before convergence is
+declared, so the residual that stops the iteration is always that of exact
+displacements, and the returned ``u`` is exact. Everything else works on the index arrays
+of the contact and plastic sets (a fraction of the grid) but for two passes over the
+grid (the float32 overlap test and its indices). The transform buffers are written only
+where the pressures or the direction changed. In a float32 scene the increments are in the
+working precision already: the reference is computed at the start and refreshed only at the end.
 
 Convergence: ``residual ≤ tol`` where
 
@@ -79,23 +83,6 @@ def _length_scale(w) -> float:
 def _dot(a, b) -> float:
     """Inner product in float64 without BLAS (its thread pool contends with the FFT threads)."""
     return float(np.einsum("i,i->", a, b, dtype=np.float64))
-
-
-class _Buffer:
-    """Writes sparse fields into the convolution's input buffer, clearing only what was set."""
-
-    def __init__(self, conv):
-        self.conv = conv
-        self.flat = conv.input_flat
-        self.flat.fill(0)
-        self.set = np.empty(0, np.intp)
-
-    def put(self, *pairs):
-        self.flat[self.set] = 0
-        idx = [self.conv.buffer_index(i) for i, _ in pairs]
-        for i, (_, v) in zip(idx, pairs):
-            self.flat[i] = v
-        self.set = np.concatenate(idx) if len(idx) > 1 else idx[0]
 
 
 def _flatnonzero_sparse(mask: np.ndarray) -> np.ndarray:

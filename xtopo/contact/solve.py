@@ -196,6 +196,7 @@ def to_dataset(scene, res, tol) -> xr.Dataset:
         "modulus": scene.modulus, "modulus_units": scene.modulus_units, "periodic": int(scene.periodic),
         "boundary": "periodic" if scene.periodic else "free", "solver": "Polonsky-Keer constrained CG",
         "tolerance": tol, "dtype": scene.dtype.name, "convolutions": int(res.convolutions),
+        "exact_convolutions": int(res.exact_convolutions),
     }
     if scene.hardness is not None:
         ds.attrs["hardness"] = scene.hardness
