@@ -1,6 +1,7 @@
 """The convolution's halves (forward / Parseval energy / inverse) and the solver built on them."""
 
 import numpy as np
+import xarray as xr
 import pytest
 
 from xtopo._kernels import convolution as conv_mod
@@ -116,3 +117,24 @@ def test_self_stiffness_is_the_displacement_under_a_unit_impulse(periodic, shape
     p = np.zeros(shape)
     p[centre] = 1.0
     np.testing.assert_allclose(conv.self_stiffness, conv(p)[centre], rtol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+@pytest.mark.parametrize("backend", ["scipy", "pyfftw"])
+def test_repeated_solves_on_one_scene_plan_nothing_and_agree(monkeypatch, dtype, backend):
+    """The solver's work operators are built once per scene; reusing their buffers leaves no trace."""
+    from xtopo import datasets
+    from xtopo.contact import Scene
+
+    ds = datasets.fractal_surface((32, 32), 1.0, hurst=0.8, rms_slope=0.1, seed=4, periodic=False, units="um")
+    scene = Scene(ds, dtype=dtype, backend=backend)
+    first = scene.solve(mean_pressure=0.02, tol=1e-6)
+    other = scene.solve(mean_pressure=0.005, tol=1e-6)     # different sets and pressures in the buffers
+    built = []
+    for name in ("_build_pyfftw", "_build_scipy"):
+        original = getattr(Convolution, name)
+        monkeypatch.setattr(Convolution, name, lambda self, _f=original: (built.append(self), _f(self))[1])
+    again = scene.solve(mean_pressure=0.02, tol=1e-6)
+    assert built == []
+    assert int(other.iterations) > 0 and float(other.area_fraction) < float(first.area_fraction)
+    xr.testing.assert_identical(again.drop_attrs(), first.drop_attrs())

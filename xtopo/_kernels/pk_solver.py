@@ -117,8 +117,8 @@ class _Displacements:
     def __init__(self, conv, w, counts):
         self.conv = conv
         self.mixed = conv.dtype != np.float32
-        self.low = conv.single_precision() if self.mixed else conv.replica()
-        self.direction = self.low.replica()
+        self.low = conv.single_precision() if self.mixed else conv.workspace("increment")
+        self.direction = conv.workspace("direction", self.low.dtype)
         self.w = w.reshape(-1)
         self.counts = counts
         n = self.w.size
