@@ -59,9 +59,11 @@ import math
 
 import numpy as np
 
-__all__ = ["polonsky_keer", "PKResult"]
+__all__ = ["polonsky_keer", "PKResult", "COUNTERS"]
 
 _NONE = np.empty(0, np.intp)
+#: The work counters of a :class:`PKResult`, summed when one solve is made of several.
+COUNTERS = ("iterations", "convolutions", "transforms", "exact_convolutions")
 #: A float32 increment is trusted while the residual stays above this fraction of its value at the last
 #: exact (working-precision) evaluation.
 _REFRESH = 1e-3
@@ -478,7 +480,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     p = p.reshape(shape)
     u = disp.displacement().reshape(shape)
     if load_control and idx.size:
-        delta = float(np.mean((u.reshape(-1) - w.reshape(-1))[idx], dtype=np.float64))
+        delta = disp.delta_ref + float(np.mean(disp.at(idx), dtype=np.float64))
     return result(p, u, delta, it, residual, converged)
 
 
@@ -498,15 +500,14 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
     at a looser tolerance is solved again before it is trusted (its load may be off by
     more than the target accuracy, and the bracket may not hold the root at all).
     """
-    state = {"p": initial, "iterations": 0, "convolutions": 0, "transforms": 0, "exact_convolutions": 0, "solves": 0, "tol": tol,
-             "best": None}
+    state = {"p": initial, "solves": 0, "tol": tol, "best": None, **dict.fromkeys(COUNTERS, 0)}
 
     def solve_at(delta):
         while True:
             cold = state["p"] is None
             res = polonsky_keer(conv, w, pixel_area=pixel_area, penetration=delta, hardness=hardness,
                                 tol=state["tol"], maxiter=maxiter, initial=state["p"])
-            for key in ("iterations", "convolutions", "transforms", "exact_convolutions"):
+            for key in COUNTERS:
                 state[key] += res[key]
             state["solves"] += 1
             if res.iterations > 0 or cold or state["tol"] <= 1e-13:
@@ -571,7 +572,7 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
                                        maxiter=maxiter, initial=state["p"]), hi[1])
     res, f_best = state["best"]
     load_err = abs(f_best) / load
-    for key in ("iterations", "convolutions", "transforms", "exact_convolutions", "solves"):
+    for key in (*COUNTERS, "solves"):
         res[key] = state[key]
     res["residual"] = max(res.residual, load_err)
     res["converged"] = bool(res.converged and load_err <= tol)

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from .._kernels.pk_solver import polonsky_keer
+from .._kernels.pk_solver import COUNTERS, polonsky_keer
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 from ..presets import resolve as resolve_preset
@@ -157,7 +157,7 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
         kw["callback"] = callback
     res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=scene.hardness, **kw)
     if elastic is not None:
-        for key in ("iterations", "convolutions", "transforms", "exact_convolutions"):
+        for key in COUNTERS:
             res[key] += elastic[key]
     return res
 
