@@ -37,6 +37,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from . import fft as _fft
+from . import compiled
 from .greens import free_greens, padded_shape, periodic_greens
 from .spectra import rfft_multiplicity
 
@@ -146,9 +147,8 @@ class Convolution:
         self.greens = greens.astype(self.dtype, copy=False)
         m = float(np.prod(self.fft_shape))
         weights = rfft_multiplicity(1, self.fft_shape[-1])
-        # Parseval: Σ x (G*x) = Σ_k w_k G_k |x̂_k|² / M, laid out like the interleaved re/im view of x̂
-        # (one contiguous pass; twice the memory of G but faster than strided real/imag passes)
-        self._energy_weights = np.repeat(self.greens * (weights / m).astype(self.dtype), 2, axis=-1)
+        # Parseval: Σ x (G*x) = Σ_k w_k G_k |x̂_k|² / M
+        self._energy_weights = self.greens * (weights / m).astype(self.dtype)
         self._real_shape = self.shape[:-1] + (self.fft_shape[-1],)
         self._plan = None
         self._buffers = None
@@ -163,7 +163,7 @@ class Convolution:
         the Green's function over the FFT grid (rfft multiplicities counted) — no transform needed.
         """
         if self._self_stiffness is None:
-            self._self_stiffness = float(np.sum(self._energy_weights, dtype=np.float64)) / 2
+            self._self_stiffness = float(np.sum(self._energy_weights, dtype=np.float64))
         return self._self_stiffness
 
     def single_precision(self) -> "Convolution":
@@ -264,12 +264,19 @@ class Convolution:
         """
         return self._ensure()["out_full"].reshape(-1)
 
+    @property
+    def buffer_layout(self) -> tuple[int, int]:
+        """``(nx, pad)``: active row length and the extra columns of a buffer row (0 on periodic and line
+        grids). Flat active index ``i`` sits at ``i + (i // nx) * pad`` in the buffers."""
+        pad = 0 if self.ndim == 1 else self._real_shape[-1] - self.shape[-1]
+        return self.shape[-1], pad
+
     def buffer_index(self, flat_index: np.ndarray) -> np.ndarray:
         """Positions in :attr:`input_flat` of flat indices of the active grid."""
-        pad = self._real_shape[-1] - self.shape[-1]
-        if pad == 0 or self.ndim == 1:
+        nx, pad = self.buffer_layout
+        if pad == 0:
             return flat_index
-        return flat_index + (flat_index // self.shape[-1]) * pad
+        return flat_index + (flat_index // nx) * pad
 
     def forward(self) -> np.ndarray:
         """Spectrum of the input buffer on the FFT grid (unnormalised, ``rfft`` layout)."""
@@ -291,14 +298,16 @@ class Convolution:
 
     def energy(self, spectrum: np.ndarray) -> float:
         """``Σ x (G * x)`` over the grid for the input ``x`` whose spectrum is given (Parseval)."""
-        v = spectrum.view(self.dtype)
-        if v.ndim == 2 and self.dtype == np.float32:
-            # rows summed in float32 (a few thousand terms each), the rows in float64: casting the
-            # whole spectrum to float64 would cost more than the transform saved
-            rows = np.einsum("ij,ij,ij->i", self._energy_weights, v, v)
-            return float(np.sum(rows, dtype=np.float64))
-        v = v.reshape(-1)
-        return float(np.einsum("i,i,i->", self._energy_weights.reshape(-1), v, v, dtype=np.float64))
+        v = np.ascontiguousarray(spectrum).view(self.dtype).reshape(-1)
+        return compiled.energy(self._energy_weights.reshape(-1), v)
+
+    @staticmethod
+    def _multiply(spectrum: np.ndarray, weights: np.ndarray) -> None:
+        """``spectrum *= weights`` (real) in place: one compiled pass without complex casts."""
+        if spectrum.flags.c_contiguous and weights.flags.c_contiguous and weights.shape == spectrum.shape:
+            compiled.scale_spectrum(spectrum.view(weights.dtype).reshape(-1), weights.reshape(-1))
+        else:
+            spectrum *= weights
 
     def inverse(self, spectrum: np.ndarray) -> np.ndarray:
         """``G * x`` on the active grid from the spectrum of ``x`` (which is overwritten).
@@ -306,7 +315,7 @@ class Convolution:
         With pyFFTW the result is a view of an internal buffer, valid until the next call.
         """
         b = self._ensure()
-        spectrum *= b["gmul"]
+        self._multiply(spectrum, b["gmul"])
         if self.backend == "pyfftw":
             for plan in self._plan[1]:
                 plan.execute()

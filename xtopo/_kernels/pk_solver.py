@@ -59,6 +59,8 @@ import math
 
 import numpy as np
 
+from . import compiled
+
 __all__ = ["polonsky_keer", "PKResult", "COUNTERS"]
 
 _NONE = np.empty(0, np.intp)
@@ -85,16 +87,6 @@ def _length_scale(w) -> float:
 def _dot(a, b) -> float:
     """Inner product in float64 without BLAS (its thread pool contends with the FFT threads)."""
     return float(np.einsum("i,i->", a, b, dtype=np.float64))
-
-
-def _flatnonzero_sparse(mask: np.ndarray) -> np.ndarray:
-    """``np.flatnonzero`` of a flat bool array with few true entries: scans 8 bytes at a time."""
-    n8 = mask.size - mask.size % 8
-    words = np.flatnonzero(mask[:n8].view(np.uint64))
-    rows, cols = np.nonzero(mask[:n8].reshape(-1, 8)[words])
-    found = words[rows] * 8 + cols
-    tail = np.flatnonzero(mask[n8:])
-    return np.concatenate([found, tail + n8]) if tail.size else found
 
 
 class _Displacements:
@@ -125,16 +117,17 @@ class _Displacements:
         self.counts = counts
         n = self.w.size
         self.c = np.empty(n, w.dtype)
-        self.c_low = np.empty(w.shape, self.low.dtype)   # active-grid shape, like the output view
-        self.d_low = np.empty(w.shape, self.low.dtype)
-        self.mask = np.empty(n, bool)
+        self.c_low = np.empty(n, self.low.dtype)
+        self.where = np.empty(n, np.intp)                  # the overlap scan's output
+        self.where_gaps = np.empty(n, w.dtype)
+        self.nx, self.pad = self.low.buffer_layout
         self.p_ref = np.zeros(n, w.dtype)
         self.support = _NONE
         self.delta_ref = 0.0
         self.fresh = True                                 # no increment since the last refresh
         for c in (self.low, self.direction):
             c.input_flat.fill(0)
-        self._index = self.low.buffer_index
+        self._no_increment = np.zeros(1, self.low.dtype)
 
     # -- the reference ------------------------------------------------------------------------
     def refresh(self, idx, pI, pl, H, delta):
@@ -150,8 +143,7 @@ class _Displacements:
         u = self.conv.inverse(self.conv.forward())
         np.subtract(u, self.w.reshape(u.shape), out=self.c.reshape(u.shape))
         self.c -= self.c.dtype.type(delta)
-        cl = self.c_low.reshape(-1)
-        cl[...] = self.c
+        self.c_low[...] = self.c
         self.hide(idx)
         self.hide(pl)
         self.p_ref[self.support] = 0
@@ -165,63 +157,61 @@ class _Displacements:
 
     def hide(self, where):
         """Leave points out of the overlap test (they joined the contact)."""
-        self.c_low.reshape(-1)[where] = np.inf
+        self.c_low[where] = np.inf
 
     def show(self, where):
         """Put free points back into the overlap test."""
-        self.c_low.reshape(-1)[where] = self.c[where]
+        self.c_low[where] = self.c[where]
 
     # -- the iterate --------------------------------------------------------------------------
-    def update(self, idx, pI, changed):
+    def _increment(self):
+        """The float32 increment ``G * (p - p_ref)`` in its buffer layout (a placeholder when fresh)."""
+        return self._no_increment if self.fresh else self.low.output_flat
+
+    def update(self, idx, pI, changed, scale):
         """Increment ``G * (p - p_ref)`` of the current pressures (one float32 convolution).
 
         ``changed``: ``(points, pressure)`` pairs of points that left the CG set or joined the
-        plastic one since the last call (their pressure is now 0 or the hardness).
+        plastic one since the last call (their pressure is now 0 or the hardness). ``pI`` is
+        multiplied by ``scale`` first (in place; load control).
         """
-        flat, pr, ix = self.low.input_flat, self.p_ref, self._index
-        dt = flat.dtype
+        flat, nx, pad = self.low.input_flat, self.nx, self.pad
         for where, value in changed:
             if where.size:
-                flat[ix(where)] = (value - pr[where]).astype(dt, copy=False)
-        flat[ix(idx)] = (pI - pr[idx]).astype(dt, copy=False)
+                compiled.write_values(where, float(value), self.p_ref, nx, pad, flat)
+        compiled.write_increment(pI, idx, self.p_ref, pI.dtype.type(scale), nx, pad, flat)
         self.counts["conv"] += 1
         self.counts["fft"] += 2
-        self.inc2d = self.low.inverse(self.low.forward())
+        self.low.inverse(self.low.forward())
         self.fresh = False
 
     def at(self, where):
-        """``u - w - δ_ref`` at flat indices (working precision)."""
-        d = np.take(self.c, where)
-        if not self.fresh:
-            d += np.take(self.low.output_flat, self._index(where))
-        return d
+        """``u - w - δ_ref`` at flat indices (working precision) and their sum."""
+        d = np.empty(where.size, self.c.dtype)
+        total = compiled.gather_gaps(self.c, self._increment(), where, self.nx, self.pad, self.fresh, d)
+        return d, total
 
-    def below(self, level, hidden):
-        """Flat indices of the free points where ``u - w - δ_ref < level``."""
-        if self.fresh:   # exact: the working-precision gaps with the contact left out
-            d = self.c.copy()
-            for h in hidden:
-                d[h] = np.inf
-            np.less(d, d.dtype.type(level), out=self.mask)
-        else:
-            np.add(self.c_low, self.inc2d, out=self.d_low)
-            np.less(self.d_low.reshape(-1), self.d_low.dtype.type(level), out=self.mask)
-        return _flatnonzero_sparse(self.mask)
+    def overlaps(self, shift):
+        """Free points where ``u - w - δ_ref < shift`` (the gap is negative), their gaps and the lowest."""
+        k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
+                                        shift, self.low.dtype.type(shift), shift, self.where, self.where_gaps)
+        return self.where[:k].copy(), self.where_gaps[:k].copy(), low
 
-    def set_direction(self, idx, tI, gone):
-        """Write the search direction (``tI`` on ``idx``, zero on the points ``gone`` from the set)
-        and return its energy ``Σ t (G*t)`` (one float32 forward transform)."""
-        flat, ix = self.direction.input_flat, self._index
-        if gone.size:
-            flat[ix(gone)] = 0
-        flat[ix(idx)] = tI.astype(flat.dtype, copy=False)
+    def set_direction(self, idx, tI, gI, beta, zero_sum, gone):
+        """Make ``tI`` the conjugate direction (:func:`compiled.set_direction`), write it into the
+        direction operator (zero on the points ``gone`` from the set) and return ``(slope, energy)``:
+        ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
+        slope = compiled.set_direction(tI, gI, beta, zero_sum, idx, gone, self.nx, self.pad,
+                                       self.direction.input_flat)
+        if not slope > 0:
+            return slope, 0.0
         self.counts["fft"] += 1
-        return self.direction.energy(self.direction.forward())
+        return slope, self.direction.energy(self.direction.forward())
 
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
         transform); the direction buffer is cleared — the next :meth:`set_direction` rewrites it."""
-        flat, ix = self.direction.input_flat, self._index
+        flat, ix = self.direction.input_flat, self.low.buffer_index
         flat.fill(0)
         for where, value in pairs:
             flat[ix(where)] = value
@@ -357,24 +347,22 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     it = 0
     while True:
         # gaps relative to the reference: g = (u - w - δ_ref) - (δ - δ_ref)
-        dI = disp.at(idx)
+        gI, total = disp.at(idx)
         nI = idx.size
         if load_control and nI:
-            delta = disp.delta_ref + float(np.sum(dI, dtype=np.float64)) / nI
+            delta = disp.delta_ref + total / nI
         shift = dtype.type(delta - disp.delta_ref)
-        gI = dI - shift
-        res = float(np.max(np.abs(gI))) if nI else 0.0
+        res, G = compiled.center(gI, shift)
         # plastic points whose gap opened
         if pl.size:
-            g_pl = disp.at(pl) - shift
+            g_pl = disp.at(pl)[0] - shift
             opened = g_pl > 0
             if opened.any():
                 res = max(res, float(np.max(g_pl[opened])))
         # overlaps outside the contact (free points with g < 0)
-        over = disp.below(shift, (idx, pl))
+        over, g_over, lowest = disp.overlaps(shift)
         if over.size:
-            g_over = disp.at(over) - shift
-            res = max(res, -float(np.min(g_over)))
+            res = max(res, -lowest)
         residual = res / scale
         if disp.fresh:
             refresh_below = residual * _REFRESH
@@ -391,25 +379,16 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         if it == maxiter:
             break
         it += 1
-        # conjugate direction on the CG set
+        # conjugate direction on the CG set: conjugate to the last one (t starts at 0, and is 0 on
+        # points that just joined); one that is no longer downhill — the sets moved under it —
+        # restarts from g
         tau = 0.0
         if nI:
-            G = _dot(gI, gI)
-            # conjugate to the last direction (t starts at 0, and is 0 on points that just joined);
-            # one that is no longer downhill — the sets moved under it — restarts from g
-            for beta in (G / G_old if G_old > 0 else 0.0, 0.0):
-                tI *= dtype.type(beta)
-                tI += gI
-                if load_control:
-                    tI -= dtype.type(np.sum(tI, dtype=np.float64) / nI)
-                slope = _dot(gI, tI)
-                if slope > 0:
-                    break
+            beta = G / G_old if G_old > 0 else 0.0
+            slope, denom = disp.set_direction(idx, tI, gI, dtype.type(beta), load_control, gone)
             G_old = G
-            denom = disp.set_direction(idx, tI, gone)
             if denom > 0 and slope > 0:
                 tau = slope / denom
-                pI -= dtype.type(tau) * tI
         step = dtype.type(tau if tau > 0 else tau_fallback)
         # joins: overlapping free points, plastic points whose gap opened → p ← p - step g
         moving = [(over, g_over)] if over.size else []
@@ -431,22 +410,18 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic); `changed` collects the
         # points whose pressure became 0 or H (the increment's input), `gone` those that left the set
         changed = []
-        keep = pI > 0
-        if H is not None:
-            capped = pI >= H
-            keep &= ~capped
-        gone = _NONE
-        if not keep.all():
-            gone = idx[~keep]
-            if H is not None and capped.any():
-                pl = np.concatenate([pl, idx[capped]])
-                changed.append((idx[capped], H))
-                freed = idx[~keep & ~capped]
+        kept, gone, capped = compiled.step_project(idx, pI, tI, dtype.type(tau), H if H is not None else np.inf,
+                                                   H is not None)   # the set compacted in place
+        if gone.size:
+            if capped.any():
+                pl = np.concatenate([pl, gone[capped]])
+                changed.append((gone[capped], H))
+                freed = gone[~capped]
             else:
                 freed = gone
             changed.append((freed, 0))
             disp.show(freed)
-            idx, pI, tI = idx[keep], pI[keep], tI[keep]
+            idx, pI, tI = idx[:kept], pI[:kept], tI[:kept]
         for where, value, was_plastic in joined:
             if H is not None:
                 full = value >= H
@@ -466,11 +441,12 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
             idx = np.concatenate([idx, where])
             pI = np.concatenate([pI, value.astype(dtype, copy=False)])
             tI = np.concatenate([tI, np.zeros(where.size, dtype)])
+        scale_p = 1.0
         if load_control:
             total = pixel_area * float(np.sum(pI, dtype=np.float64))
             if total > 0:
-                pI *= dtype.type(load / total)
-        disp.update(idx, pI, changed)
+                scale_p = load / total
+        disp.update(idx, pI, changed, scale_p)
     if not disp.fresh:  # the returned displacements are exact convolutions of the pressures
         disp.refresh(idx, pI, pl, H, delta)
     p = np.zeros(w.size, dtype)
@@ -480,7 +456,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     p = p.reshape(shape)
     u = disp.displacement().reshape(shape)
     if load_control and idx.size:
-        delta = disp.delta_ref + float(np.mean(disp.at(idx), dtype=np.float64))
+        delta = disp.delta_ref + disp.at(idx)[1] / idx.size
     return result(p, u, delta, it, residual, converged)
 
 

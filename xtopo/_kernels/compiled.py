@@ -1,0 +1,237 @@
+"""Compiled passes of the contact solver's iteration (numba), one pass where numpy takes several.
+
+The Polonsky–Keer iteration (:mod:`xtopo._kernels.pk_solver`) works on index sets: the gaps
+of the contact set, the overlaps among the free points, the search direction and the
+pressure increments written into transform buffers. Written with numpy each of these is a
+chain of gathers, temporaries and reductions — about sixty calls per iteration, which cost
+more than the iteration's FFTs on grids up to 1024². Each function here does one such chain
+in one pass, without temporaries.
+
+Index conventions: ``idx`` are flat indices into the active grid; the transform buffers
+are addressed through :func:`_slot` (``nx`` the active row length, ``pad`` the extra
+columns of a buffer row: 0 on periodic and line grids, ``2nx - nx`` on padded ones).
+Functions release the GIL (solves in threads run in parallel) and are cached on disk
+after their first compilation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["gather_gaps", "center", "scan_overlaps", "set_direction", "energy", "scale_spectrum", "step_project",
+           "write_increment", "write_values"]
+
+_JIT = dict(nogil=True, cache=True)
+# reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
+_FAST = dict(_JIT, fastmath={"reassoc", "contract", "nsz", "arcp"})
+
+
+@njit(inline="always")
+def _at(i):
+    """An index known to be ≥ 0: no wraparound test (which would keep loops from vectorising)."""
+    return np.uintp(i)
+
+
+@njit(inline="always")
+def _slot(i, nx, pad):
+    """Position in a transform buffer of flat active-grid index ``i``."""
+    return np.uintp(i + (i // nx) * pad) if pad else np.uintp(i)
+
+
+@njit(**_FAST)
+def gather_gaps(c, inc, idx, nx, pad, fresh, out):
+    """``out = c[idx] (+ inc[slot(idx)])`` — the iterate's ``u - w - δ_ref`` on ``idx``; returns its sum.
+
+    ``c`` is ``u_ref - w - δ_ref`` (working precision), ``inc`` the float32 increment buffer
+    (ignored when ``fresh``).
+    """
+    s = 0.0
+    for j in range(idx.size):
+        i = idx[j]
+        d = c[_at(i)]
+        if not fresh:
+            d += inc[_slot(i, nx, pad)]
+        out[j] = d
+        s += d
+    return s
+
+
+@njit(**_FAST)
+def center(d, shift):
+    """``d -= shift`` in place; returns ``(max |d|, Σ d²)`` (the residual and the CG norm)."""
+    big = 0.0
+    ss = 0.0
+    for j in range(d.size):
+        v = d[j] - shift
+        d[j] = v
+        a = abs(v)
+        if a > big:
+            big = a
+        ss += float(v) * float(v)
+    return big, ss
+
+
+_BLOCK = 256  # the overlap scan's block: overlaps are few, so most blocks are passed on a count alone
+
+
+@njit(**_FAST)
+def _block_hits(c, c_low, inc, fresh, level, level_low):
+    """Number of overlapping free points in a block (slices: a count over them vectorises)."""
+    k = 0
+    if fresh:
+        for i in range(c.size):
+            k += (c_low[i] != np.inf) & (c[i] < level)
+    else:
+        for i in range(c.size):
+            k += c_low[i] + inc[i] < level_low
+    return k
+
+
+@njit(nogil=True, cache=True)
+def scan_overlaps(c, c_low, inc, nx, pad, fresh, level, level_low, shift, where, gaps):
+    """Free points that overlap: ``u - w - δ_ref < level``; returns their count and the lowest gap.
+
+    Points with ``c_low = +inf`` (the contact and plastic sets) are skipped. After a refresh
+    (``fresh``) the test is on the working-precision ``c`` against ``level``, otherwise on
+    ``c_low + inc`` in float32 against ``level_low``. The first ``count`` entries of ``where``
+    receive the indices, of ``gaps`` their gaps ``c + inc - shift`` (working precision).
+    Row segments of :data:`_BLOCK` points without overlaps are passed on a vectorised count.
+    """
+    k = 0
+    low = np.inf
+    for r in range(c.size // nx):
+        a0 = r * nx
+        b0 = r * (nx + pad)
+        for lo in range(0, nx, _BLOCK):
+            hi = min(lo + _BLOCK, nx)
+            cs = c[a0 + lo:a0 + hi]
+            cls = c_low[a0 + lo:a0 + hi]
+            incs = inc[:0] if fresh else inc[b0 + lo:b0 + hi]
+            if not _block_hits(cs, cls, incs, fresh, level, level_low):
+                continue
+            for j in range(hi - lo):
+                cl = cls[j]
+                if cl == np.inf:
+                    continue
+                if fresh:
+                    if not cs[j] < level:
+                        continue
+                    g = cs[j] - shift
+                else:
+                    v = incs[j]
+                    if not cl + v < level_low:
+                        continue
+                    g = (cs[j] + v) - shift
+                where[k] = a0 + lo + j
+                gaps[k] = g
+                low = min(low, g)
+                k += 1
+    return k, low
+
+
+@njit(**_FAST)
+def set_direction(t, g, beta, zero_sum, idx, gone, nx, pad, buf):
+    """Conjugate direction ``t ← β t + g`` (zero-sum when ``zero_sum``), written into ``buf``.
+
+    A direction that is not downhill (``Σ g t ≤ 0``) restarts from ``g`` (``β = 0``). ``buf``
+    gets ``t`` on ``idx`` and zeros on ``gone`` (points that left the set). Returns the slope
+    ``Σ g t`` (≤ 0 when even ``t = g`` is not downhill).
+    """
+    n = t.size
+    slope = 0.0
+    for attempt in range(2):
+        b = beta if attempt == 0 else beta * 0
+        s = 0.0
+        for j in range(n):
+            v = t[j] * b + g[j]
+            t[j] = v
+            s += v
+        if zero_sum and n:
+            m = s / n
+            for j in range(n):
+                t[j] -= m
+        slope = 0.0
+        for j in range(n):
+            slope += float(g[j]) * float(t[j])
+        if slope > 0:
+            break
+    for j in range(gone.size):
+        buf[_slot(gone[j], nx, pad)] = 0
+    for j in range(n):
+        buf[_slot(idx[j], nx, pad)] = t[j]
+    return slope
+
+
+@njit(**_FAST)
+def energy(weights, spectrum):
+    """``Σ_k w_k |x̂_k|²`` in float64; ``spectrum`` holds the interleaved real and imaginary parts."""
+    e = 0.0
+    for k in range(weights.size):
+        a = spectrum[2 * k]
+        b = spectrum[2 * k + 1]
+        e += float(weights[k]) * (float(a) * float(a) + float(b) * float(b))
+    return e
+
+
+@njit(**_FAST)
+def scale_spectrum(spectrum, weights):
+    """``x̂_k *= w_k`` in place for real weights (interleaved real and imaginary parts)."""
+    for k in range(weights.size):
+        w = weights[k]
+        spectrum[2 * k] *= w
+        spectrum[2 * k + 1] *= w
+
+
+@njit(nogil=True, cache=True)
+def step_project(idx, p, t, tau, hardness, capped_flag):
+    """``p ← p - τ t`` and the projection onto ``0 < p < H``, compacting the set in place.
+
+    The points that stay are moved to the front of ``idx``, ``p`` and ``t`` (order kept).
+    Returns ``(count, gone, capped)``: how many stay, the flat indices of those that left and
+    flags of the latter that left at the cap (``p ≥ H``; only when ``capped_flag``).
+    """
+    n = idx.size
+    m = 0
+    for j in range(n):
+        v = p[j] - tau * t[j]
+        p[j] = v
+        m += (v > 0) & ((not capped_flag) | (v < hardness))
+    gone = np.empty(n - m, np.intp)
+    capped = np.zeros(n - m, np.bool_)
+    if m == n:
+        return m, gone, capped
+    a = 0
+    b = 0
+    for j in range(n):
+        v = p[j]
+        if v > 0 and not (capped_flag and v >= hardness):
+            idx[a] = idx[j]
+            p[a] = v
+            t[a] = t[j]
+            a += 1
+        else:
+            gone[b] = idx[j]
+            capped[b] = capped_flag and v >= hardness
+            b += 1
+    return m, gone, capped
+
+
+@njit(**_FAST)
+def write_increment(p, idx, p_ref, scale, nx, pad, buf):
+    """``p *= scale`` (unless ``scale`` is 1), then ``buf[slot(idx)] = p - p_ref[idx]`` (the increment)."""
+    for j in range(idx.size):
+        v = p[j]
+        if scale != 1:
+            v = v * scale
+            p[j] = v
+        i = idx[j]
+        buf[_slot(i, nx, pad)] = v - p_ref[_at(i)]
+
+
+@njit(nogil=True, cache=True)
+def write_values(where, value, p_ref, nx, pad, buf):
+    """``buf[slot(where)] = value - p_ref[where]`` for one pressure ``value`` (0 or the hardness)."""
+    for j in range(where.size):
+        i = where[j]
+        buf[_slot(i, nx, pad)] = value - p_ref[_at(i)]
