@@ -144,7 +144,7 @@ class Convolution:
         if greens is None:
             make = periodic_greens if self.periodic else free_greens
             greens = make(self.shape, spacing, modulus)
-        self.greens = greens.astype(self.dtype, copy=False)
+        self.greens = np.ascontiguousarray(greens, dtype=self.dtype)  # one pass over it per transform
         m = float(np.prod(self.fft_shape))
         weights = rfft_multiplicity(1, self.fft_shape[-1])
         # Parseval: Σ x (G*x) = Σ_k w_k G_k |x̂_k|² / M
