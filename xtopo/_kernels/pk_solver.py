@@ -1,4 +1,4 @@
-"""Polonsky–Keer constrained conjugate gradients for the contact problem eq. (20), numpy only.
+"""Polonsky–Keer constrained conjugate gradients for the contact problem eq. (20).
 
 Problem (paper §5.4): a rigid surface with heights ``w ≤ 0`` (measured from its highest
 point) is pressed by ``δ`` (the penetration) into an elastic flat. With displacements
@@ -38,9 +38,11 @@ iteration cost about one float64 pair; the reference is refreshed (one working-p
 convolution) each time the residual has fallen by three decades and before convergence is
 declared, so the residual that stops the iteration is always that of exact
 displacements, and the returned ``u`` is exact. Everything else works on the index arrays
-of the contact and plastic sets (a fraction of the grid) but for two passes over the
-grid (the float32 overlap test and its indices). The transform buffers are written only
-where the pressures or the direction changed. In a float32 scene the increments are in the
+of the contact and plastic sets (a fraction of the grid) but for one pass over the grid
+(the float32 overlap test, which skips row segments without overlaps on a vectorised
+count). These passes are compiled (:mod:`xtopo._kernels.compiled`, numba): one pass each
+where numpy needed a chain of gathers, temporaries and reductions. The transform buffers
+are written only where the pressures or the direction changed. In a float32 scene the increments are in the
 working precision already: the reference is computed at the start and refreshed only at the end.
 
 Convergence: ``residual ≤ tol`` where

@@ -1,0 +1,153 @@
+"""The compiled passes of the contact solver against their numpy definitions (xtopo._kernels.compiled)."""
+
+import numpy as np
+import pytest
+
+from xtopo._kernels import compiled
+
+# (active shape, buffer row length): a line, a periodic grid, a padded free-boundary grid whose rows
+# are not a multiple of the scan's block, and one row longer than a block
+LAYOUTS = [((1000,), 1000), ((37, 300), 300), ((37, 300), 600), ((5, 700), 1400)]
+
+
+def _layout(shape, row):
+    nx = shape[-1]
+    pad = 0 if len(shape) == 1 else row - nx
+    rows = int(np.prod(shape[:-1]))
+    return nx, pad, rows
+
+
+def _buffer_of(active, nx, pad, rows, rng):
+    """A float32 transform buffer holding ``active`` (flat) in its rows, noise in the padding."""
+    buf = rng.standard_normal(rows * (nx + pad)).astype(np.float32)
+    buf.reshape(rows, nx + pad)[:, :nx] = active.reshape(rows, nx)
+    return buf
+
+
+@pytest.mark.parametrize("shape,row", LAYOUTS)
+@pytest.mark.parametrize("fresh", [False, True])
+def test_scan_overlaps_matches_numpy(shape, row, fresh):
+    rng = np.random.default_rng(3)
+    nx, pad, rows = _layout(shape, row)
+    n = rows * nx
+    c = rng.random(n) + 1e-3
+    c[rng.choice(n, 25, replace=False)] = -rng.random(25) * 1e-2   # a few overlaps, scattered
+    c[: nx // 3] = -1.0                                            # and a run of them
+    inc_active = (rng.standard_normal(n) * 1e-3).astype(np.float32)
+    inc = _buffer_of(inc_active, nx, pad, rows, rng)
+    c_low = c.astype(np.float32)
+    contact = rng.choice(n, n // 10, replace=False)
+    c_low[contact] = np.inf
+    level, shift = 2e-4, 1.5e-4
+    where, gaps = np.empty(n, np.intp), np.empty(n)
+
+    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, level, np.float32(level), shift, where, gaps)
+
+    free = c_low != np.inf
+    if fresh:
+        expect = np.flatnonzero(free & (c < level))
+        expect_gaps = c[expect] - shift
+    else:
+        expect = np.flatnonzero(free & (c_low + inc_active < np.float32(level)))
+        expect_gaps = c[expect] + inc_active[expect] - shift
+    assert k == expect.size > 20
+    np.testing.assert_array_equal(where[:k], expect)
+    np.testing.assert_allclose(gaps[:k], expect_gaps, rtol=1e-12, atol=0)
+    assert low == pytest.approx(expect_gaps.min(), rel=1e-12)
+
+
+@pytest.mark.parametrize("shape,row", LAYOUTS)
+@pytest.mark.parametrize("fresh", [False, True])
+def test_gather_gaps_matches_numpy(shape, row, fresh):
+    rng = np.random.default_rng(4)
+    nx, pad, rows = _layout(shape, row)
+    n = rows * nx
+    c = rng.standard_normal(n)
+    inc_active = rng.standard_normal(n).astype(np.float32)
+    inc = _buffer_of(inc_active, nx, pad, rows, rng)
+    idx = rng.permutation(n)[: n // 4]
+    out = np.empty(idx.size)
+    total = compiled.gather_gaps(c, inc, idx, nx, pad, fresh, out)
+    expect = c[idx] if fresh else c[idx] + inc_active[idx]
+    np.testing.assert_allclose(out, expect, rtol=1e-12)
+    assert total == pytest.approx(expect.sum(), rel=1e-9)
+
+
+@pytest.mark.parametrize("shape,row", LAYOUTS)
+def test_writes_land_in_the_active_part(shape, row):
+    rng = np.random.default_rng(5)
+    nx, pad, rows = _layout(shape, row)
+    n = rows * nx
+    buf = np.zeros(rows * (nx + pad), np.float32)
+    p_ref = rng.random(n)
+    idx = rng.permutation(n)[: n // 3]
+    p = rng.random(idx.size)
+    p0 = p.copy()
+    compiled.write_increment(p, idx, p_ref, 2.0, nx, pad, buf)
+    np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
+    others = np.setdiff1d(np.arange(n), idx)[:50]
+    compiled.write_values(others, 0.5, p_ref, nx, pad, buf)
+    active = buf.reshape(rows, nx + pad)[:, :nx].reshape(-1)
+    np.testing.assert_allclose(active[idx], (2 * p0 - p_ref[idx]).astype(np.float32), rtol=1e-6)
+    np.testing.assert_allclose(active[others], (0.5 - p_ref[others]).astype(np.float32), rtol=1e-6)
+    assert not buf.reshape(rows, nx + pad)[:, nx:].any()        # the padding stays zero
+
+
+@pytest.mark.parametrize("hardness", [None, 0.8])
+def test_step_project_compacts_in_order(hardness):
+    rng = np.random.default_rng(6)
+    idx = rng.permutation(5000)[:1000]
+    p = rng.random(1000)
+    t = rng.standard_normal(1000)
+    tau = 0.3
+    new = p - tau * t
+    keep = (new > 0) & (new < hardness if hardness is not None else True)
+    H = np.inf if hardness is None else hardness
+    i0, t0 = idx.copy(), t.copy()
+    m, gone, capped = compiled.step_project(idx, p, t, tau, H, hardness is not None)
+    assert m == keep.sum() and 0 < m < 1000
+    np.testing.assert_array_equal(idx[:m], i0[keep])
+    np.testing.assert_allclose(p[:m], new[keep])
+    np.testing.assert_array_equal(t[:m], t0[keep])
+    np.testing.assert_array_equal(gone, i0[~keep])
+    expect_capped = new[~keep] >= hardness if hardness is not None else np.zeros((~keep).sum(), bool)
+    np.testing.assert_array_equal(capped, expect_capped)
+    assert capped.any() == (hardness is not None)
+
+
+@pytest.mark.parametrize("zero_sum", [False, True])
+def test_set_direction_conjugates_and_restarts(zero_sum):
+    rng = np.random.default_rng(7)
+    n, nx, pad = 400, 40, 40
+    idx = rng.permutation(n)[:120]
+    g = rng.standard_normal(120)
+    t = rng.standard_normal(120)
+    buf = np.ones(n // nx * (nx + pad), np.float32)
+    gone = np.setdiff1d(np.arange(n), idx)[:10]
+    expect = 0.5 * t + g
+    if zero_sum:
+        expect -= expect.mean()
+    slope = compiled.set_direction(t, g, 0.5, zero_sum, idx, gone, nx, pad, buf)
+    np.testing.assert_allclose(t, expect, rtol=1e-12)
+    assert slope == pytest.approx(g @ expect)
+    slot = lambda i: i + (i // nx) * pad  # noqa: E731
+    np.testing.assert_allclose(buf[slot(idx)], expect.astype(np.float32))
+    assert not buf[slot(gone)].any()
+    # a direction that is not downhill restarts from g
+    t = -100 * g
+    slope = compiled.set_direction(t, g, 1.0, False, idx, gone, nx, pad, buf)
+    np.testing.assert_allclose(t, g)
+    assert slope == pytest.approx(g @ g)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_spectrum_energy_and_scaling(dtype):
+    rng = np.random.default_rng(8)
+    ctype = np.complex64 if dtype == np.float32 else np.complex128
+    spec = (rng.standard_normal((16, 9)) + 1j * rng.standard_normal((16, 9))).astype(ctype)
+    w = rng.random((16, 9)).astype(dtype)
+    e = compiled.energy(w.reshape(-1), spec.view(dtype).reshape(-1))
+    assert e == pytest.approx(float(np.sum(w * np.abs(spec) ** 2)), rel=1e-6)
+    expect = spec * w
+    compiled.scale_spectrum(spec.view(dtype).reshape(-1), w.reshape(-1))
+    np.testing.assert_allclose(spec, expect, rtol=1e-6)
