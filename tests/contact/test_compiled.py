@@ -151,3 +151,12 @@ def test_spectrum_energy_and_scaling(dtype):
     expect = spec * w
     compiled.scale_spectrum(spec.view(dtype).reshape(-1), w.reshape(-1))
     np.testing.assert_allclose(spec, expect, rtol=1e-6)
+
+
+def test_center_reports_nan():
+    d = np.array([1e-9, np.nan, -2e-9])
+    big, ss = compiled.center(d, 0.0)
+    assert np.isnan(big) and np.isnan(ss)
+    d = np.array([1.0, -3.0, 2.0])
+    assert compiled.center(d, 1.0) == (4.0, 0.0 + 16.0 + 1.0)
+    np.testing.assert_array_equal(d, [0.0, -4.0, 1.0])

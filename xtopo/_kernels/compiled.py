@@ -69,6 +69,8 @@ def center(d, shift):
         if a > big:
             big = a
         ss += float(v) * float(v)
+    if ss != ss:  # a nan (the comparisons above skip it) must not pass for a small residual
+        big = np.nan
     return big, ss
 
 
