@@ -17,24 +17,25 @@ def _layout(shape, row):
     return nx, pad, rows
 
 
-def _buffer_of(active, nx, pad, rows, rng):
-    """A float32 transform buffer holding ``active`` (flat) in its rows, noise in the padding."""
+def _increment(shape, row, seed, size):
+    """Random float32 increments on the active grid and the transform buffer holding them in its rows
+    (noise in the padding); returns ``rng, (nx, pad, rows), n, active, buffer``."""
+    rng = np.random.default_rng(seed)
+    nx, pad, rows = _layout(shape, row)
+    n = rows * nx
+    active = (rng.standard_normal(n) * size).astype(np.float32)
     buf = rng.standard_normal(rows * (nx + pad)).astype(np.float32)
     buf.reshape(rows, nx + pad)[:, :nx] = active.reshape(rows, nx)
-    return buf
+    return rng, (nx, pad, rows), n, active, buf
 
 
 @pytest.mark.parametrize("shape,row", LAYOUTS)
 @pytest.mark.parametrize("fresh", [False, True])
 def test_scan_overlaps_matches_numpy(shape, row, fresh):
-    rng = np.random.default_rng(3)
-    nx, pad, rows = _layout(shape, row)
-    n = rows * nx
+    rng, (nx, pad, rows), n, inc_active, inc = _increment(shape, row, 3, 1e-3)
     c = rng.random(n) + 1e-3
     c[rng.choice(n, 25, replace=False)] = -rng.random(25) * 1e-2   # a few overlaps, scattered
     c[: nx // 3] = -1.0                                            # and a run of them
-    inc_active = (rng.standard_normal(n) * 1e-3).astype(np.float32)
-    inc = _buffer_of(inc_active, nx, pad, rows, rng)
     c_low = c.astype(np.float32)
     contact = rng.choice(n, n // 10, replace=False)
     c_low[contact] = np.inf
@@ -59,12 +60,8 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
 @pytest.mark.parametrize("shape,row", LAYOUTS)
 @pytest.mark.parametrize("fresh", [False, True])
 def test_gather_gaps_matches_numpy(shape, row, fresh):
-    rng = np.random.default_rng(4)
-    nx, pad, rows = _layout(shape, row)
-    n = rows * nx
+    rng, (nx, pad, rows), n, inc_active, inc = _increment(shape, row, 4, 1.0)
     c = rng.standard_normal(n)
-    inc_active = rng.standard_normal(n).astype(np.float32)
-    inc = _buffer_of(inc_active, nx, pad, rows, rng)
     idx = rng.permutation(n)[: n // 4]
     out = np.empty(idx.size)
     total = compiled.gather_gaps(c, inc, idx, nx, pad, fresh, out)
