@@ -39,17 +39,17 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     c_low = c.astype(np.float32)
     contact = rng.choice(n, n // 10, replace=False)
     c_low[contact] = np.inf
-    level, shift = 2e-4, 1.5e-4
+    shift = 1.5e-4
     where, gaps = np.empty(n, np.intp), np.empty(n)
 
-    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, level, np.float32(level), shift, where, gaps)
+    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps)
 
     free = c_low != np.inf
     if fresh:
-        expect = np.flatnonzero(free & (c < level))
+        expect = np.flatnonzero(free & (c < shift))
         expect_gaps = c[expect] - shift
     else:
-        expect = np.flatnonzero(free & (c_low + inc_active < np.float32(level)))
+        expect = np.flatnonzero(free & (c_low + inc_active < np.float32(shift)))
         expect_gaps = c[expect] + inc_active[expect] - shift
     assert k == expect.size > 20
     np.testing.assert_array_equal(where[:k], expect)
@@ -82,11 +82,17 @@ def test_writes_land_in_the_active_part(shape, row):
     p0 = p.copy()
     compiled.write_increment(p, idx, p_ref, 2.0, nx, pad, buf)
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
-    others = np.setdiff1d(np.arange(n), idx)[:50]
+    rest = np.setdiff1d(np.arange(n), idx)
+    others, scattered, filled = rest[:50], rest[50:60], rest[60:70]
     compiled.write_values(others, 0.5, p_ref, nx, pad, buf)
+    compiled.scatter(scattered, p_ref[scattered], nx, pad, buf)
+    compiled.scatter(filled, np.full(1, -3.0, np.float32), nx, pad, buf)   # one value at every point
     active = buf.reshape(rows, nx + pad)[:, :nx].reshape(-1)
     np.testing.assert_allclose(active[idx], (2 * p0 - p_ref[idx]).astype(np.float32), rtol=1e-6)
     np.testing.assert_allclose(active[others], (0.5 - p_ref[others]).astype(np.float32), rtol=1e-6)
+    np.testing.assert_allclose(active[scattered], p_ref[scattered].astype(np.float32))
+    np.testing.assert_array_equal(active[filled], -3.0)
+    assert np.count_nonzero(active) == idx.size + 70
     assert not buf.reshape(rows, nx + pad)[:, nx:].any()        # the padding stays zero
 
 

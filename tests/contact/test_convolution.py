@@ -138,3 +138,13 @@ def test_repeated_solves_on_one_scene_plan_nothing_and_agree(monkeypatch, dtype,
     assert built == []
     assert int(other.iterations) > 0 and float(other.area_fraction) < float(first.area_fraction)
     xr.testing.assert_identical(again.drop_attrs(), first.drop_attrs())
+
+
+def test_inverse_refuses_a_strided_spectrum():
+    """The Green's function multiplies the spectrum in place: a strided one (a copy would be lost) is refused."""
+    c = Convolution((8, 8), (1.0, 1.0), periodic=True, backend="scipy")
+    c.input[...] = np.arange(64.0).reshape(8, 8)
+    spectrum = np.repeat(c.forward(), 2, axis=0)[::2]   # same values, every other row of a larger array
+    with pytest.raises(ValueError, match="C-contiguous"):
+        c.inverse(spectrum)
+    np.testing.assert_allclose(c.inverse(np.ascontiguousarray(spectrum)), c(c.input.copy()), rtol=1e-12)

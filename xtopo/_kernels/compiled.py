@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["gather_gaps", "center", "scan_overlaps", "set_direction", "energy", "scale_spectrum", "step_project",
+__all__ = ["slots", "scatter", "gather_gaps", "center", "scan_overlaps", "set_direction", "energy", "scale_spectrum", "step_project",
            "write_increment", "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
@@ -37,6 +37,23 @@ def _at(i):
 def _slot(i, nx, pad):
     """Position in a transform buffer of flat active-grid index ``i``."""
     return np.uintp(i + (i // nx) * pad) if pad else np.uintp(i)
+
+
+@njit(nogil=True, cache=True)
+def slots(where, nx, pad):
+    """Positions in a transform buffer of flat active-grid indices ``where`` (a new array)."""
+    out = np.empty(where.size, np.intp)
+    for j in range(where.size):
+        out[j] = _slot(where[j], nx, pad)
+    return out
+
+
+@njit(nogil=True, cache=True)
+def scatter(where, values, nx, pad, buf):
+    """``buf[slot(where)] = values``; a single value is written at every point."""
+    one = values.size == 1
+    for j in range(where.size):
+        buf[_slot(where[j], nx, pad)] = values[0] if one else values[j]
 
 
 @njit(**_FAST)
@@ -91,15 +108,19 @@ def _block_hits(c, c_low, inc, fresh, level, level_low):
 
 
 @njit(nogil=True, cache=True)
-def scan_overlaps(c, c_low, inc, nx, pad, fresh, level, level_low, shift, where, gaps):
-    """Free points that overlap: ``u - w - δ_ref < level``; returns their count and the lowest gap.
+def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps):
+    """Free points that overlap: ``u - w - δ_ref < shift`` (a negative gap); returns their count and the lowest gap.
 
     Points with ``c_low = +inf`` (the contact and plastic sets) are skipped. After a refresh
-    (``fresh``) the test is on the working-precision ``c`` against ``level``, otherwise on
-    ``c_low + inc`` in float32 against ``level_low``. The first ``count`` entries of ``where``
-    receive the indices, of ``gaps`` their gaps ``c + inc - shift`` (working precision).
-    Row segments of :data:`_BLOCK` points without overlaps are passed on a vectorised count.
+    (``fresh``) the test is on the working-precision ``c``, otherwise on ``c_low + inc`` in
+    the precision of ``c_low`` (``shift`` rounded to it). The first ``count`` entries of
+    ``where`` receive the indices, of ``gaps`` their gaps ``c + inc - shift`` (working
+    precision). Row segments of :data:`_BLOCK` points without overlaps are passed on a
+    vectorised count.
     """
+    rounded = np.empty(1, c_low.dtype)
+    rounded[0] = shift
+    level_low = rounded[0]
     k = 0
     low = np.inf
     for r in range(c.size // nx):
@@ -110,14 +131,14 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, level, level_low, shift, where,
             cs = c[a0 + lo:a0 + hi]
             cls = c_low[a0 + lo:a0 + hi]
             incs = inc[:0] if fresh else inc[b0 + lo:b0 + hi]
-            if not _block_hits(cs, cls, incs, fresh, level, level_low):
+            if not _block_hits(cs, cls, incs, fresh, shift, level_low):
                 continue
             for j in range(hi - lo):
                 cl = cls[j]
                 if cl == np.inf:
                     continue
                 if fresh:
-                    if not cs[j] < level:
+                    if not cs[j] < shift:
                         continue
                     g = cs[j] - shift
                 else:

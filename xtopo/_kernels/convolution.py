@@ -273,10 +273,7 @@ class Convolution:
 
     def buffer_index(self, flat_index: np.ndarray) -> np.ndarray:
         """Positions in :attr:`input_flat` of flat indices of the active grid."""
-        nx, pad = self.buffer_layout
-        if pad == 0:
-            return flat_index
-        return flat_index + (flat_index // nx) * pad
+        return compiled.slots(np.asarray(flat_index, dtype=np.intp).reshape(-1), *self.buffer_layout)
 
     def forward(self) -> np.ndarray:
         """Spectrum of the input buffer on the FFT grid (unnormalised, ``rfft`` layout)."""
@@ -301,21 +298,15 @@ class Convolution:
         v = np.ascontiguousarray(spectrum).view(self.dtype).reshape(-1)
         return compiled.energy(self._energy_weights.reshape(-1), v)
 
-    @staticmethod
-    def _multiply(spectrum: np.ndarray, weights: np.ndarray) -> None:
-        """``spectrum *= weights`` (real) in place: one compiled pass without complex casts."""
-        if spectrum.flags.c_contiguous and weights.flags.c_contiguous and weights.shape == spectrum.shape:
-            compiled.scale_spectrum(spectrum.view(weights.dtype).reshape(-1), weights.reshape(-1))
-        else:
-            spectrum *= weights
-
     def inverse(self, spectrum: np.ndarray) -> np.ndarray:
         """``G * x`` on the active grid from the spectrum of ``x`` (which is overwritten).
 
         With pyFFTW the result is a view of an internal buffer, valid until the next call.
         """
         b = self._ensure()
-        self._multiply(spectrum, b["gmul"])
+        if not spectrum.flags.c_contiguous:  # scaled in place through a flat view: a copy would be lost
+            raise ValueError("the spectrum must be C-contiguous (as forward() returns it)")
+        compiled.scale_spectrum(spectrum.view(self.dtype).reshape(-1), b["gmul"].reshape(-1))
         if self.backend == "pyfftw":
             for plan in self._plan[1]:
                 plan.execute()

@@ -136,9 +136,10 @@ class _Displacements:
         """Make the current pressures the reference: one convolution in the working precision."""
         flat = self.conv.input_flat
         flat.fill(0)
-        flat[self.conv.buffer_index(idx)] = pI
+        nx, pad = self.conv.buffer_layout
+        compiled.scatter(idx, pI, nx, pad, flat)
         if pl.size:
-            flat[self.conv.buffer_index(pl)] = H
+            compiled.scatter(pl, np.full(1, H, flat.dtype), nx, pad, flat)
         self.counts["exact"] += 1
         self.counts["conv"] += 1
         self.counts["fft"] += 2
@@ -196,7 +197,7 @@ class _Displacements:
     def overlaps(self, shift):
         """Free points where ``u - w - δ_ref < shift`` (the gap is negative), their gaps and the lowest."""
         k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
-                                        shift, self.low.dtype.type(shift), shift, self.where, self.where_gaps)
+                                        shift, self.where, self.where_gaps)
         return self.where[:k].copy(), self.where_gaps[:k].copy(), low
 
     def set_direction(self, idx, tI, gI, beta, zero_sum, gone):
@@ -213,14 +214,15 @@ class _Displacements:
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
         transform); the direction buffer is cleared — the next :meth:`set_direction` rewrites it."""
-        flat, ix = self.direction.input_flat, self.low.buffer_index
+        flat, nx, pad = self.direction.input_flat, self.nx, self.pad
         flat.fill(0)
         for where, value in pairs:
-            flat[ix(where)] = value
+            compiled.scatter(where, value, nx, pad, flat)
         self.counts["fft"] += 1
         e = self.direction.energy(self.direction.forward())
+        zero = np.zeros(1, flat.dtype)
         for where, _ in pairs:
-            flat[ix(where)] = 0
+            compiled.scatter(where, zero, nx, pad, flat)
         return e
 
     def displacement(self):
