@@ -118,12 +118,14 @@ class _Displacements:
         self.w = w.reshape(-1)
         self.counts = counts
         n = self.w.size
-        self.c = np.empty(n, w.dtype)
-        self.c_low = np.empty(n, self.low.dtype)
-        self.where = np.empty(n, np.intp)                  # the overlap scan's output
-        self.where_gaps = np.empty(n, w.dtype)
+        work = conv.scratch                                # kept with the operator: paged in once
+        self.c = work("gaps", n, w.dtype)
+        self.c_low = work("gaps_low", n, self.low.dtype)
+        self.where = work("overlaps", n, np.intp)        # the overlap scan's output
+        self.where_gaps = work("overlap_gaps", n, w.dtype)
         self.nx, self.pad = self.low.buffer_layout
-        self.p_ref = np.zeros(n, w.dtype)
+        self.p_ref = work("reference_pressure", n, w.dtype)
+        self.p_ref.fill(0)
         self.support = _NONE
         self.delta_ref = 0.0
         self.fresh = True                                 # no increment since the last refresh
