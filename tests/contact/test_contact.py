@@ -262,6 +262,8 @@ def test_errors():
         Scene(ds, counter=_sphere(8))
     with pytest.raises(ContactError, match="extra dims"):
         Scene(xr.concat([ds, ds], dim="sample"))
+    with pytest.raises(ContactError, match="unknown FFT backend 'cufft'"):
+        Scene(ds, backend="cufft")
     assert issubclass(ContactError, xtopo.XtopoError)
 
 

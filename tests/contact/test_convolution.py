@@ -6,6 +6,7 @@ import pytest
 
 from xtopo._kernels import convolution as conv_mod
 from xtopo._kernels.convolution import Convolution
+from xtopo._kernels.fft import choose_backend
 from xtopo._kernels.pk_solver import polonsky_keer
 
 SHAPES = [(6, 5), (8, 8), (7,), (12,)]
@@ -45,10 +46,13 @@ def test_sparse_writes_through_buffer_index(periodic, backend):
 
 
 def test_backend_choice():
-    assert conv_mod.choose_backend("auto") == "pyfftw"
-    assert conv_mod.choose_backend("scipy") == "scipy"
+    assert choose_backend((256, 256), "auto", planned=True) == "pyfftw"    # plans reused: FFTW from small grids on
+    assert choose_backend((256, 256), "auto") == "scipy"                  # one-shot transforms: pocketfft below 2048²
+    assert choose_backend((2048, 2048), "auto") == "pyfftw"
+    assert choose_backend((256, 256), "scipy", planned=True) == "scipy"
+    assert Convolution((8, 8), (1.0, 1.0), periodic=True).backend == "pyfftw"
     with pytest.raises(ValueError, match="unknown FFT backend"):
-        conv_mod.choose_backend("cufft")
+        choose_backend((8, 8), "cufft")
 
 
 def test_measured_plans_are_remembered(tmp_path, monkeypatch):

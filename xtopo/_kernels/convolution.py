@@ -41,25 +41,12 @@ from . import compiled
 from .greens import free_greens, padded_shape, periodic_greens
 from .spectra import rfft_multiplicity
 
-__all__ = ["Convolution", "choose_backend"]
+__all__ = ["Convolution"]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
 _MEASURE_FROM = 256 * 256
 _THREADS_FROM = 2048 * 2048
 _WISDOM = {"loaded": False}
-
-
-def choose_backend(backend: str = "auto") -> str:
-    """``"pyfftw"`` for ``"auto"`` when pyFFTW imports, else ``"scipy"``; explicit choices pass."""
-    if backend not in ("auto", "scipy", "pyfftw"):
-        raise ValueError(f"unknown FFT backend {backend!r}; use 'auto', 'scipy' or 'pyfftw'")
-    if backend != "auto":
-        return backend
-    try:
-        import pyfftw  # noqa: F401
-    except ImportError:  # pragma: no cover - pyfftw is a dependency
-        return "scipy"
-    return "pyfftw"
 
 
 def _threads(fft_shape) -> int:
@@ -139,7 +126,7 @@ class Convolution:
         self.dtype = np.dtype(dtype)
         self.cdtype = np.dtype(_COMPLEX[self.dtype])
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
-        self.backend = choose_backend(backend)
+        self.backend = _fft.choose_backend(self.fft_shape, backend, planned=True)
         self.workers = _threads(self.fft_shape)
         if greens is None:
             make = periodic_greens if self.periodic else free_greens

@@ -27,19 +27,25 @@ def workers() -> int:
         return os.cpu_count() or 1
 
 
-def choose_backend(shape, backend: str = "auto") -> str:
-    """Return ``"scipy"`` or ``"pyfftw"`` for a transform of ``shape``."""
+def choose_backend(shape, backend: str = "auto", *, planned: bool = False) -> str:
+    """Return ``"scipy"`` or ``"pyfftw"`` for transforms of ``shape``.
+
+    ``"auto"`` takes pyFFTW when it imports and either the plans are built once and reused
+    (``planned``: the contact operator, where planned FFTW runs 1.4–2× faster than pocketfft
+    from 256² on) or the grid has at least 2048² points (one-shot transforms, where planning
+    costs more than it saves on smaller grids). Explicit choices pass.
+    """
     if backend not in ("auto", "scipy", "pyfftw"):
         raise ValueError(f"unknown FFT backend {backend!r}; use 'auto', 'scipy' or 'pyfftw'")
     if backend != "auto":
         return backend
-    if int(np.prod(shape)) >= _PYFFTW_THRESHOLD:
-        try:
-            import pyfftw  # noqa: F401
-        except ImportError:
-            return "scipy"
-        return "pyfftw"
-    return "scipy"
+    if not planned and int(np.prod(shape)) < _PYFFTW_THRESHOLD:
+        return "scipy"
+    try:
+        import pyfftw  # noqa: F401
+    except ImportError:  # pragma: no cover - pyfftw is a dependency
+        return "scipy"
+    return "pyfftw"
 
 
 def _call(name, a, s, axes, backend):

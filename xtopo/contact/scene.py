@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._kernels.convolution import Convolution, choose_backend
+from .._kernels.convolution import Convolution
+from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
 from ..errors import ContactError, GridError
@@ -130,7 +131,10 @@ class Scene:
         self.nominal_area = self.pixel_area * int(np.prod(self.shape))
         self.backend_request = backend
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
-        self.backend = choose_backend(backend)
+        try:
+            self.backend = choose_backend(self.fft_shape, backend, planned=True)
+        except ValueError as err:
+            raise ContactError(str(err)) from None
         self._conv = None
 
     @staticmethod
