@@ -235,6 +235,9 @@ def height_of(obj) -> xr.DataArray:
     """
     if isinstance(obj, xr.DataArray):
         return obj
+    if not isinstance(obj, xr.Dataset):
+        raise ValidationError(f"expected a topography (xarray Dataset with a {HEIGHT!r} variable, or its DataArray), "
+                              f"got {type(obj).__name__}")
     if HEIGHT not in obj:
         raise ValidationError(f"the Dataset has no {HEIGHT!r} variable (variables: {list(obj.data_vars)})")
     h = obj[HEIGHT]

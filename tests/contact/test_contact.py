@@ -264,6 +264,24 @@ def test_errors():
         Scene(xr.concat([ds, ds], dim="sample"))
     with pytest.raises(ContactError, match="unknown FFT backend 'cufft'"):
         Scene(ds, backend="cufft")
+    with pytest.raises(ContactError, match="periodic must be"):
+        Scene(ds, periodic="yes")
+    with pytest.raises(xtopo.XtopoError, match="got int"):
+        Scene(ds, counter=3)
+    with pytest.raises(ContactError, match="infinite"):
+        Scene(ds.assign(height=ds.height.where(ds.x > 0.1, np.inf)))
+    scene = Scene(ds)
+    for maxiter in (2.5, "10", float("inf"), True):
+        with pytest.raises(ContactError, match="whole number"):
+            scene.solve(load=1e-3, maxiter=maxiter)
+    with pytest.raises(ContactError, match="finite scalar"):
+        scene.solve(load="1e-3")
+    bad = np.zeros(ds.height.shape)
+    bad[3, 4] = np.nan
+    with pytest.raises(ContactError, match="1 non-finite"):   # a NaN start once gave load 0, "converged"
+        scene.solve(load=1e-3, initial=bad)
+    with pytest.raises(ContactError, match="real numbers"):
+        scene.solve(load=1e-3, initial=bad.astype(str))
     assert issubclass(ContactError, xtopo.XtopoError)
 
 

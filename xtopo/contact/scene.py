@@ -36,8 +36,8 @@ def _heights(obj, what: str) -> xr.DataArray:
     h = h.transpose(*[d for d in LATERAL_DIMS if d in h.dims])
     values = np.asarray(h.values)
     if not np.all(np.isfinite(values)):
-        raise ContactError(f"{what}: 'height' has {int(np.count_nonzero(~np.isfinite(values)))} missing (NaN or "
-                           "masked) points; fill them first (e.g. xtopo.preprocess.fill_missing) — a contact "
+        raise ContactError(f"{what}: 'height' has {int(np.count_nonzero(~np.isfinite(values)))} missing (NaN, "
+                           "masked or infinite) points; fill them first (e.g. xtopo.preprocess.fill_missing) — a contact "
                            "calculation needs a height at every pixel")
     return h
 
@@ -120,6 +120,8 @@ class Scene:
             self._boundary_reason = (f"from the data's periodic attribute ({int(self.periodic)})"
                                      + (" of both surfaces" if counter is not None else ""))
         else:
+            if not isinstance(periodic, (bool, np.bool_, int, np.integer)):
+                raise ContactError(f"periodic must be True, False or None (from the data), got {periodic!r}")
             self.periodic = bool(periodic)
             self._boundary_reason = "as requested"
         self._reasons = reasons

@@ -42,7 +42,11 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
     tol = float(tol)
     if not tol > 0:
         raise ContactError(f"tol must be positive, got {tol}")
-    maxiter = int(knobs["maxiter"])
+    maxiter = knobs["maxiter"]
+    if not isinstance(maxiter, (int, np.integer, float, np.floating)) or isinstance(maxiter, (bool, np.bool_)) \
+            or not float(maxiter).is_integer():
+        raise ContactError(f"maxiter must be a whole number of iterations, got {maxiter!r}")
+    maxiter = int(maxiter)
     if maxiter < 1:
         raise ContactError(f"maxiter must be at least 1, got {maxiter}")
     return tol, maxiter
@@ -62,7 +66,7 @@ def _control(scene, load, mean_pressure, penetration):
         raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
     for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
         if v is not None:
-            if np.ndim(v) != 0 or not np.isfinite(float(v)):
+            if isinstance(v, (str, bytes)) or np.ndim(v) != 0 or not np.isfinite(float(v)):
                 raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
             if name != "penetration" and float(v) < 0:
                 raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
@@ -85,6 +89,12 @@ def _initial(scene, initial):
     p = np.asarray(getattr(p, "values", p))
     if p.shape != scene.shape:
         raise ContactError(f"initial pressures have shape {p.shape}, the scene {scene.shape}")
+    if not np.issubdtype(p.dtype, np.number) or np.iscomplexobj(p):
+        raise ContactError(f"initial pressures must be real numbers, got dtype {p.dtype}")
+    bad = int(np.count_nonzero(~np.isfinite(p)))
+    if bad:
+        raise ContactError(f"initial pressures have {bad} non-finite (NaN or infinite) values; give finite "
+                           "pressures (negative ones count as 0) or initial=None")
     return p
 
 
