@@ -11,7 +11,7 @@ import xtopo
 from xtopo import datasets
 from xtopo._kernels.convolution import Convolution
 from xtopo._kernels.greens import love_rectangle
-from xtopo.contact import Scene
+from xtopo.contact import Scene, gap_distribution, stiffness
 from xtopo.errors import ContactError, ConvergenceWarning, GridError
 
 N = 96
@@ -226,6 +226,29 @@ def test_curve_warm_start_stiffness_gap_distribution():
     widths = float(dens.gap_bin[1] - dens.gap_bin[0])
     np.testing.assert_allclose(dens.sum("gap_bin") * widths, 1.0, rtol=1e-10)
     assert c.gap_distribution.attrs["units"] == "um-1"
+    assert c.stiffness.attrs["units"] == "E* um" and "stiffness" in c.stiffness.attrs["long_name"]
+    alone = stiffness(c.drop_vars("stiffness"))          # standalone: same values, units and coordinate
+    xr.testing.assert_identical(alone.rename("stiffness"), c.stiffness)
+
+
+def test_curve_inputs_are_checked():
+    scene = Scene(_sphere(16))
+    c = scene.curve(loads=[1e-4, 2e-4])
+    for bins in (-3, 2.5, "a", True):
+        with pytest.raises(ContactError, match="gap_bins must be a whole number"):
+            scene.curve(loads=[1e-4], gap_bins=bins)
+    assert "gap_distribution" not in scene.curve(loads=[1e-4], gap_bins=0)
+    with pytest.raises(ContactError, match="bins must be a whole number ≥ 1"):
+        gap_distribution(c, bins=0)
+    for values in ("abc", (v for v in [1e-4]), [[1e-4, "x"]]):
+        with pytest.raises(ContactError, match="loads must be"):
+            scene.curve(loads=values)
+    with pytest.raises(ContactError, match="lacks \\['penetration'\\]"):
+        stiffness(c.drop_vars("penetration"))
+    with pytest.raises(ContactError, match="lacks \\['gap'\\]"):
+        gap_distribution(c.drop_vars("gap"))
+    with pytest.raises(ContactError, match="along dim='bogus'"):
+        stiffness(c, dim="bogus")
 
 
 def test_accessor_and_counter_surface():

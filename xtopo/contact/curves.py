@@ -9,16 +9,41 @@ import xarray as xr
 
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
-from .solve import _control, result_units, run_solver, solver_settings, to_dataset
+from .solve import _control, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution", "contact"]
 
 
 def _sequence(name, values):
-    v = np.atleast_1d(np.asarray(values, dtype=float))
+    try:
+        v = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        raise ContactError(f"{name} must be a sequence of numbers, got {values!r}") from None
     if v.ndim != 1 or v.size == 0:
         raise ContactError(f"{name} must be a non-empty 1D sequence, got shape {v.shape}")
     return v
+
+
+def _bins(bins, what: str, least: int) -> int:
+    """``bins`` as an int ≥ ``least`` (a ContactError otherwise)."""
+    if isinstance(bins, (bool, np.bool_)) or not isinstance(bins, (int, np.integer)) or bins < least:
+        raise ContactError(f"{what} must be a whole number ≥ {least}, got {bins!r}")
+    return int(bins)
+
+
+def _curve_variables(ds, names, what: str):
+    missing = [n for n in names if n not in ds.variables]
+    if missing:
+        raise ContactError(f"{what} needs a contact result (xtopo.contact.Scene.curve/solve) with variables {names}; "
+                           f"this Dataset lacks {missing}")
+
+
+def _per_length(units: str, length: str) -> str:
+    """``units`` divided by ``length``: ``"E* um2"`` / ``"um"`` → ``"E* um"``, ``"E* um"`` → ``"E*"``."""
+    for power, rest in ((f" {length}2", f" {length}"), (f" {length}", "")):
+        if units.endswith(power):
+            return units[: -len(power)] + rest
+    return f"{units} {length}-1"
 
 
 def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
@@ -41,6 +66,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         mean pressures given; coordinate ``load``) or ``penetration``, plus ``stiffness``
         (``dF/dδ``) and ``gap_distribution``.
     """
+    gap_bins = _bins(gap_bins, "gap_bins", 0)
     given = [(n, v) for n, v in (("loads", loads), ("mean_pressures", mean_pressures),
                                  ("penetrations", penetrations)) if v is not None]
     if len(given) != 1:
@@ -62,11 +88,9 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     dim = "penetration" if name == "penetrations" else "load"
     ds = xr.concat([st.set_coords(dim) for st in steps], dim=dim, data_vars="all", coords="minimal",
                    compat="override", combine_attrs="override")
-    units = result_units(scene)
     # penetrations are known to the solver tolerance (relative to the roughness, or the pixel for a flat)
     scale = float(-scene.w.min()) or max(scene.spacing)
-    ds["stiffness"] = stiffness(ds, dim=dim, atol=tol * scale).assign_attrs(units=units["stiffness"],
-                                                           long_name="contact stiffness dF/dδ")
+    ds["stiffness"] = stiffness(ds, dim=dim, atol=tol * scale)
     if gap_bins:
         ds["gap_distribution"] = gap_distribution(ds, bins=gap_bins)
     ds.attrs.pop("history", None)
@@ -93,6 +117,10 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
         a periodic scene, where ``δ`` is fixed and the stiffness infinite) and for curves of
         fewer than two points.
     """
+    _curve_variables(ds, ["load", "penetration"], "stiffness")
+    if ds["load"].dims != (dim,) or ds["penetration"].dims != (dim,):
+        raise ContactError(f"stiffness: 'load' and 'penetration' must run along dim={dim!r}; they have dims "
+                           f"{ds['load'].dims} and {ds['penetration'].dims}")
     f = np.asarray(ds["load"].values, dtype=float)
     d = np.asarray(ds["penetration"].values, dtype=float)
     k = np.full(f.shape, np.nan)
@@ -106,7 +134,9 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
         # np.gradient's second-order formula on a nonuniform grid, from the two step slopes
         both = ok[:-1] & ok[1:] & (h1 + h2 != 0)
         k[1:-1] = np.where(both, (h1 * s[1:] + h2 * s[:-1]) / np.where(both, h1 + h2, 1.0), np.nan)
-    return xr.DataArray(k, dims=(dim,))
+    units = _per_length(ds["load"].attrs.get("units", "1"), ds["penetration"].attrs.get("units", "1"))
+    return xr.DataArray(k, dims=(dim,), coords={dim: ds[dim]} if dim in ds.coords else None,
+                        attrs={"units": units, "long_name": "contact stiffness dF/dδ"})
 
 
 def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
@@ -114,6 +144,8 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
 
     The bin edges span ``[0, max gap]`` over all steps; coordinate ``gap_bin`` holds bin centres.
     """
+    _curve_variables(ds, ["gap", "contact"], "gap_distribution")
+    bins = _bins(bins, "bins", 1)
     gap = ds["gap"]
     lateral = [d for d in gap.dims if d in ("x", "y")]
     extra = [d for d in gap.dims if d not in lateral]

@@ -53,11 +53,11 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
 
 
 def result_units(scene) -> dict:
-    """Units strings of the outputs of ``scene`` (pressure, length, load, stiffness)."""
+    """Units strings of the outputs of ``scene`` (pressure, length, load, area)."""
     pu, lu = scene.modulus_units, scene.length_units
     if scene.line:
-        return {"pressure": pu, "length": lu, "load": f"{pu} {lu}", "area": lu, "stiffness": pu}
-    return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2", "stiffness": f"{pu} {lu}"}
+        return {"pressure": pu, "length": lu, "load": f"{pu} {lu}", "area": lu}
+    return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2"}
 
 
 def _control(scene, load, mean_pressure, penetration):
