@@ -87,3 +87,26 @@ def test_nonuniform_line_sdrp_vbm():
     ds = xtopo.make_measurement(rng.standard_normal(256).cumsum(), x=x)
     assert "resampled" in ds.topo.sdrp(1).attrs
     assert np.all(np.isfinite(ds.topo.vbm().values))
+
+
+@pytest.mark.parametrize("min_pixels", [0, -1, 1.5, float("nan"), None, "4", True])
+def test_vbm_bad_min_pixels_refused(min_pixels):
+    # 0 and negative values hung, 1.5 was truncated, True gave 1-pixel blocks of RMS 0, None/str/NaN crashed
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=2)
+    with pytest.raises(xtopo.XtopoError, match="min_pixels must be an integer >= 2"):
+        ds.topo.vbm(min_pixels=min_pixels)
+
+
+def test_vbm_line_needs_three_pixel_blocks():
+    line = fractal_surface(64, 1.0, hurst=0.7, seed=2)
+    with pytest.raises(xtopo.XtopoError, match="min_pixels must be an integer >= 3"):
+        line.topo.vbm(min_pixels=2)  # a line through 2 points leaves RMS 0 in every block
+    assert float(line.topo.vbm(min_pixels=3).min()) > 0
+
+
+@pytest.mark.parametrize("height", [[0.3], [0.3, 0.5], [[0.3, 0.5]], [[0.3], [0.5]], [[0.3]]])
+def test_vbm_too_few_pixels_refused(height):
+    # was a vbm of 0 (a tilt through 1 or 2 points fits exactly)
+    ds = xtopo.make_measurement(np.asarray(height), spacing=0.1)
+    with pytest.raises(xtopo.GridError, match="vbm needs more pixels"):
+        ds.topo.vbm()
