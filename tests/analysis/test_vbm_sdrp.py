@@ -110,3 +110,12 @@ def test_vbm_too_few_pixels_refused(height):
     ds = xtopo.make_measurement(np.asarray(height), spacing=0.1)
     with pytest.raises(xtopo.GridError, match="vbm needs more pixels"):
         ds.topo.vbm()
+
+
+@pytest.mark.parametrize("distances", [[0.0], [-0.1], [float("nan")], float("inf"), "0.1", [[0.1]], [0.1, 2.0]])
+def test_sdrp_bad_distances_refused(distances):
+    # NaN/inf crashed in int(), strings were parsed or crashed in float(), and lengths beyond the scan
+    # allocated the wrapped profile out to the stencil (61 GiB at 1e6 on a 64-pixel periodic map)
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=2)
+    with pytest.raises(xtopo.XtopoError, match="distances must"):
+        ds.topo.sdrp(distances=distances)
