@@ -101,3 +101,13 @@ def test_bad_tip_factor_refused(c):
     ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1, units="um").assign_attrs(tip_radius=0.05)
     with pytest.raises(xtopo.XtopoError, match="c must be a positive finite number"):
         ds.topo.reliability_cutoff(c=c)
+
+
+@pytest.mark.parametrize("scale_range", [0.1, (0.1,), (0.1, 0.2, 0.3), ("a", "b"), "ab", (float("nan"), 1.0),
+                                         (0.5, 0.1), (-1.0, 1.0), (0.1, 0.1)])
+def test_hurst_bad_scale_range_refused(scale_range):
+    # scalars, 1- or 3-tuples and strings crashed with TypeError/ValueError; NaN, reversed or negative bounds
+    # gave "fewer than 3 points" or were silently taken as 0
+    ds = fractal_surface((64, 64), 1.0, hurst=0.7, seed=1)
+    with pytest.raises(xtopo.XtopoError, match="scale_range must be two lengths"):
+        ds.topo.hurst(scale_range=scale_range)
