@@ -30,10 +30,11 @@ def integer(value, name: str, minimum: int = 1) -> int:
     return int(value)
 
 
-def positive_number(value, name: str) -> float:
-    """``value`` as a float if it is a finite real number above 0."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (np.isfinite(value) and value > 0):
-        raise XtopoError(f"{name} must be a positive finite number, got {value!r}")
+def positive_number(value, name: str, *, infinite: bool = False) -> float:
+    """``value`` as a float if it is a real number above 0 (finite unless ``infinite``)."""
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real) or not value > 0
+            or not (infinite or np.isfinite(value))):
+        raise XtopoError(f"{name} must be a positive {'' if infinite else 'finite '}number, got {value!r}")
     return float(value)
 
 
