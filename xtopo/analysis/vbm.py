@@ -9,7 +9,6 @@ from .._apply import apply_lateral
 from .._checks import integer
 from .._kernels import bandwidth as _k
 from ..conventions import X
-from ..errors import GridError
 from ._scale import finish, length_coord, prepare
 from .reliability import apply_reliability
 
@@ -44,9 +43,6 @@ def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
     h, u = prep.h, prep.units
     min_pixels = integer(min_pixels, "min_pixels", 2 if prep.is_area else 3)
     sizes = [h.sizes[d] for d in prep.lat]
-    if np.prod(sizes) <= 1 + sum(n > 1 for n in sizes):
-        raise GridError(f"vbm needs more pixels than the fitted tilt has parameters, these data have "
-                        f"{dict(zip(prep.lat, sizes))}; a tilt-corrected RMS height of so few pixels is always 0")
     levels = _k.vbm_levels(sizes, min_pixels)
     kwargs = dict(dx=prep.spacing(X), levels=levels, ndim=len(prep.lat))
     out = apply_lateral(_k.vbm, h, output_core_dims=[["bandwidth"]], output_sizes={"bandwidth": levels.size},
