@@ -191,3 +191,11 @@ def test_fill_real_file_with_missing(real_data):
     ds = xtopo.open_topography(path)
     filled = ds.topo.detrend("plane").topo.fill_missing()
     assert np.all(np.isfinite(filled.height.values))
+
+
+@pytest.mark.parametrize("mode", ["linear", None, ["plane"], {}, 1])
+def test_detrend_unknown_mode_refused(mode):
+    # was a bare ValueError (or TypeError: unhashable) instead of an XtopoError
+    ds = make_measurement(np.zeros((4, 4)), size=(1.0, 1.0))
+    with pytest.raises(xtopo.XtopoError, match="mode must be one of"):
+        detrend(ds, mode)

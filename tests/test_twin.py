@@ -57,3 +57,36 @@ def test_open_twin_on_garbage_names_file(tmp_path):
     p.write_bytes(b"not netcdf at all")
     with pytest.raises(xtopo.ReaderError, match="junk.nc"):
         xtopo.open_twin(p)
+
+
+@pytest.fixture(scope="module")
+def small_twin():
+    return xtopo.twin({"a": fractal_surface((32, 32), 1.0, hurst=0.8, seed=1, units="um"),
+                       "b": fractal_surface(64, 0.5, hurst=0.8, seed=2, units="um")})
+
+
+@pytest.mark.parametrize("analysis", ["psd", "acf", "vbm", "sdrp"])
+@pytest.mark.parametrize("kwargs,match", [(dict(per_decade=0), "per_decade must be an integer >= 1"),
+                                          (dict(per_decade=1.5), "per_decade must be an integer >= 1"),
+                                          (dict(per_decade=None), "per_decade must be an integer >= 1"),
+                                          (dict(max_error=-0.1), "max_error must be a positive number"),
+                                          (dict(max_error=float("nan")), "max_error must be a positive number"),
+                                          (dict(max_error="0.1"), "max_error must be a positive number")])
+def test_twin_average_bad_settings_refused(small_twin, analysis, kwargs, match):
+    # per_decade 0/-1/1.5/True gave 2-4 silent collocation points, None/str/NaN crashed in collocation_points;
+    # max_error <= 0 or NaN silently made every point unreliable, a string crashed in float()
+    with pytest.raises(xtopo.XtopoError, match=match):
+        getattr(small_twin.topo, analysis)(**kwargs)
+
+
+@pytest.mark.parametrize("measurements", [None, 5, "scan.nc", [None], {"a": 3}])
+def test_twin_of_non_measurements_refused(measurements):
+    with pytest.raises(xtopo.ValidationError, match="must be"):
+        xtopo.twin(measurements)
+
+
+def test_twin_average_of_a_dataset_refused():
+    from xtopo.stitching import twin_psd
+
+    with pytest.raises(xtopo.ValidationError, match="expected a twin"):
+        twin_psd(fractal_surface((16, 16), 1.0, hurst=0.8))  # was AttributeError: no 'children'

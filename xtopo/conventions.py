@@ -30,7 +30,7 @@ __all__ = [
     "HEIGHT", "MASK", "X", "Y", "LATERAL_DIMS", "CONVENTIONS",
     "LENGTH_ATTRS", "MEASUREMENT_ATTRS",
     "normalize_units", "length_factor", "convert_length",
-    "spacing", "physical_size", "is_uniform", "is_periodic", "is_nonuniform",
+    "spacing", "physical_size", "is_uniform", "is_periodic", "length_attr", "is_nonuniform",
     "lateral_dims", "height_of", "make_measurement", "validate", "append_history",
     "with_units",
 ]
@@ -223,8 +223,41 @@ def physical_size(obj, dim: str = X) -> float:
 
 
 def is_periodic(obj) -> bool:
-    """The ``periodic`` attribute as a bool (absent means nonperiodic)."""
-    return bool(int(obj.attrs.get("periodic", 0)))
+    """The ``periodic`` attribute as a bool (absent means nonperiodic).
+
+    Raises
+    ------
+    ValidationError
+        If the attribute is not 0 or 1 (or a bool).
+    """
+    value = obj.attrs.get("periodic", 0)
+    try:
+        flag = int(value)
+    except (TypeError, ValueError):
+        flag = None
+    if flag not in (0, 1) or flag != value and not isinstance(value, str):
+        raise ValidationError(f"attr 'periodic' must be 0 or 1, got {value!r}")
+    return bool(flag)
+
+
+def length_attr(obj, key: str):
+    """A length attribute (``tip_radius``, ``resolution``) as a positive float, or None when absent.
+
+    Raises
+    ------
+    ValidationError
+        If the attribute is not a positive finite number.
+    """
+    value = obj.attrs.get(key)
+    if value is None:
+        return None
+    try:
+        val = float(value)
+    except (TypeError, ValueError):
+        val = np.nan
+    if not (np.isfinite(val) and val > 0):
+        raise ValidationError(f"attr {key!r} must be a positive length, got {value!r}")
+    return val
 
 
 def height_of(obj) -> xr.DataArray:

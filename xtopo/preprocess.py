@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 
 from ._apply import apply_lateral
+from ._checks import option
 from ._kernels import laplace_fill as _fill
 from ._kernels import polyfit as _poly
 from .conventions import MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
@@ -60,9 +61,7 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
         Detrended heights (same units); missing data stay missing and are ignored by the fit.
         Nonuniform line scans are fitted at their positions.
     """
-    if mode not in _poly.DEGREES:
-        raise ValueError(f"mode must be one of {sorted(_poly.DEGREES)}, got {mode!r}")
-    degree = _poly.DEGREES[mode]
+    degree = _poly.DEGREES[option(mode, _poly.DEGREES, "mode")]
     h = height_of(obj)
     dims = lateral_dims(h)
     if dims == (Y, X):

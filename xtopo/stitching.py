@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from ._checks import integer, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
 from .conventions import MASK, convert_length, lateral_dims, length_factor
 from .errors import XtopoError
@@ -64,6 +65,14 @@ def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str, error=
     return out, on_grid(error.where(curve.notnull()), kernel)
 
 
+def _settings(per_decade, max_error) -> tuple:
+    """Checked ``per_decade`` and ``max_error`` (None: :data:`~xtopo.analysis.reliability.MAX_RELATIVE_ERROR`)."""
+    from .analysis.reliability import MAX_RELATIVE_ERROR
+
+    return (integer(per_decade, "per_decade"),
+            MAX_RELATIVE_ERROR if max_error is None else positive_number(max_error, "max_error", infinite=True))
+
+
 def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, method: str = "interp",
                    errors: dict | None = None, max_error: float | None = None) -> xr.Dataset:
     """Average 1D curves of several measurements at common log-spaced points.
@@ -106,8 +115,7 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         error) on (``measurement``, coordinate); ``reliability_cutoff`` per
         measurement where the curves carry one.
     """
-    from .analysis.reliability import MAX_RELATIVE_ERROR
-
+    per_decade, tol = _settings(per_decade, max_error)
     if not curves:
         raise XtopoError("no curves to average")
     first = next(iter(curves.values()))
@@ -118,7 +126,6 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         grid = collocation_points(lo, hi, per_decade)
     else:
         grid = np.asarray(points, dtype=float)
-    tol = MAX_RELATIVE_ERROR if max_error is None else float(max_error)
     names = list(curves)
     per = [_onto(curves[n], coord, grid, method, (errors or {}).get(n)) for n in names]
     dim = xr.DataArray(names, dims="measurement", name="measurement")
@@ -302,6 +309,7 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
     """
     from .analysis.psd import psd
 
+    _settings(per_decade, max_error)
     if areal:
         ms = _measurements(tree)
         lines = [n for n, ds in ms.items() if ds["height"].ndim != 2]
@@ -323,6 +331,7 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     """
     from .analysis.acf import acf
 
+    _settings(per_decade, max_error)
     curves, errors = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
                                       quantity="acf")
     return average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
@@ -336,6 +345,7 @@ def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     """
     from .analysis.vbm import vbm
 
+    _settings(per_decade, max_error)
     curves, errors = _per_measurement(tree, vbm, {}, {}, units, reliable, quantity="vbm")
     return average_curves(curves, per_decade=per_decade, errors=errors, max_error=max_error)
 
@@ -351,6 +361,7 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     """
     from .analysis.sdrp import sdrp
 
+    _settings(per_decade, max_error)
     ms = _measurements(tree)
     units = units or _common_units(ms)
     lo, hi = np.inf, 0.0

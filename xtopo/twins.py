@@ -9,12 +9,13 @@ module builds, stores and restores twins.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 
 import xarray as xr
 
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
-from .errors import XtopoError
+from .errors import ValidationError, XtopoError
 from .io.netcdf import read_netcdf, tree_to_netcdf
 
 __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
@@ -64,9 +65,15 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
     """
     if isinstance(measurements, xr.DataTree):
         return measurements
+    if isinstance(measurements, (str, os.PathLike, xr.Dataset)) or not isinstance(measurements, Iterable):
+        raise ValidationError(f"measurements must be a mapping or a list of Datasets/paths, got "
+                              f"{type(measurements).__name__}")
     items = measurements.items() if isinstance(measurements, dict) else enumerate(measurements)
     nodes: dict[str, xr.Dataset] = {}
     for key, m in items:
+        if not isinstance(m, (xr.Dataset, str, os.PathLike)):
+            raise ValidationError(f"measurement {key!r} must be an xarray.Dataset or a file path, got "
+                                  f"{type(m).__name__}")
         ds = m if isinstance(m, xr.Dataset) else _open_lazily(os.fspath(m))
         validate(ds)
         node = safe_name(key) if isinstance(key, str) else _name_of(ds, key)
@@ -85,6 +92,8 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
 
 def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
     """The measurement Datasets of a twin by node name (children holding a ``height``)."""
+    if not isinstance(tree, xr.DataTree):
+        raise ValidationError(f"expected a twin (xarray.DataTree, see xtopo.twin), got {type(tree).__name__}")
     return {name: node.to_dataset() for name, node in tree.children.items() if "height" in node.dataset}
 
 

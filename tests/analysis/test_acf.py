@@ -84,3 +84,11 @@ def test_nonuniform_line():
     ds = xtopo.make_measurement(rng.standard_normal(300).cumsum(), x=x)
     a = ds.topo.acf()
     assert "resampled" in a.attrs and np.all(a.values[1:] > 0)
+
+
+@pytest.mark.parametrize("nb_points", [0, -3, 2.5, float("inf"), False, "12"])
+@pytest.mark.parametrize("kind", ["1d", "iso"])
+def test_bad_nb_points_refused(kind, nb_points):
+    ds = fractal_surface((16, 16), 1.0, hurst=0.6, seed=3)
+    with pytest.raises(xtopo.XtopoError, match="nb_points must be an integer >= 1"):
+        ds.topo.acf(kind, nb_points=nb_points)

@@ -73,3 +73,41 @@ def test_tip_cutoff_lazy_on_dask():
     np.testing.assert_allclose(lazy.compute().values, float(ds.topo.reliability_cutoff()))
     s = b.chunk({"sample": 1}).topo.sdrp(1)
     assert s.chunks is not None
+
+
+@pytest.mark.parametrize("attrs", [dict(tip_radius=0.0), dict(tip_radius=-0.05), dict(tip_radius=float("nan")),
+                                   dict(tip_radius="abc"), dict(resolution=-0.05), dict(resolution=float("inf"))])
+def test_bad_length_attrs_refused(attrs):
+    # tip_radius 0 raised ZeroDivisionError, NaN gave cutoff 0 ("all reliable"), a negative radius cut the
+    # spectrum at a garbage scale, resolution -0.05/inf kept everything/nothing, a string crashed in float()
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1, units="um").assign_attrs(**attrs)
+    with pytest.raises(xtopo.ValidationError, match=f"attr '{next(iter(attrs))}' must be a positive length"):
+        ds.topo.psd()
+    with pytest.raises(xtopo.ValidationError, match="must be a positive length"):
+        ds.topo.reliability_cutoff()
+
+
+@pytest.mark.parametrize("periodic", ["yes", 2, 0.5, None])
+def test_bad_periodic_attr_refused(periodic):
+    # 'yes'/None crashed in int(), 2 counted as periodic, 0.5 as nonperiodic
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1).assign_attrs(periodic=periodic)
+    for call in (lambda: ds.topo.acf(), lambda: ds.topo.scalars(), lambda: xtopo.preprocess.fill_missing(ds)):
+        with pytest.raises(xtopo.ValidationError, match="attr 'periodic' must be 0 or 1"):
+            call()
+
+
+@pytest.mark.parametrize("c", [0, -0.5, float("nan"), "0.5", None])
+def test_bad_tip_factor_refused(c):
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1, units="um").assign_attrs(tip_radius=0.05)
+    with pytest.raises(xtopo.XtopoError, match="c must be a positive finite number"):
+        ds.topo.reliability_cutoff(c=c)
+
+
+@pytest.mark.parametrize("scale_range", [0.1, (0.1,), (0.1, 0.2, 0.3), ("a", "b"), "ab", (float("nan"), 1.0),
+                                         (0.5, 0.1), (-1.0, 1.0), (0.1, 0.1)])
+def test_hurst_bad_scale_range_refused(scale_range):
+    # scalars, 1- or 3-tuples and strings crashed with TypeError/ValueError; NaN, reversed or negative bounds
+    # gave "fewer than 3 points" or were silently taken as 0
+    ds = fractal_surface((64, 64), 1.0, hurst=0.7, seed=1)
+    with pytest.raises(xtopo.XtopoError, match="scale_range must be two lengths"):
+        ds.topo.hurst(scale_range=scale_range)

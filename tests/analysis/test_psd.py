@@ -140,3 +140,11 @@ def test_resolution_cutoff_drops_high_q(periodic_area):
     assert float(p.q.max()) <= 2 * np.pi / 0.05
     full = ds.topo.psd("iso", reliable=False)
     assert full.sizes["q"] > p.sizes["q"]
+
+
+@pytest.mark.parametrize("nb_points", [0, -3, 2.5, float("nan"), True, "20", [1, 2]])
+@pytest.mark.parametrize("kind", ["1d", "iso"])
+def test_bad_nb_points_refused(periodic_area, kind, nb_points):
+    # 0, negative, fractional and True were silently turned into 1 bin; the others crashed in int()
+    with pytest.raises(XtopoError, match="nb_points must be an integer >= 1"):
+        periodic_area.topo.psd(kind, nb_points=nb_points)

@@ -143,3 +143,18 @@ def test_distribution_is_normalised_with_units(kind):
     lazy = batch(ds, 2, dask=True).topo.distribution(kind, bins=40)
     assert isinstance(lazy.probability_density.data, dsa.Array)
     xr.testing.assert_allclose(lazy.isel(sample=0).compute().probability_density, d.probability_density)
+
+
+@pytest.mark.parametrize("bins", [0, -1, 2.5, None, "10", True])
+def test_distribution_bad_bins_refused(bins):
+    # 0/-1 were a bare ValueError from numpy, the others a TypeError from np.empty
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    with pytest.raises(xtopo.XtopoError, match="bins must be an integer >= 1"):
+        ds.topo.distribution(bins=bins)
+
+
+@pytest.mark.parametrize("kind", [["height"], {}, None])
+def test_distribution_bad_kind_refused(kind):
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    with pytest.raises(xtopo.XtopoError, match="kind must be one of"):
+        ds.topo.distribution(kind)

@@ -8,6 +8,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
+from .._checks import integer
 from .._kernels import correlation as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
@@ -58,6 +59,7 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
     """
     if kind not in ("1d", "iso"):
         raise XtopoError(f"kind must be '1d' or 'iso', got {kind!r}")
+    nb_points = None if nb_points is None else integer(nb_points, "nb_points")
     prep = prepare(obj)
     h, u = prep.h, prep.units
     if kind == "1d":

@@ -6,6 +6,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
+from .._checks import integer, option
 from .._kernels.derivatives import forward_difference, second_difference
 from ..conventions import X, Y, height_of, is_periodic, lateral_dims, spacing
 from ..errors import XtopoError
@@ -66,8 +67,8 @@ def distribution(obj, kind: str = "height", *, dim: str = X, bins: int = 100) ->
         ``probability_density`` on dim ``bin`` with the coordinate ``bin_center``
         (which may vary along batch dims); units are the inverse of the quantity's.
     """
-    if kind not in _KINDS:
-        raise XtopoError(f"kind must be one of {sorted(_KINDS)}, got {kind!r}")
+    option(kind, _KINDS, "kind")
+    bins = integer(bins, "bins")
     h = height_of(obj)
     lat = lateral_dims(h)
     if dim not in lat:

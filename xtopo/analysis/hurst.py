@@ -202,7 +202,7 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
             lo = (16 if method_ == "vbm" else 4) * pixel
             hi = {"acf": max(size / 64, 32 * pixel), "vbm": size / 4}.get(method_, size / 8)
     else:
-        lo, hi = (float(v) for v in scale_range)
+        lo, hi = _scale_range(scale_range, length_units)
     sel = (scale >= lo) & (scale <= hi)
     if sel.sum() < 3:
         raise XtopoError(f"fewer than 3 points between the scales {lo:g} and {hi:g} {length_units}; widen scale_range")
@@ -224,6 +224,17 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
     ds.attrs = {"analysis": da.attrs["analysis"], "fit_scale_min": float(lo), "fit_scale_max": float(hi),
                 "fit_scale_units": length_units, "abscissa": xdim}
     return ds
+
+
+def _scale_range(scale_range, units):
+    """``scale_range`` as ``(lo, hi)`` floats with ``0 <= lo < hi`` (``hi`` may be infinite)."""
+    try:
+        lo, hi = (float(v) for v in scale_range) if not isinstance(scale_range, str) else (None, None)
+    except (TypeError, ValueError):
+        lo = hi = None
+    if lo is None or not (0 <= lo < hi):
+        raise XtopoError(f"scale_range must be two lengths (lo, hi) in {units} with 0 <= lo < hi, got {scale_range!r}")
+    return lo, hi
 
 
 def _bins(prep, dim):

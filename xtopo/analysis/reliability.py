@@ -17,8 +17,9 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
+from .._checks import positive_number
 from .._kernels.scaled import max_negative_curvature
-from ..conventions import X, Y, length_factor
+from ..conventions import X, Y, length_attr, length_factor
 from ..errors import GridError, XtopoError
 from ._scale import POINTS_PER_DECADE, prepare
 
@@ -30,11 +31,10 @@ TIP_FACTOR = 0.5
 
 
 def _attr_length(obj, key, units):
-    a = obj.attrs
-    if a.get(key) is None:
+    val = length_attr(obj, key)
+    if val is None:
         return None
-    val = float(a[key])
-    src = a.get(f"{key}_units")
+    src = obj.attrs.get(f"{key}_units")
     return val * length_factor(src, units) if src else val
 
 
@@ -81,10 +81,13 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
 
     Raises
     ------
+    ValidationError
+        If ``tip_radius`` or ``resolution`` is not a positive number.
     GridError
         If the tip-radius criterion is asked for on data with fewer than 3 points
         along every lateral dim (no curvature can be formed).
     """
+    c = positive_number(c, "c")
     prep = prepare(obj)
     units = prep.units
     res = _attr_length(obj, "resolution", units)

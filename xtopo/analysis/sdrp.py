@@ -6,6 +6,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
+from .._checks import lengths
 from .._kernels.scaled import sdrp_rms
 from ..conventions import X
 from ..errors import GridError, XtopoError
@@ -32,7 +33,8 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
     dim : {"x", "y"}
         Direction of the derivative.
     distances : array_like, optional
-        Stencil lengths ``ℓ = order·η·Δx`` in the measurement's length unit. Default:
+        Stencil lengths ``ℓ = order·η·Δx`` in the measurement's length unit, at most the
+        scan length ``L`` (longer stencils of nonperiodic data give NaN). Default:
         10 per decade from ``order·Δx`` to ``L/2``, rounded to integer ``η`` (no interpolation;
         duplicates dropped, so fewer points at the smallest scales).
     reliable : bool
@@ -59,9 +61,7 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
         # integer scale factors: no interpolation, which biases the slope low at fractional η
         # (benchmarks/tradeoffs.py: half the error of log-spaced fractional η, and faster)
         distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
-    distances = np.atleast_1d(np.asarray(distances, dtype=float))
-    if np.any(distances <= 0):
-        raise XtopoError("distances must be positive")
+    distances = lengths(distances, "distances", u, n * dx)
     etas = distances / (order * dx)
     out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
                         output_sizes={"distance": etas.size},

@@ -6,6 +6,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
+from .._checks import integer
 from .._kernels import bandwidth as _k
 from ..conventions import X
 from ._scale import finish, length_coord, prepare
@@ -27,7 +28,8 @@ def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
     obj : xarray.Dataset or xarray.DataArray
         A measurement; extra dims broadcast, dask stays lazy.
     min_pixels : int
-        Smallest block side in pixels.
+        Smallest block side in pixels: at least 3 for line scans, 2 for area scans (a
+        smaller block holds no more pixels than the fitted line/plane has parameters).
     reliable : bool
         Drop bandwidths below the reliability cutoff.
 
@@ -39,6 +41,7 @@ def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
     """
     prep = prepare(obj)
     h, u = prep.h, prep.units
+    min_pixels = integer(min_pixels, "min_pixels", 2 if prep.is_area else 3)
     sizes = [h.sizes[d] for d in prep.lat]
     levels = _k.vbm_levels(sizes, min_pixels)
     kwargs = dict(dx=prep.spacing(X), levels=levels, ndim=len(prep.lat))

@@ -1,0 +1,53 @@
+"""Checks of user-given parameters of the analyses and preprocessing steps. Not public API.
+
+Each check returns the value in the type the caller needs, or raises an
+:class:`~xtopo.errors.XtopoError` that names the parameter, says what it got and
+what it expects (instead of a TypeError or a silent truncation deep inside).
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from .errors import XtopoError
+
+__all__ = ["option", "integer", "positive_number", "lengths"]
+
+
+def option(value, options, name: str):
+    """``value`` if it is one of the strings ``options``."""
+    if not isinstance(value, str) or value not in options:
+        raise XtopoError(f"{name} must be one of {tuple(options)}, got {value!r}")
+    return value
+
+
+def integer(value, name: str, minimum: int = 1) -> int:
+    """``value`` as an int if it is an integer (not a bool, not a float) of at least ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise XtopoError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def positive_number(value, name: str, *, infinite: bool = False) -> float:
+    """``value`` as a float if it is a real number above 0 (finite unless ``infinite``)."""
+    if (isinstance(value, bool) or not isinstance(value, numbers.Real) or not value > 0
+            or not (infinite or np.isfinite(value))):
+        raise XtopoError(f"{name} must be a positive {'' if infinite else 'finite '}number, got {value!r}")
+    return float(value)
+
+
+def lengths(values, name: str, units: str, longest: float) -> np.ndarray:
+    """``values`` as a 1D float array of lengths in ``(0, longest]`` (``units`` names their unit)."""
+    try:
+        v = np.atleast_1d(np.asarray(values, dtype=float)) if not isinstance(values, (str, bytes)) else None
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.ndim != 1:
+        raise XtopoError(f"{name} must be a number or a 1D sequence of numbers (lengths in {units}), got {values!r}")
+    bad = v[~(np.isfinite(v) & (v > 0) & (v <= longest))]
+    if bad.size:
+        raise XtopoError(f"{name} must be positive finite lengths of at most {longest:g} {units} (the size of the "
+                         f"measurement), got {bad.tolist()}")
+    return v
