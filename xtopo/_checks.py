@@ -23,10 +23,13 @@ def option(value, options, name: str):
     return value
 
 
-def integer(value, name: str, minimum: int = 1) -> int:
-    """``value`` as an int if it is an integer (not a bool, not a float) of at least ``minimum``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
-        raise XtopoError(f"{name} must be an integer >= {minimum}, got {value!r}")
+def integer(value, name: str, minimum: int = 1, *, error: type[XtopoError] = XtopoError) -> int:
+    """``value`` as an int if it is an integer (not a bool, not a float) of at least ``minimum``.
+
+    ``error``: the :class:`~xtopo.errors.XtopoError` subclass raised otherwise.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise error(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
 
 

@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import xarray as xr
 
+from .._checks import integer
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 from .solve import _control, run_solver, solver_settings, to_dataset
@@ -22,13 +23,6 @@ def _sequence(name, values):
     if v.ndim != 1 or v.size == 0:
         raise ContactError(f"{name} must be a non-empty 1D sequence, got shape {v.shape}")
     return v
-
-
-def _bins(bins, what: str, least: int) -> int:
-    """``bins`` as an int ≥ ``least`` (a ContactError otherwise)."""
-    if isinstance(bins, (bool, np.bool_)) or not isinstance(bins, (int, np.integer)) or bins < least:
-        raise ContactError(f"{what} must be a whole number ≥ {least}, got {bins!r}")
-    return int(bins)
 
 
 def _curve_variables(ds, names, what: str):
@@ -66,7 +60,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         mean pressures given; coordinate ``load``) or ``penetration``, plus ``stiffness``
         (``dF/dδ``) and ``gap_distribution``.
     """
-    gap_bins = _bins(gap_bins, "gap_bins", 0)
+    gap_bins = integer(gap_bins, "gap_bins", 0, error=ContactError)
     given = [(n, v) for n, v in (("loads", loads), ("mean_pressures", mean_pressures),
                                  ("penetrations", penetrations)) if v is not None]
     if len(given) != 1:
@@ -145,7 +139,7 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
     The bin edges span ``[0, max gap]`` over all steps; coordinate ``gap_bin`` holds bin centres.
     """
     _curve_variables(ds, ["gap", "contact"], "gap_distribution")
-    bins = _bins(bins, "bins", 1)
+    bins = integer(bins, "bins", 1, error=ContactError)
     gap = ds["gap"]
     lateral = [d for d in gap.dims if d in ("x", "y")]
     extra = [d for d in gap.dims if d not in lateral]

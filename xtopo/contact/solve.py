@@ -8,6 +8,7 @@ import numpy as np
 import xarray as xr
 
 from .._kernels.pk_solver import COUNTERS, polonsky_keer
+from .._checks import integer
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 from ..presets import resolve as resolve_preset
@@ -42,13 +43,7 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
     tol = float(tol)
     if not tol > 0:
         raise ContactError(f"tol must be positive, got {tol}")
-    maxiter = knobs["maxiter"]
-    if not isinstance(maxiter, (int, np.integer, float, np.floating)) or isinstance(maxiter, (bool, np.bool_)) \
-            or not float(maxiter).is_integer():
-        raise ContactError(f"maxiter must be a whole number of iterations, got {maxiter!r}")
-    maxiter = int(maxiter)
-    if maxiter < 1:
-        raise ContactError(f"maxiter must be at least 1, got {maxiter}")
+    maxiter = integer(knobs["maxiter"], "maxiter", 1, error=ContactError)
     return tol, maxiter
 
 
