@@ -305,6 +305,8 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
         raise GridError(f"height must be 1D or 2D, got shape {h.shape}")
     if h.dtype.kind not in "fiu":
         raise GridError(f"height must be numeric, got dtype {h.dtype}")
+    if h.size == 0:
+        raise GridError(f"height has no points (shape {h.shape})")
     h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
     if height_scale != 1.0:
         h = h * height_scale
@@ -379,6 +381,8 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
         raise ValidationError(f"{HEIGHT!r} must have lateral dims ('y', 'x') or ('x',) in that order, got {h.dims}")
     if h.dtype.kind not in "iuf":
         raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
+    if h.size == 0:
+        raise ValidationError(f"{HEIGHT!r} has no points (shape {h.shape})")
     try:
         units = normalize_units(h.attrs.get("units"))
     except UnitsError as exc:

@@ -286,3 +286,24 @@ def test_channels_api(real_data, name):
 def test_all_optical_formats_registered():
     names = set(formats())
     assert {"opd", "opdx", "x3p", "sur", "mnt", "plu", "metropro", "al3d", "frt", "tmd", "nms", "bcr"} <= names
+
+
+def test_plu_with_zero_columns_is_an_error(real_data, tmp_path):
+    """plu-1.plu with its layer's column count (offset 504) zeroed was read as an empty 576 x 0 measurement."""
+    raw = bytearray((real_data / "plu-1.plu").read_bytes())
+    raw[504:508] = struct.pack("<I", 0)
+    path = tmp_path / "plu-1.plu"
+    path.write_bytes(bytes(raw))
+    with pytest.raises(XtopoError, match=r"plu-1.plu: .*no points"):
+        xtopo.open_topography(path)
+
+
+def test_netcdf_with_empty_height_is_an_error(tmp_path):
+    import xarray as xr
+
+    path = tmp_path / "empty-height.nc"
+    xr.Dataset({"height": (("y", "x"), np.zeros((3, 0)), {"units": "m"})},
+               coords={"x": ("x", np.zeros(0), {"units": "m"}), "y": ("y", np.arange(3.0), {"units": "m"})}
+               ).to_netcdf(path)
+    with pytest.raises(XtopoError, match=r"empty-height.nc: .*no points"):
+        xtopo.open_topography(path)
