@@ -148,9 +148,12 @@ def _first_success(path, format, method: str, channel=None, **options):
             raise ReaderError(path, f"{fmt.name} reader failed on malformed content: "
                                     f"{type(exc).__name__}: {exc}") from exc
     specific = [e for _, e in errors if not isinstance(e, UnsupportedFormatError)]
-    if not specific and len(errors) > 1:  # every candidate said "not this format": give each one's reason
+    reasons = {}
+    for name, e in errors:
+        reasons.setdefault(e.reason, []).append(name)
+    if not specific and len(reasons) > 1:  # every candidate said "not this format": give each one's reason
         raise UnsupportedFormatError(path, "no reader accepts the content: " + "; ".join(
-            f"{name}: {e.reason}" for name, e in errors))
+            f"{', '.join(names)}: {reason}" for reason, names in reasons.items()))
     raise (specific or [e for _, e in errors])[0]
 
 
