@@ -42,3 +42,24 @@ def test_analyze_files_reports_bad_file_and_keeps_good(tmp_path, capsys):
 def test_console_script_help():
     r = subprocess.run([sys.executable, "-m", "xtopo.cli", "analyze", "--help"], capture_output=True, text=True)
     assert r.returncode == 0 and "example twin" in r.stdout
+
+
+def test_bad_arguments_give_one_clear_error_line(tmp_path, capsys):
+    """`info DIR` said 'no such file'; `convert -o` into a missing directory named the temporary file
+    ('.x.nc.abc123.tmp'); `report --analyses bogus` wrote a page and exited 0."""
+    good = tmp_path / "m.nc"
+    xtopo.to_netcdf(xtopo.datasets.measure(xtopo.datasets.fractal_surface((16, 16), (1e-6, 1e-6), hurst=0.8)), good)
+    cases = [
+        (["info", str(tmp_path)], f"{tmp_path}: is a directory"),
+        (["convert", str(good), "-o", str(tmp_path / "missing" / "x.nc")],
+         f"cannot write {tmp_path / 'missing' / 'x.nc'}: No such file or directory"),
+        (["convert", str(good), "-o", str(tmp_path)], f"cannot write {tmp_path}: "),
+        (["report", str(good), "--analyses", "psd,bogus", "-o", str(tmp_path / "r.html")],
+         "unknown analysis 'bogus'"),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("xtopo: error: ") and message in err[0], (argv, err)
+    assert not (tmp_path / "r.html").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.nc"]  # no temporary file left behind

@@ -68,12 +68,17 @@ def _cmd_analyze(args) -> int:
 
 
 def _cmd_report(args) -> int:
-    from .report import report
+    from .report import ANALYSES, report
 
+    analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
+    unknown = [a for a in analyses if a not in ANALYSES]
+    if unknown:
+        print(f"xtopo: error: unknown analysis {unknown[0]!r} in --analyses; choose from {', '.join(ANALYSES)} "
+              "or 'none'", file=sys.stderr)
+        return 2
     measurements, what, failed = _read_inputs(args)
     if not measurements:
         return 2
-    analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
     report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses)
     print(f"wrote {args.output} ({len(measurements)} measurements, {what})")
     return 1 if failed else 0

@@ -41,7 +41,7 @@ def _cmd_info(args) -> int:
 
     path = args.file
     if not os.path.isfile(path):
-        _err(f"{path}: no such file")
+        _err(f"{path}: {'is a directory, not a file' if os.path.isdir(path) else 'no such file'}")
         return 2
     print(f"file: {path} ({os.path.getsize(path)} bytes)")
     channels = getattr(xio, "channels", None)

@@ -338,6 +338,8 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
         raise GridError(f"height must be 1D or 2D, got shape {h.shape}")
     if h.dtype.kind not in "fiu":
         raise GridError(f"height must be numeric, got dtype {h.dtype}")
+    if h.size == 0:
+        raise GridError(f"height has no points (shape {h.shape})")
     h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
     if height_scale != 1.0:
         h = h * height_scale
@@ -410,6 +412,10 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
     lat = tuple(d for d in h.dims if d in LATERAL_DIMS)
     if lat not in ((Y, X), (X,)):
         raise ValidationError(f"{HEIGHT!r} must have lateral dims ('y', 'x') or ('x',) in that order, got {h.dims}")
+    if h.dtype.kind not in "iuf":
+        raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
+    if h.size == 0:
+        raise ValidationError(f"{HEIGHT!r} has no points (shape {h.shape})")
     try:
         units = normalize_units(h.attrs.get("units"))
     except UnitsError as exc:
@@ -437,14 +443,22 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
             raise ValidationError(f"{MASK!r} must be boolean, got {ds[MASK].dtype}")
         if ds[MASK].dims != h.dims:
             raise ValidationError(f"{MASK!r} dims {ds[MASK].dims} differ from height dims {h.dims}")
-    if int(ds.attrs.get("periodic", 0)) not in (0, 1):
-        raise ValidationError("attr 'periodic' must be 0 or 1")
+    if _as_number(ds.attrs.get("periodic", 0), int) not in (0, 1):
+        raise ValidationError(f"attr 'periodic' must be 0 or 1, got {ds.attrs['periodic']!r}")
     for key in LENGTH_ATTRS:
         if key in ds.attrs:
-            val = float(ds.attrs[key])
-            if not (np.isfinite(val) and val > 0):
-                raise ValidationError(f"attr {key!r} must be a positive length, got {val!r}")
+            val = _as_number(ds.attrs[key], float)
+            if not (val is not None and np.isfinite(val) and val > 0):
+                raise ValidationError(f"attr {key!r} must be a positive length, got {ds.attrs[key]!r}")
     return ds
+
+
+def _as_number(value, kind):
+    """``kind(value)`` for an attribute value, or None if it is not a single number (e.g. a string)."""
+    try:
+        return kind(value)
+    except (TypeError, ValueError, OverflowError):
+        return None
 
 
 _NAME_RE = re.compile(r"[^A-Za-z0-9_.@+-]")

@@ -245,3 +245,36 @@ def test_xarray_backend_passes_generic_options(tmp_path, heights):
     ds = xr.open_dataset(tmp_path / "a.npy", engine="xtopo", physical_size=(5.0, 7.0), file_units="nm", units="nm")
     np.testing.assert_array_equal(ds.height.values, heights)
     assert physical_size(ds, "x") == pytest.approx(7.0)
+
+
+def test_npy_header_with_unbalanced_bracket_and_non_mat_content_name_the_file(tmp_path, heights):
+    """The readers themselves raised tokenize.TokenError / scipy's MatReadError (only open_topography's
+    catch-all turned them into 'reader failed on malformed content')."""
+    from xtopo.io.registry import formats
+
+    p = tmp_path / "h.npy"
+    np.save(p, heights)
+    raw = p.read_bytes()
+    p.write_bytes(raw.replace(b"(5, 7)", b"(5, 7 "))  # a corrupt byte in the header dict
+    with pytest.raises(ReaderError, match=r"h.npy: invalid .npy header"):
+        formats()["npy"].read(p, physical_size=(1, 1), file_units="m")
+    t = tmp_path / "t.mat"
+    t.write_text("1 2\n3 4\n")
+    with pytest.raises(ReaderError, match=r"t.mat: not a readable MATLAB file"):
+        formats()["matlab"].read(t, physical_size=(1, 1), file_units="m")
+
+
+def test_hdf5_without_heights_is_not_called_corrupt(tmp_path):
+    """An HDF5 file with no numeric 1D/2D dataset was reported as 'corrupt HDF5 file: <path>: contains no ...'
+    (path twice, an UnsupportedFormatError turned into a corrupt-file ReaderError)."""
+    h5py = pytest.importorskip("h5py")
+    from xtopo.io.registry import formats
+
+    p = tmp_path / "labels.h5"
+    with h5py.File(p, "w") as f:
+        f["names"] = np.array([b"a", b"b"])
+    with pytest.raises(UnsupportedFormatError) as err:
+        formats()["hdf5"].read(p, physical_size=(1, 1), file_units="m")
+    assert str(err.value) == f"{p}: contains no 1D or 2D array of heights"
+    with pytest.raises(UnsupportedFormatError, match=r"labels.h5: no reader accepts.*hdf5: contains no 1D or 2D"):
+        xtopo.open_topography(p)

@@ -87,3 +87,21 @@ def test_reading_garbage_names_the_file(tmp_path):
         xtopo.open_topography(empty)
     with pytest.raises(xtopo.ReaderError, match="no such file"):
         xtopo.open_topography(tmp_path / "missing.nc")
+
+
+@pytest.mark.parametrize("attrs, heights, problem", [
+    ({"periodic": "yes"}, None, "periodic"),
+    ({"tip_radius": "abc"}, None, "tip_radius"),
+    ({"periodic": np.array([1, 0])}, None, "periodic"),
+    ({}, np.array([["a", "b"], ["c", "d"]]), "real numbers"),
+])
+def test_bad_attrs_or_heights_in_netcdf_raise_reader_error(tmp_path, attrs, heights, problem):
+    """A NetCDF file with a non-numeric 'periodic'/'tip_radius' attr used to crash validate()
+    with a bare ValueError/TypeError; string heights were returned as a measurement."""
+    h = np.zeros((2, 2)) if heights is None else heights
+    path = tmp_path / "odd.nc"
+    xr.Dataset({"height": (("y", "x"), h, {"units": "m"})}, attrs=attrs,
+               coords={"x": ("x", [0.0, 1.0], {"units": "m"}), "y": ("y", [0.0, 1.0], {"units": "m"})}
+               ).to_netcdf(path)
+    with pytest.raises(xtopo.ReaderError, match=f"odd.nc.*{problem}"):
+        xtopo.open_topography(path)

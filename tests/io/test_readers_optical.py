@@ -286,3 +286,42 @@ def test_channels_api(real_data, name):
 def test_all_optical_formats_registered():
     names = set(formats())
     assert {"opd", "opdx", "x3p", "sur", "mnt", "plu", "metropro", "al3d", "frt", "tmd", "nms", "bcr"} <= names
+
+
+def test_plu_with_zero_columns_is_an_error(real_data, tmp_path):
+    """plu-1.plu with its layer's column count (offset 504) zeroed was read as an empty 576 x 0 measurement."""
+    raw = bytearray((real_data / "plu-1.plu").read_bytes())
+    raw[504:508] = struct.pack("<I", 0)
+    path = tmp_path / "plu-1.plu"
+    path.write_bytes(bytes(raw))
+    with pytest.raises(XtopoError, match=r"plu-1.plu: .*no points"):
+        xtopo.open_topography(path)
+
+
+def test_netcdf_with_empty_height_is_an_error(tmp_path):
+    import xarray as xr
+
+    path = tmp_path / "empty-height.nc"
+    xr.Dataset({"height": (("y", "x"), np.zeros((3, 0)), {"units": "m"})},
+               coords={"x": ("x", np.zeros(0), {"units": "m"}), "y": ("y", np.arange(3.0), {"units": "m"})}
+               ).to_netcdf(path)
+    with pytest.raises(XtopoError, match=r"empty-height.nc: .*no points"):
+        xtopo.open_topography(path)
+
+
+@pytest.mark.parametrize("name, offset, value, problem", [
+    ("bcrf-1.bcrf", 114, b"\0\0\0\0", "9 x 600 grid needs"),  # xpixels "960" cut to "9"
+    ("bcrf-1.bcrf", 142, b"\0\0\0\0", "960 x 6 grid needs"),  # ypixels "600" cut to "6"
+    ("al3d-1.al3d", 142, b"\0\0\0\0", "296 x 2 depth image"),  # Cols "200" cut to "2"
+    ("al3d-1.al3d", 714, b"\0\0\0\0", "2 x 200 depth image"),  # Rows "296" cut to "2"
+    ("metropro-1.dat", 68, struct.pack(">H", 9), "9 x 480 phase grid"),  # cn_width 640 -> 9
+])
+def test_corrupt_grid_size_is_an_error_not_a_smaller_image(real_data, tmp_path, name, offset, value, problem):
+    """A corrupt row/column count used to read a small corner of the data (e.g. 600 x 9 of a 600 x 960 BCRF)
+    as a valid measurement; the stored data size (file size, texture offset, size field) now must agree."""
+    raw = bytearray((real_data / name).read_bytes())
+    raw[offset:offset + len(value)] = value
+    path = tmp_path / name
+    path.write_bytes(bytes(raw))
+    with pytest.raises(XtopoError, match=f"{re.escape(name)}: .*{problem}"):
+        xtopo.open_topography(path)

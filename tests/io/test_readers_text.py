@@ -136,3 +136,29 @@ def test_channels_single_entry(real_data):
         ds = xtopo.open_topography(real_data / name, units=None)
         assert info.shape == ds.height.shape
         assert info.units == ds.height.attrs["units"]
+
+
+def test_corrupt_first_data_row_is_an_error_not_a_header(real_data, tmp_path):
+    """A non-number in the first row of matrix-3.txt made the row a header line: 255 of 256 rows
+    were read without a word."""
+    lines = _lines(real_data / "matrix-3.txt")
+    row = lines[4].split("\t")
+    row[3] = "abc"
+    lines[4] = "\t".join(row)
+    path = tmp_path / "matrix-3.txt"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    with pytest.raises(xtopo.ReaderError, match=r"matrix-3.txt: .*first data row.*'abc'"):
+        xtopo.open_topography(path)
+    plain = tmp_path / "plain.txt"  # the same without the Gwyddion header
+    plain.write_text("x y z\n1 foo 3\n4 5 6\n7 8 9\n", encoding="utf-8")
+    with pytest.raises(xtopo.ReaderError, match="plain.txt: .*'foo'"):
+        xtopo.open_topography(plain, file_units="m", physical_size=(1, 1))
+
+
+def test_truncated_dektak_csv_is_an_error(real_data, tmp_path):
+    """dektak-1.csv cut in half was read as a 5006-point profile (Length,1500.0 um in its header)."""
+    raw = (real_data / "dektak-1.csv").read_bytes()
+    path = tmp_path / "dektak-1.csv"
+    path.write_bytes(raw[:len(raw) // 2])
+    with pytest.raises(xtopo.ReaderError, match=r"dektak-1.csv: .*1500 um scan length.*truncated"):
+        xtopo.open_topography(path)

@@ -125,7 +125,8 @@ def _first_success(path, format, method: str, channel=None, **options):
 
     Errors that say "not this format" (:class:`UnsupportedFormatError`) give way to a later
     candidate; if all fail, the most specific error (a corrupt-file error before a
-    not-this-format one) is raised. Non-xtopo exceptions of a reader become :class:`ReaderError`.
+    not-this-format one) is raised; when every candidate said "not this format", their reasons are
+    listed. Non-xtopo exceptions of a reader become :class:`ReaderError`.
     """
     from ..errors import UnsupportedFormatError
 
@@ -138,16 +139,22 @@ def _first_success(path, format, method: str, channel=None, **options):
         try:
             return fmt, _call(path, fmt, method, channel, options)
         except ReaderError as exc:
-            errors.append(exc)
+            errors.append((fmt.name, exc))
         except XtopoError as exc:  # e.g. a GridError from make_measurement: name the file
-            errors.append(ReaderError(path, f"{fmt.name}: {exc}"))
+            errors.append((fmt.name, ReaderError(path, f"{fmt.name}: {exc}")))
         except (MemoryError, RecursionError) as exc:
             raise ReaderError(path, f"{fmt.name} reader gave up: {type(exc).__name__}") from None
         except Exception as exc:  # defensive: a reader bug must not escape as a random type
             raise ReaderError(path, f"{fmt.name} reader failed on malformed content: "
                                     f"{type(exc).__name__}: {exc}") from exc
-    specific = [e for e in errors if not isinstance(e, UnsupportedFormatError)]
-    raise (specific or errors)[0]
+    specific = [e for _, e in errors if not isinstance(e, UnsupportedFormatError)]
+    reasons = {}
+    for name, e in errors:
+        reasons.setdefault(e.reason, []).append(name)
+    if not specific and len(reasons) > 1:  # every candidate said "not this format": give each one's reason
+        raise UnsupportedFormatError(path, "no reader accepts the content: " + "; ".join(
+            f"{', '.join(names)}: {reason}" for reason, names in reasons.items()))
+    raise (specific or [e for _, e in errors])[0]
 
 
 def _override_size(ds, physical_size, path):

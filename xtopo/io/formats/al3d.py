@@ -63,6 +63,10 @@ def _read(path, *, channel=None):
         r, tags, nx, ny, dx, dy, offset = _parse(path)
         pick_channel(path, ["Depth"], channel)
         row = (nx * 4 + 7) // 8 * 8 // 4  # row length with padding, in floats
+        texture = int(tags.get("TextureImageOffset", "0") or 0)
+        if texture > offset and not 0 <= texture - (offset + 4 * row * ny) < 4 * row:
+            raise r.error(f"the {ny} x {nx} depth image at offset {offset} does not end where the texture image "
+                          f"starts ({texture}): Rows/Cols corrupt?")
         z = r.array("f4", row * ny, "AL3D depth image", at=offset).reshape(ny, row)[:, :nx].astype(np.float64)
         undefined = ~np.isfinite(z)
         invalid = float(tags.get("InvalidPixelValue", "nan"))

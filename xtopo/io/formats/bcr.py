@@ -83,6 +83,10 @@ def _read(path, *, channel=None):
         info = _channels(path)[0]
         pick_channel(path, [info.name], channel)
         stm = h["fileformat"].startswith("bcrstm")
+        itemsize = 2 if stm else 4
+        if len(r) - start - nx * ny * itemsize >= nx * itemsize:
+            raise r.error(f"the file holds {len(r) - start} bytes of data but the {nx} x {ny} grid needs "
+                          f"{nx * ny * itemsize} (corrupt xpixels/ypixels, or data appended)")
         raw = r.array("i2" if stm else "f4", nx * ny, "BCR height data", at=start).astype(np.float64)
         if stm:
             undefined = raw == 32767

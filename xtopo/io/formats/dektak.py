@@ -33,6 +33,22 @@ def _column_unit(path, name: str) -> str:
     raise ReaderError(path, f"column title {name!r} does not end with a length unit")
 
 
+def _check_length(path, params, x, xu):
+    """Refuse scan data covering clearly less than the stated scan ``Length`` (a truncated file)."""
+    m = re.match(r"^\s*([-+]?[\d.]+(?:[eE][-+]?\d+)?\s*\S*)", params.get("Length", ""))
+    if not m or x.size < 2:
+        return
+    try:
+        length, lu = parse_quantity(path, m.group(1), "scan length")
+    except ReaderError:
+        return
+    length *= length_factor(lu or xu, xu)
+    covered = (x[-1] - x[0]) * x.size / (x.size - 1)
+    if length > 0 and covered < 0.99 * length:
+        raise ReaderError(path, f"the scan data cover {covered:.6g} {xu} of the {length:.6g} {xu} scan length "
+                                f"({x.size} points; truncated file?)")
+
+
 def read_dektak(path, *, channel=None):
     """Read a Dektak CSV export into a line scan (see the module docstring)."""
     if channel not in (None, 0):
@@ -60,6 +76,7 @@ def read_dektak(path, *, channel=None):
     table = parse_table(path, data, sep=",", what="scan data")
     if table.shape[1] < 2:
         raise ReaderError(path, "scan data need two columns (position, height)")
+    _check_length(path, params, table[:, 0], xu)
     first, last = data[0].split(","), data[-1].split(",")
     tol = max(token_ulp(first[0]), token_ulp(last[0]))
     attrs = {"instrument": "Bruker Dektak stylus profilometer", "vendor": "Bruker"}

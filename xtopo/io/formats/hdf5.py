@@ -87,6 +87,8 @@ def read_hdf5(path, *, channel=None, physical_size=None, file_units=None, height
             dset = dict(dsets)[name]
             arr = read_dataset(path, dset, name)
             found = _units_attr(dset)
+        except ReaderError:  # already names the file and the problem (a ValueError too)
+            raise
         except _H5_ERRORS as exc:
             raise ReaderError(path, f"corrupt HDF5 file: {exc}") from None
     return generic_measurement(path, arr, physical_size=physical_size, file_units=file_units,
@@ -97,6 +99,8 @@ def _channels(path, **options):
     with open_h5(path) as f:
         try:
             return channel_infos(path, [(n, d.shape) for n, d in h5_datasets(f)], **options)
+        except ReaderError:
+            raise
         except _H5_ERRORS as exc:
             raise ReaderError(path, f"corrupt HDF5 file: {exc}") from None
 

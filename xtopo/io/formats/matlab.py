@@ -23,6 +23,13 @@ _ERRORS = (ValueError, TypeError, OSError, EOFError, KeyError, IndexError, Overf
            UnicodeDecodeError, NotImplementedError)
 
 
+def _mat_errors() -> tuple:
+    """The exceptions scipy.io raises on a malformed MAT file."""
+    from scipy.io.matlab import MatReadError
+
+    return _ERRORS + (MatReadError,)
+
+
 def _is_v73(path) -> bool:
     with open(path, "rb") as f:
         head = f.read(520)
@@ -39,7 +46,7 @@ def _entries_v5(path):
 
     try:
         info = scipy.io.whosmat(path)
-    except _ERRORS as exc:
+    except _mat_errors() as exc:
         raise ReaderError(path, f"not a readable MATLAB file: {exc}") from None
     return [(name, _squeeze_shape(shape)) for name, shape, cls in info if cls in _NUMERIC]
 
@@ -50,7 +57,7 @@ def _read_v5(path, channel):
     _, name = pick_array(path, _entries_v5(path), channel)
     try:
         arr = scipy.io.loadmat(path, variable_names=[name], squeeze_me=True, mat_dtype=False)[name]
-    except _ERRORS as exc:
+    except _mat_errors() as exc:
         raise ReaderError(path, f"cannot read variable {name!r}: {exc}") from None
     return name, np.asarray(arr)
 

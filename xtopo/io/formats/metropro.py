@@ -51,6 +51,9 @@ def _parse(path):
         raise r.error(f"unknown MetroPro phase resolution code {h['phase_res']}")
     if h["nx"] == 0 or h["ny"] == 0:
         raise r.error("the MetroPro file holds no phase (height) data")
+    if h["cn_bytes"] != 4 * h["nx"] * h["ny"]:
+        raise r.error(f"the phase data size field ({h['cn_bytes']} bytes) does not match the "
+                      f"{h['nx']} x {h['ny']} phase grid of 4-byte values (corrupt header)")
     return r, h
 
 

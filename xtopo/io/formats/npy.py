@@ -10,6 +10,7 @@ against the bytes present before anything is allocated.
 from __future__ import annotations
 
 import os
+import tokenize
 import zipfile
 
 import numpy as np
@@ -34,7 +35,7 @@ def _header(path, f, what):
             shape, fortran, dtype = npformat.read_array_header_2_0(f)
         else:
             raise ValueError(f"unsupported .npy version {version}")
-    except (ValueError, OSError, EOFError, SyntaxError, TypeError) as exc:
+    except (ValueError, OSError, EOFError, SyntaxError, TypeError, tokenize.TokenError) as exc:
         raise ReaderError(path, f"invalid .npy header of {what}: {exc}") from None
     if dtype.hasobject or dtype.kind not in "biuf":
         raise ReaderError(path, f"{what} has dtype {dtype}; only numeric arrays are read (no pickles)")

@@ -26,8 +26,8 @@ import re
 from ...conventions import length_factor
 from ...errors import ReaderError, UnsupportedFormatError
 from .._generic import generic_measurement, resolve_units
-from .._text import (header_value, line_measurement, looks_like_text, parse_quantity, parse_table, read_text,
-                     token_ulp)
+from .._text import (_is_number, header_value, line_measurement, looks_like_text, parse_quantity, parse_table,
+                     read_text, token_ulp)
 from ..registry import Format, register
 
 __all__ = ["read_text_measurement", "read_dhm", "split_header"]
@@ -38,25 +38,24 @@ _OPTIONS = ("physical_size", "file_units", "height_units")
 
 
 def _is_data_line(line: str) -> bool:
-    if not _NUMBER_START.match(line):
-        return False
-    try:
-        for t in re.split(r"[\s,;]+", line.strip()):
-            if t:
-                float(t)
-    except ValueError:
-        return False
-    return True
+    return bool(_NUMBER_START.match(line)) and all(_is_number(t) for t in _fields(line))
 
 
-def split_header(lines):
+def split_header(lines, path=None):
     """Split lines into ``(header dict, data lines)``.
 
     Header lines are the lines before the first all-numeric line, and any comment lines;
     ``key: value`` or ``key = value`` pairs are collected (keys stripped of comment marks).
+
+    Raises
+    ------
+    ReaderError
+        If the (non-comment) line just before the data has as many fields as a data row,
+        most of them numbers: a corrupt first row, which must not silently become a header.
     """
     header = {}
     start = len(lines)
+    previous = None  # the last non-comment header line
     for i, line in enumerate(lines):
         s = line.strip()
         if not s:
@@ -66,11 +65,24 @@ def split_header(lines):
         elif _is_data_line(s):
             start = i
             break
+        else:
+            previous = s
         m = re.match(r"^([^:=]{1,80}?)\s*[:=]\s*(.*)$", s)
         if m:
             header.setdefault(m.group(1).strip(), m.group(2).strip())
     data = [ln for ln in lines[start:] if ln.strip() and not ln.lstrip().startswith(_COMMENT)]
+    if previous is not None and data:
+        fields = _fields(previous)
+        numbers = sum(_is_number(t) for t in fields)
+        if len(fields) == len(_fields(data[0])) and numbers > len(fields) / 2:
+            bad = next(t for t in fields if not _is_number(t))
+            raise ReaderError(path, f"the first data row contains a token that is not a number: {bad[:40]!r} "
+                                    "(corrupt row)")
     return header, data
+
+
+def _fields(line: str) -> list:
+    return [t for t in re.split(r"[\s,;]+", line.strip()) if t]
 
 
 def _separator(line: str):
@@ -93,7 +105,7 @@ def _read_table(path, data_lines):
 def read_text_measurement(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a ``text``/``gwyddion-text`` file (see the module docstring)."""
     _check_channel(path, channel)
-    header, data = split_header(read_text(path).splitlines())
+    header, data = split_header(read_text(path).splitlines(), path)
     if not data:
         raise ReaderError(path, "contains no table of numbers")
     table, sep = _read_table(path, data)
@@ -148,7 +160,7 @@ def read_dhm(path, *, channel=None):
     if not m:
         raise ReaderError(path, "first line is not 'h=<rows> w=<columns>'")
     ny, nx = int(m.group(1)), int(m.group(2))
-    header, data = split_header(lines[1:])
+    header, data = split_header(lines[1:], path)
     pixel, punit = parse_quantity(path, header.get("pixel size", ""), "header field 'pixel size'")
     factor_key = next((k for k in header if k.lower().startswith("height conversion factor")), None)
     if factor_key is None:
