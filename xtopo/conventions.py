@@ -233,7 +233,7 @@ def is_periodic(obj) -> bool:
     value = obj.attrs.get("periodic", 0)
     try:
         flag = int(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         flag = None
     if flag not in (0, 1) or flag != value and not isinstance(value, str):
         raise ValidationError(f"attr 'periodic' must be 0 or 1, got {value!r}")
@@ -253,7 +253,7 @@ def length_attr(obj, key: str):
         return None
     try:
         val = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         val = np.nan
     if not (np.isfinite(val) and val > 0):
         raise ValidationError(f"attr {key!r} must be a positive length, got {value!r}")
@@ -443,22 +443,10 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
             raise ValidationError(f"{MASK!r} must be boolean, got {ds[MASK].dtype}")
         if ds[MASK].dims != h.dims:
             raise ValidationError(f"{MASK!r} dims {ds[MASK].dims} differ from height dims {h.dims}")
-    if _as_number(ds.attrs.get("periodic", 0), int) not in (0, 1):
-        raise ValidationError(f"attr 'periodic' must be 0 or 1, got {ds.attrs['periodic']!r}")
+    is_periodic(ds)
     for key in LENGTH_ATTRS:
-        if key in ds.attrs:
-            val = _as_number(ds.attrs[key], float)
-            if not (val is not None and np.isfinite(val) and val > 0):
-                raise ValidationError(f"attr {key!r} must be a positive length, got {ds.attrs[key]!r}")
+        length_attr(ds, key)
     return ds
-
-
-def _as_number(value, kind):
-    """``kind(value)`` for an attribute value, or None if it is not a single number (e.g. a string)."""
-    try:
-        return kind(value)
-    except (TypeError, ValueError, OverflowError):
-        return None
 
 
 _NAME_RE = re.compile(r"[^A-Za-z0-9_.@+-]")
