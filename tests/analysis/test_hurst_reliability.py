@@ -76,7 +76,8 @@ def test_tip_cutoff_lazy_on_dask():
 
 
 @pytest.mark.parametrize("attrs", [dict(tip_radius=0.0), dict(tip_radius=-0.05), dict(tip_radius=float("nan")),
-                                   dict(tip_radius="abc"), dict(resolution=-0.05), dict(resolution=float("inf"))])
+                                   dict(tip_radius="abc"), dict(resolution=-0.05), dict(resolution=float("inf")),
+                                   dict(tip_radius=10**400)])
 def test_bad_length_attrs_refused(attrs):
     # tip_radius 0 raised ZeroDivisionError, NaN gave cutoff 0 ("all reliable"), a negative radius cut the
     # spectrum at a garbage scale, resolution -0.05/inf kept everything/nothing, a string crashed in float()
@@ -87,11 +88,12 @@ def test_bad_length_attrs_refused(attrs):
         ds.topo.reliability_cutoff()
 
 
-@pytest.mark.parametrize("periodic", ["yes", 2, 0.5, None])
+@pytest.mark.parametrize("periodic", ["yes", 2, 0.5, None, float("inf")])
 def test_bad_periodic_attr_refused(periodic):
     # 'yes'/None crashed in int(), 2 counted as periodic, 0.5 as nonperiodic
     ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1).assign_attrs(periodic=periodic)
-    for call in (lambda: ds.topo.acf(), lambda: ds.topo.scalars(), lambda: xtopo.preprocess.fill_missing(ds)):
+    for call in (lambda: ds.topo.acf(), lambda: ds.topo.scalars(), lambda: xtopo.preprocess.fill_missing(ds),
+                 lambda: xtopo.validate(ds)):
         with pytest.raises(xtopo.ValidationError, match="attr 'periodic' must be 0 or 1"):
             call()
 
