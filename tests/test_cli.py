@@ -63,3 +63,30 @@ def test_bad_arguments_give_one_clear_error_line(tmp_path, capsys):
         assert len(err) == 1 and err[0].startswith("xtopo: error: ") and message in err[0], (argv, err)
     assert not (tmp_path / "r.html").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.nc"]  # no temporary file left behind
+
+
+def test_generic_files_need_their_size_and_unit_on_the_command_line(tmp_path, capsys):
+    """A plain text matrix stores neither size nor unit: the CLI takes them as options (it could not read one)."""
+    heights = np.random.default_rng(0).standard_normal((12, 20))
+    src = tmp_path / "matrix.txt"
+    np.savetxt(src, heights)
+    assert main(["info", str(src)]) == 2
+    assert "command line: --file-units" in capsys.readouterr().err
+    assert main(["info", str(src), "--file-units", "um"]) == 2
+    assert "--physical-size Ly Lx" in capsys.readouterr().err
+    out = tmp_path / "matrix.nc"
+    assert main(["convert", str(src), "-o", str(out), "--file-units", "um", "--physical-size", "3", "5",
+                 "--units", "um"]) == 0
+    ds = xtopo.io.open_topography(out, units="um")
+    np.testing.assert_allclose(ds.height.values, heights, rtol=1e-12)
+    assert float(ds.x[1] - ds.x[0]) == pytest.approx(5 / 20) and float(ds.y[1] - ds.y[0]) == pytest.approx(3 / 12)
+    capsys.readouterr()
+    assert main(["analyze", str(src), "--file-units", "um", "--physical-size", "3", "5",
+                 "-o", str(tmp_path / "a.nc")]) == 0
+    assert main(["info", str(src), "--file-units", "um", "--physical-size", "1", "2", "3"]) == 2
+    assert "does not match a 2D measurement" in capsys.readouterr().err
+
+
+def test_python_dash_m_runs_the_command_line():
+    out = subprocess.run([sys.executable, "-m", "xtopo", "--version"], capture_output=True, text=True, check=True)
+    assert out.stdout.startswith("xtopo ")

@@ -13,6 +13,7 @@ __all__ = ["main"]
 
 
 def _load_measurements(files, args):
+    from .cli_commands import read_options
     from .datasets import example_twin
     from .io import open_topography
 
@@ -22,7 +23,7 @@ def _load_measurements(files, args):
     out, failed = {}, []
     for f in files:
         try:
-            out[os.path.basename(f)] = open_topography(f)
+            out[os.path.basename(f)] = open_topography(f, **read_options(args))
         except Exception as exc:  # reported per file; the good ones go on
             failed.append((f, exc))
     return out, f"{len(files)} file(s)", failed
@@ -86,6 +87,7 @@ def _cmd_report(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
+    from .cli_commands import add_read_options
 
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
@@ -96,6 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("files", nargs="*", help="measurement files (any supported format)")
     p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
+    add_read_options(p)
     p.set_defaults(func=_cmd_analyze)
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin), and write one "
@@ -106,6 +109,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--title", help="page title")
     r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
+    add_read_options(r)
     r.set_defaults(func=_cmd_report)
     from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
 

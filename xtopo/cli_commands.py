@@ -11,7 +11,7 @@ import json
 import os
 import sys
 
-__all__ = ["add_commands", "parse_channel"]
+__all__ = ["add_commands", "add_read_options", "parse_channel", "read_options"]
 
 
 def parse_channel(value):
@@ -20,6 +20,24 @@ def parse_channel(value):
         return int(value)
     except ValueError:
         return value
+
+
+def add_read_options(p) -> None:
+    """``--file-units``, ``--height-units``, ``--physical-size``: what generic files do not store."""
+    g = p.add_argument_group("files that store no size or unit (plain text, npy, MATLAB, HDF5)")
+    g.add_argument("--file-units", metavar="UNIT", help="length unit of positions and heights (e.g. um)")
+    g.add_argument("--height-units", metavar="UNIT",
+                   help="unit of the stored height values, when it differs from --file-units")
+    g.add_argument("--physical-size", type=float, nargs="+", metavar="L",
+                   help="physical size, in --file-units: Lx (line scan) or Ly Lx (area scan)")
+
+
+def read_options(args) -> dict:
+    """The :func:`xtopo.io.open_topography` options given by :func:`add_read_options` (those given only)."""
+    size = getattr(args, "physical_size", None)
+    options = {"file_units": getattr(args, "file_units", None), "height_units": getattr(args, "height_units", None),
+               "physical_size": None if not size else size[0] if len(size) == 1 else tuple(size)}
+    return {k: v for k, v in options.items() if v is not None}
 
 
 def _err(msg: str) -> None:
@@ -46,13 +64,13 @@ def _cmd_info(args) -> int:
     print(f"file: {path} ({os.path.getsize(path)} bytes)")
     channels = getattr(xio, "channels", None)
     if channels is not None:
-        infos = channels(path)
+        infos = channels(path, **read_options(args))
         print(f"channels: {len(infos)}")
         for c in infos:
             kind = "height" if getattr(c, "is_height", True) else "other"
             print(f"  [{c.index}] {c.name}: {' × '.join(str(n) for n in c.shape)} points, "
                   f"size {_fmt_size(c.size, c.units)}, data in {c.height_units or '?'} ({kind})")
-    ds = xio.open_topography(path, channel=args.channel, units=None)
+    ds = xio.open_topography(path, channel=args.channel, units=None, **read_options(args))
     h = ds[HEIGHT]
     dims = lateral_dims(h)
     u = h.attrs.get("units", "?")
@@ -95,7 +113,7 @@ def _cmd_contact(args) -> int:
     from .io.netcdf import to_netcdf
 
     _require_contact()
-    ds = open_topography(args.file, channel=args.channel)
+    ds = open_topography(args.file, channel=args.channel, **read_options(args))
     res = _contact_item(ds, args.loads, control="load", scene=_scene_kwargs(args), solve=_solve_kwargs(args),
                         maps=not args.scalars_only)
     print(f"xtopo contact: {args.file}, {len(args.loads)} load(s)\n")
@@ -169,7 +187,7 @@ def _cmd_batch_analyze(args) -> int:
 def _cmd_convert(args) -> int:
     import xtopo.io as xio
 
-    ds = xio.open_topography(args.file, channel=args.channel, units=args.units)
+    ds = xio.open_topography(args.file, channel=args.channel, units=args.units, **read_options(args))
     if args.layout == "surfacetopography":
         writer = getattr(xio, "to_surfacetopography_netcdf", None)
         if writer is None:
@@ -217,6 +235,7 @@ def add_commands(sub) -> None:
                        description="Print the channels, grid, physical size and metadata of a measurement file.")
     p.add_argument("file", help="measurement file (any supported format)")
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name (default: the first height channel)")
+    add_read_options(p)
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("contact", help="contact mechanics of one measurement at several loads",
@@ -229,6 +248,7 @@ def add_commands(sub) -> None:
     p.add_argument("--scalars-only", action="store_true", help="leave the pressure/gap maps out of the output")
     p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
     _add_scene_options(p)
+    add_read_options(p)
     p.set_defaults(func=_cmd_contact)
 
     pb = sub.add_parser("batch", help="many measurements on a Dask cluster (resumable)",
@@ -263,4 +283,5 @@ def add_commands(sub) -> None:
                    help="file layout (default: %(default)s)")
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
     p.add_argument("--units", default="m", help="length unit of the output (default: %(default)s)")
+    add_read_options(p)
     p.set_defaults(func=_cmd_convert)

@@ -278,3 +278,10 @@ def test_hdf5_without_heights_is_not_called_corrupt(tmp_path):
     assert str(err.value) == f"{p}: contains no 1D or 2D array of heights"
     with pytest.raises(UnsupportedFormatError, match=r"labels.h5: no reader accepts.*hdf5: contains no 1D or 2D"):
         xtopo.open_topography(p)
+
+
+@pytest.mark.parametrize("path", [None, 5, ["a.txt"]])
+def test_a_path_that_is_not_a_path(path):
+    for call in (xtopo.io.open_topography, xtopo.io.channels):
+        with pytest.raises(ReaderError, match=f"expected a file path .*got {type(path).__name__}"):
+            call(path)

@@ -30,7 +30,7 @@ def resolve_units(path, *, found_units=None, found_height_units=None, file_units
     lateral = found_units or file_units
     if lateral is None:
         raise ReaderError(path, "the file stores no length unit; pass file_units= (e.g. file_units='m' or 'um') "
-                                "to open_topography")
+                                "to open_topography (command line: --file-units)")
     lateral = length_unit(path, lateral, "length unit")
     if found_height_units is not None and height_units is not None:
         raise ReaderError(path, f"the file states the unit of its values ({found_height_units!r}); "
@@ -73,7 +73,8 @@ def generic_measurement(path, heights, *, physical_size=None, found_size=None, f
     if size is None:
         shape = "(Ly, Lx)" if h.ndim == 2 else "Lx"
         raise ReaderError(path, f"the file stores no physical size; pass physical_size={shape} "
-                                f"(in {lateral}) to open_topography")
+                                f"(in {lateral}) to open_topography (command line: --physical-size "
+                                f"{shape.strip('()').replace(',', '')})")
     try:
         sz = np.broadcast_to(np.asarray(size, dtype=float), (h.ndim,))
     except ValueError:

@@ -66,7 +66,7 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
     UnsupportedFormatError
         No reader recognises the content.
     """
-    path = os.fspath(path)
+    path = _path(path)
     options = {"physical_size": physical_size, "file_units": file_units, "height_units": height_units}
     fmt, ds = _first_success(path, format, "read", channel=channel, **options)
     if physical_size is not None and "physical_size" not in fmt.options:
@@ -103,6 +103,14 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         return validate(ds)
     except XtopoError as exc:
         raise ReaderError(path, f"the {fmt.name} reader produced an invalid measurement: {exc}") from exc
+
+
+def _path(path) -> str:
+    """``path`` as a str (a ReaderError for anything that is not a path)."""
+    try:
+        return os.fspath(path)
+    except TypeError:
+        raise ReaderError(None, f"expected a file path (str or os.PathLike), got {type(path).__name__}") from None
 
 
 def _call(path, fmt, method: str, channel, options: dict):
@@ -198,7 +206,7 @@ def channels(path, *, format: str | None = None, physical_size=None, file_units:
     ReaderError, UnsupportedFormatError
         As :func:`open_topography`.
     """
-    path = os.fspath(path)
+    path = _path(path)
     _, out = _first_success(path, format, "channels", physical_size=physical_size, file_units=file_units,
                             height_units=height_units)
     return list(out)
