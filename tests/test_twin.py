@@ -90,3 +90,14 @@ def test_twin_average_of_a_dataset_refused():
 
     with pytest.raises(xtopo.ValidationError, match="expected a twin"):
         twin_psd(fractal_surface((16, 16), 1.0, hurst=0.8))  # was AttributeError: no 'children'
+
+
+def test_a_measurement_too_small_for_a_curve_adds_nothing_to_the_average():
+    """A 2×2 map has no SDRP distances: its curve is all NaN (it crashed the interpolation) and the average
+    equals that of the other measurements."""
+    big = fractal_surface((64, 64), 1.0, hurst=0.8, seed=1, units="um")
+    tiny = fractal_surface((2, 2), 0.1, hurst=0.8, seed=2, units="um")
+    both = xtopo.twin({"big": big, "tiny": tiny}).topo.sdrp()
+    alone = xtopo.twin({"big": big}).topo.sdrp()
+    assert bool(both.curves.sel(measurement="tiny").isnull().all())
+    xr.testing.assert_allclose(both.average, alone.average)

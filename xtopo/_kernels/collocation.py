@@ -29,8 +29,9 @@ def interp_loglog(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
     out = np.full(y.shape[:-1] + (xnew.size,), np.nan)
     lx_all = np.log(np.where(x > 0, x, np.nan))
     lxn = np.log(xnew)
-    flat_y = y.reshape(-1, y.shape[-1])
-    flat_o = out.reshape(-1, xnew.size)
+    rows = int(np.prod(y.shape[:-1]))                  # explicit: a curve without samples is all NaN
+    flat_y = y.reshape(rows, y.shape[-1])
+    flat_o = out.reshape(rows, xnew.size)
     for i in range(flat_y.shape[0]):
         row = flat_y[i]
         ok = np.isfinite(row) & (row > 0) & np.isfinite(lx_all)
