@@ -282,3 +282,30 @@ def test_batch_contact_equals_direct_solves(tmp_path):
                                        float(direct.area_fraction), rtol=1e-10)
     with_maps = batch.contact(ms, loads[:1], scheduler="sync", progress=False, maps=True)
     assert "pressure" in with_maps and {"x", "y"} <= set(with_maps.pressure.dims)
+
+
+def test_read_options_open_generic_files_and_key_the_store(tmp_path, counter):
+    """Text matrices store no size or unit: read_options supply them in the workers, and enter the store keys."""
+    surfaces = _surfaces(2, size=16)
+    paths = []
+    for name, ds in surfaces.items():
+        p = tmp_path / f"{name}.txt"
+        np.savetxt(p, ds.height.values * 1e6)                          # in um
+        paths.append(str(p))
+    store = tmp_path / "store"
+    bare = batch.run(fft_work, paths, LOADS, scheduler="sync", progress=False)
+    assert all("file_units" in e for e in bare.error.values.ravel())  # no unit: every item fails, and says why
+    opts = {"file_units": "um", "physical_size": (1.0, 1.0)}
+    res = batch.run(fft_work, paths, LOADS, scheduler="sync", store=store, progress=False, read_options=opts)
+    assert res.attrs["n_failed"] == 0 and counter() == 2
+    direct = batch.run(fft_work, [xtopo.io.open_topography(p, **opts) for p in paths], LOADS, scheduler="sync",
+                       progress=False)
+    xr.testing.assert_allclose(_data(res), _data(direct).assign_coords(measurement=res.measurement.values))
+    before = counter()
+    again = batch.run(fft_work, paths, LOADS, scheduler="sync", store=store, progress=False, read_options=dict(opts))
+    assert counter() == before and again.attrs["chunks_reused"] == 2  # same options: reused
+    other = batch.run(fft_work, paths, LOADS, scheduler="sync", store=store, progress=False,
+                      read_options={**opts, "physical_size": (2.0, 2.0)})
+    assert counter() == before + 2 and other.attrs["chunks_reused"] == 0   # other options: recomputed
+    with pytest.raises(XtopoError, match=r"read_options \['file_unit'\] are not options"):
+        batch.run(fft_work, paths, LOADS, scheduler="sync", progress=False, read_options={"file_unit": "um"})

@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import importlib
+import inspect
 import json
 import os
 import pkgutil
@@ -110,13 +111,26 @@ def _message(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def _load(source) -> xr.Dataset:
+def _load(source, read_options=None) -> xr.Dataset:
     if isinstance(source, xr.Dataset):
         return source
     from .io.open import open_topography
 
     with IO_LOCK:  # see xtopo._batch_store.IO_LOCK
-        return open_topography(source)
+        return open_topography(source, **(read_options or {}))
+
+
+def _read_options(read_options) -> dict:
+    """``read_options`` checked against :func:`xtopo.open_topography`'s keywords (before any task runs)."""
+    if not read_options:
+        return {}
+    from .io.open import open_topography
+
+    allowed = [k for k, v in inspect.signature(open_topography).parameters.items() if v.kind is v.KEYWORD_ONLY]
+    unknown = sorted(set(read_options) - set(allowed))
+    if unknown:
+        raise XtopoError(f"read_options {unknown} are not options of xtopo.open_topography ({', '.join(allowed)})")
+    return dict(read_options)
 
 
 def _call(func, ds, params, dim):
@@ -136,11 +150,11 @@ def _call(func, ds, params, dim):
     return out
 
 
-def _run_item(func, source, params, dim):
+def _run_item(func, source, params, dim, read_options=None):
     """(result or None, errors): errors is one message, or one per parameter value ('' where it worked)."""
     n = 1 if params is None else len(params)
     try:
-        ds = _load(source)
+        ds = _load(source, read_options)
     except Exception as exc:
         return None, [_message(exc)] * n
     try:
@@ -212,7 +226,7 @@ def _tune_malloc() -> None:
         pass
 
 
-def _run_chunk(func, dim, names, sources, params, store, ckey, fft_threads, home_pid):
+def _run_chunk(func, dim, names, sources, params, store, ckey, fft_threads, home_pid, read_options=None):
     """Run one chunk (top-level, picklable): every measurement × every parameter value of it.
 
     In a worker process FFT threads are set to ``fft_threads`` (``XTOPO_FFT_THREADS``) and
@@ -229,7 +243,7 @@ def _run_chunk(func, dim, names, sources, params, store, ckey, fft_threads, home
             os.environ["XTOPO_FFT_THREADS"] = str(int(fft_threads))
     results, errors = [], []
     for source in sources:
-        res, err = _run_item(func, source, params, dim)
+        res, err = _run_item(func, source, params, dim, read_options)
         results.append(res)
         errors.append(err)
     ds = _chunk_dataset(names, sources, results, errors, params, dim)
@@ -306,7 +320,8 @@ def _client_for(client, scheduler, workers):
         c.close()
 
 
-_CHUNK_ARGS = ("func", "dim", "names", "sources", "params", "store", "ckey", "fft_threads", "home_pid")
+_CHUNK_ARGS = ("func", "dim", "names", "sources", "params", "store", "ckey", "fft_threads", "home_pid",
+               "read_options")
 
 
 def _args(spec) -> tuple:
@@ -394,7 +409,7 @@ def _failed_items(ds, dim):
 
 def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict | None = None, chunks=None,
         client=None, scheduler: str | None = None, workers: int | None = None, store=None, progress: bool = True,
-        fft_threads: int | None = 1, retries: int = 1) -> xr.Dataset:
+        fft_threads: int | None = 1, retries: int = 1, read_options: dict | None = None) -> xr.Dataset:
     """Run ``func`` on every measurement (× every parameter value) as chunked Dask tasks.
 
     Parameters
@@ -438,6 +453,10 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     retries : int
         Automatic retries of a task that raised (distributed only; a task whose worker
         died is always rescheduled by the scheduler).
+    read_options : dict, optional
+        Keywords of :func:`xtopo.open_topography` for the file paths, e.g.
+        ``{"file_units": "um", "physical_size": (Ly, Lx)}`` for files that store no size or
+        unit (plain text, npy, MATLAB, HDF5). They are part of a chunk's store key.
 
     Returns
     -------
@@ -452,7 +471,10 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     if params is not None and not params:
         raise XtopoError(f"no {dim} values given; give at least one")
     mchunk, pchunk = _chunk_sizes(chunks, dim, len(names), 1 if params is None else len(params))
-    prints = [fingerprint(s) for s in sources]
+    read_options = _read_options(read_options)
+    # a file read with other options is another measurement: the options enter its fingerprint
+    opts = json.dumps(read_options, sort_keys=True, default=repr) if read_options else ""
+    prints = [fingerprint(s) + (f"|read:{opts}" if opts and not isinstance(s, xr.Dataset) else "") for s in sources]
     store_obj = Store(store) if store is not None else None
     home = os.getpid()
 
@@ -464,7 +486,7 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
             key = chunk_key(func, dim, names[i:i + mchunk], prints[i:i + mchunk], p)
             spec = dict(func=func, dim=dim, names=names[i:i + mchunk], sources=sources[i:i + mchunk], params=p,
                         store=None if store_obj is None else store_obj.directory, ckey=key,
-                        fft_threads=fft_threads, home_pid=home)
+                        fft_threads=fft_threads, home_pid=home, read_options=read_options)
             spec_slices[key] = {"key": key, "m": [i, min(i + mchunk, len(names))],
                                 "p": None if p is None else [j, j + len(p)]}
             row.append(spec)
@@ -566,7 +588,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
             hardness: float | None = None, periodic: bool | None = None, tol: float | None = None,
             maxiter: int | None = None, maps: bool = False, chunks=None, client=None, scheduler=None,
             workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
-            retries: int = 1) -> xr.Dataset:
+            retries: int = 1, read_options: dict | None = None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
     Exactly one of ``loads``, ``mean_pressures``, ``penetrations`` is given; it becomes the
@@ -587,7 +609,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     maps : bool
         Keep the pressure/displacement/gap/contact maps (large); default only the scalars
         (load, mean pressure, area fraction, penetration, iterations, residual, converged).
-    chunks, client, scheduler, workers, store, progress, fft_threads, retries
+    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options
         See :func:`run`.
 
     Returns
@@ -611,7 +633,8 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     long_name = {"load": "normal load", "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
     return run(func, measurements, values, dim=control, dim_attrs={"long_name": f"{long_name} (imposed)"},
                chunks=chunks, client=client, scheduler=scheduler, workers=workers, store=store, progress=progress,
-               fft_threads=fft_threads, retries=retries)
+               fft_threads=fft_threads, retries=retries,
+               read_options=read_options)
 
 
 # --------------------------------------------------------------------------- analyses
@@ -654,7 +677,8 @@ def _analyze_item(ds, *, analyses):
 
 
 def analyze(measurements, analyses=("scalars",), *, chunks=None, client=None, scheduler=None, workers=None,
-            store=None, progress: bool = True, fft_threads: int | None = 1, retries: int = 1) -> xr.Dataset:
+            store=None, progress: bool = True, fft_threads: int | None = 1, retries: int = 1,
+            read_options: dict | None = None) -> xr.Dataset:
     """Analyses of many measurements as a chunked Dask batch (see :func:`run`).
 
     Parameters
@@ -665,7 +689,7 @@ def analyze(measurements, analyses=("scalars",), *, chunks=None, client=None, sc
         Names of :mod:`xtopo.analysis` modules (``"scalars"``, ``"psd"``, ...; the function of
         the same name is called with the measurement) or picklable functions ``f(ds)``.
         With several analyses the variables are named ``<analysis>_<variable>``.
-    chunks, client, scheduler, workers, store, progress, fft_threads, retries
+    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options
         See :func:`run`.
 
     Returns
@@ -680,4 +704,5 @@ def analyze(measurements, analyses=("scalars",), *, chunks=None, client=None, sc
         _resolve_analysis(a)  # fail early, on the client, for unknown names
     func = functools.partial(_analyze_item, analyses=analyses)
     return run(func, measurements, None, chunks=chunks, client=client, scheduler=scheduler, workers=workers,
-               store=store, progress=progress, fft_threads=fft_threads, retries=retries)
+               store=store, progress=progress, fft_threads=fft_threads, retries=retries,
+               read_options=read_options)

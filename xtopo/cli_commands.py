@@ -152,7 +152,7 @@ def _report_batch(result, store_dir) -> int:
 
 def _batch_common(args) -> dict:
     return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=not args.quiet,
-                chunks=args.chunk_size)
+                chunks=args.chunk_size, read_options=read_options(args))
 
 
 def _positive_int(value: str) -> int:
@@ -227,6 +227,7 @@ def _add_batch_options(p) -> None:
                    help="store directory: one NetCDF file per finished chunk plus result.nc; rerunning with "
                         "the same store resumes (only missing chunks are computed)")
     g.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_read_options(p)
 
 
 def add_commands(sub) -> None:
