@@ -113,3 +113,13 @@ def test_hurst_bad_scale_range_refused(scale_range):
     ds = fractal_surface((64, 64), 1.0, hurst=0.7, seed=1)
     with pytest.raises(xtopo.XtopoError, match="scale_range must be two lengths"):
         ds.topo.hurst(scale_range=scale_range)
+
+
+@pytest.mark.parametrize("method", ["psd", "vbm"])
+def test_hurst_on_a_scan_too_short_for_the_default_range(method):
+    # the message said "fewer than 3 points between 0.5 and 0.25" (a reversed range) and "widen scale_range",
+    # which the caller had not given
+    ds = fractal_surface((32, 32), 1.0, hurst=0.8, seed=1, units="um")
+    with pytest.raises(xtopo.XtopoError, match=f"too short for a default fit: .*method='{method}'.*scale_range="):
+        ds.topo.hurst(method=method)
+    assert np.isfinite(float(ds.topo.hurst(method=method, scale_range=(0.03, 0.5)).hurst))

@@ -205,6 +205,10 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
         lo, hi = _scale_range(scale_range, length_units)
     sel = (scale >= lo) & (scale <= hi)
     if sel.sum() < 3:
+        if scale_range is None:
+            what = "is empty" if lo >= hi else f"({lo:g} to {hi:g} {length_units}) holds fewer than 3 points"
+            raise XtopoError(f"the scan is too short for a default fit: the range of scales method={method!r} "
+                             f"trusts {what}; give scale_range=(lo, hi) explicitly, or use a longer scan")
         raise XtopoError(f"fewer than 3 points between the scales {lo:g} and {hi:g} {length_units}; widen scale_range")
     sub = da.isel({xdim: np.flatnonzero(sel)})
     fit = fit_power_law_whittle if da.attrs["analysis"] == "psd" else fit_power_law
