@@ -309,3 +309,14 @@ def test_read_options_open_generic_files_and_key_the_store(tmp_path, counter):
     assert counter() == before + 2 and other.attrs["chunks_reused"] == 0   # other options: recomputed
     with pytest.raises(XtopoError, match=r"read_options \['file_unit'\] are not options"):
         batch.run(fft_work, paths, LOADS, scheduler="sync", progress=False, read_options={"file_unit": "um"})
+
+
+@pytest.mark.parametrize("kwargs,match", [(dict(modulus=-1), "modulus"), (dict(hardness="abc"), "hardness"),
+                                          (dict(tol=0), "tol"), (dict(maxiter=2.5), "maxiter"),
+                                          (dict(periodic="yes"), "periodic")])
+def test_contact_batch_checks_shared_parameters_before_dispatch(kwargs, match):
+    """A bad scene or solver parameter fails the call at once (it was recorded as N identical item errors)."""
+    from xtopo.errors import ContactError
+
+    with pytest.raises(ContactError, match=match):
+        batch.contact(_surfaces(2, size=16), [1e-3], scheduler="sync", progress=False, **kwargs)

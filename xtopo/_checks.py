@@ -33,11 +33,16 @@ def integer(value, name: str, minimum: int = 1, *, error: type[XtopoError] = Xto
     return int(value)
 
 
-def positive_number(value, name: str, *, infinite: bool = False) -> float:
-    """``value`` as a float if it is a real number above 0 (finite unless ``infinite``)."""
-    if (isinstance(value, bool) or not isinstance(value, numbers.Real) or not value > 0
+def positive_number(value, name: str, *, infinite: bool = False, error: type[XtopoError] = XtopoError) -> float:
+    """``value`` as a float if it is a real number above 0 (finite unless ``infinite``; a 0-d array counts).
+
+    ``error``: the :class:`~xtopo.errors.XtopoError` subclass raised otherwise.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not value > 0
             or not (infinite or np.isfinite(value))):
-        raise XtopoError(f"{name} must be a positive {'' if infinite else 'finite '}number, got {value!r}")
+        raise error(f"{name} must be a positive {'' if infinite else 'finite '}number, got {value!r}")
     return float(value)
 
 

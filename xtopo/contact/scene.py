@@ -14,6 +14,7 @@ import numpy as np
 import xarray as xr
 
 from .._kernels.convolution import Convolution
+from .._checks import positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
@@ -21,6 +22,22 @@ from ..errors import ContactError, GridError
 from ..presets import resolve as resolve_preset
 
 __all__ = ["Scene"]
+
+
+def scene_parameters(modulus, hardness, periodic) -> tuple:
+    """``(modulus, hardness, periodic)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one).
+
+    ``modulus`` (E*) and ``hardness`` (None: elastic) are positive finite numbers; ``periodic`` is
+    None (from the data) or a bool.
+    """
+    modulus = positive_number(modulus, "modulus (E* in your pressure unit)", error=ContactError)
+    if hardness is not None:
+        hardness = positive_number(hardness, "hardness (or None for elastic)", error=ContactError)
+    if periodic is not None:
+        if not isinstance(periodic, (bool, np.bool_, int, np.integer)) or periodic not in (0, 1):
+            raise ContactError(f"periodic must be True, False or None (from the data), got {periodic!r}")
+        periodic = bool(periodic)
+    return modulus, hardness, periodic
 
 
 def _heights(obj, what: str) -> xr.DataArray:
@@ -84,17 +101,7 @@ class Scene:
         h = _heights(topography, "topography")
         dtype = resolve_preset("contact", preset, dtype=dtype)["dtype"]
         self.preset = preset
-        try:
-            modulus = float(modulus)
-        except (TypeError, ValueError):
-            raise ContactError(f"modulus must be a positive number (E* in your pressure unit), got {modulus!r}") \
-                from None
-        if not (np.isfinite(modulus) and modulus > 0):
-            raise ContactError(f"modulus must be positive and finite, got {modulus}")
-        if hardness is not None:
-            hardness = float(hardness)
-            if not (np.isfinite(hardness) and hardness > 0):
-                raise ContactError(f"hardness must be positive and finite (or None for elastic), got {hardness}")
+        modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
         if np.dtype(dtype) not in (np.dtype("float32"), np.dtype("float64")):
             raise ContactError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
         self.dtype = np.dtype(dtype)
@@ -120,9 +127,7 @@ class Scene:
             self._boundary_reason = (f"from the data's periodic attribute ({int(self.periodic)})"
                                      + (" of both surfaces" if counter is not None else ""))
         else:
-            if not isinstance(periodic, (bool, np.bool_, int, np.integer)):
-                raise ContactError(f"periodic must be True, False or None (from the data), got {periodic!r}")
-            self.periodic = bool(periodic)
+            self.periodic = periodic
             self._boundary_reason = "as requested"
         self._reasons = reasons
         self.coords = {d: h.coords[d] for d in self.dims}

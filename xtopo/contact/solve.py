@@ -8,7 +8,7 @@ import numpy as np
 import xarray as xr
 
 from .._kernels.pk_solver import COUNTERS, polonsky_keer
-from .._checks import integer
+from .._checks import integer, positive_number
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 from ..presets import resolve as resolve_preset
@@ -40,9 +40,7 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
     if tol is None:
         tol = default_tol(scene.dtype) if knobs["tol"] is None else max(knobs["tol"],
                                                                           _PRESET_TOL_FLOOR[scene.dtype])
-    tol = float(tol)
-    if not tol > 0:
-        raise ContactError(f"tol must be positive, got {tol}")
+    tol = positive_number(tol, "tol", error=ContactError)
     maxiter = integer(knobs["maxiter"], "maxiter", 1, error=ContactError)
     return tol, maxiter
 
