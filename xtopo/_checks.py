@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import XtopoError
 
-__all__ = ["option", "integer", "positive_number", "lengths"]
+__all__ = ["option", "flag", "integer", "positive_number", "lengths"]
 
 
 def option(value, options, name: str):
@@ -21,6 +21,13 @@ def option(value, options, name: str):
     if not isinstance(value, str) or value not in options:
         raise XtopoError(f"{name} must be one of {tuple(options)}, got {value!r}")
     return value
+
+
+def flag(value, name: str) -> bool:
+    """``value`` as a bool if it is one (numpy's included) or the integer 0 or 1 (not a string, not None)."""
+    if isinstance(value, (bool, np.bool_)) or (isinstance(value, numbers.Integral) and value in (0, 1)):
+        return bool(value)
+    raise XtopoError(f"{name} must be True or False, got {value!r}")
 
 
 def integer(value, name: str, minimum: int = 1, *, error: type[XtopoError] = XtopoError) -> int:

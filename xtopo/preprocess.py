@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from ._apply import apply_lateral
-from ._checks import option
+from ._checks import flag, option
 from ._kernels import laplace_fill as _fill
 from ._kernels import polyfit as _poly
 from .conventions import MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
@@ -62,6 +62,7 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
         Nonuniform line scans are fitted at their positions.
     """
     degree = _poly.DEGREES[option(mode, _poly.DEGREES, "mode")]
+    per_line = flag(per_line, "per_line")
     h = height_of(obj)
     dims = lateral_dims(h)
     if dims == (Y, X):

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from ._checks import integer, positive_number
+from ._checks import flag, integer, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
 from .conventions import MASK, convert_length, lateral_dims, length_factor
 from .errors import XtopoError
@@ -272,6 +272,7 @@ def _pool_errors(errors: dict, settings: dict) -> dict:
 
 def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
                      quantity: str = "psd", **kw) -> tuple[dict, dict]:
+    reliable = flag(reliable, "reliable")
     ms = _measurements(tree)
     units = units or _common_units(ms)
     curves, errors, settings = {}, {}, {}
@@ -310,7 +311,7 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
     from .analysis.psd import psd
 
     _settings(per_decade, max_error)
-    if areal:
+    if flag(areal, "areal"):
         ms = _measurements(tree)
         lines = [n for n, ds in ms.items() if ds["height"].ndim != 2]
         if lines:

@@ -123,3 +123,21 @@ def test_hurst_on_a_scan_too_short_for_the_default_range(method):
     with pytest.raises(xtopo.XtopoError, match=f"too short for a default fit: .*method='{method}'.*scale_range="):
         ds.topo.hurst(method=method)
     assert np.isfinite(float(ds.topo.hurst(method=method, scale_range=(0.03, 0.5)).hurst))
+
+
+@pytest.mark.parametrize("value", ["no", None, 2])
+def test_flags_must_be_booleans(value):
+    # any truthy value counted: reliable="no" kept the reliability cut, per_line="no" fitted per line
+    ds = fractal_surface((32, 32), 1.0, hurst=0.8, seed=1, units="um")
+    twin = xtopo.twin({"a": ds})
+    calls = {"reliable": [lambda: ds.topo.psd(reliable=value), lambda: ds.topo.acf(reliable=value),
+                          lambda: ds.topo.vbm(reliable=value), lambda: ds.topo.sdrp(reliable=value),
+                          lambda: twin.topo.psd(reliable=value)],
+             "equivalent_1d": [lambda: ds.topo.psd(kind="iso", equivalent_1d=value)],
+             "per_line": [lambda: xtopo.preprocess.detrend(ds, per_line=value)],
+             "areal": [lambda: twin.topo.psd(areal=value)]}
+    for name, funcs in calls.items():
+        for call in funcs:
+            with pytest.raises(xtopo.XtopoError, match=f"{name} must be True or False"):
+                call()
+    assert ds.topo.psd(reliable=np.False_).attrs["reliable"] == 0   # numpy booleans are booleans

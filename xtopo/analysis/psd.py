@@ -13,7 +13,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer
+from .._checks import flag, integer
 from .._kernels import spectra as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
@@ -84,6 +84,7 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
     if convention not in ("standard", "persson"):
         raise XtopoError(f"convention must be 'standard' or 'persson', got {convention!r}")
     nb_points = None if nb_points is None else integer(nb_points, "nb_points")
+    equivalent_1d = flag(equivalent_1d, "equivalent_1d")
     prep = prepare(obj)
     u = prep.units
     h = prep.h

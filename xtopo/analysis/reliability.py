@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import positive_number
+from .._checks import flag, positive_number
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import X, Y, length_attr, length_factor
 from ..errors import GridError, XtopoError
@@ -139,7 +139,7 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
     ``kind="q"``: keep ``q <= 2π/cutoff``; ``kind="length"``: keep ``coord >= cutoff``.
     The cutoff and its method are stored in ``result.attrs``.
     """
-    if not reliable:
+    if not flag(reliable, "reliable"):
         result.attrs.update(reliable=0)
         return result
     cut = reliability_cutoff(obj)
