@@ -1,4 +1,4 @@
-"""Checks of user-given parameters of the analyses and preprocessing steps. Not public API.
+"""Checks of user-given parameters (analyses, preprocessing, contact, batch). Not public API.
 
 Each check returns the value in the type the caller needs, or raises an
 :class:`~xtopo.errors.XtopoError` that names the parameter, says what it got and
@@ -23,11 +23,14 @@ def option(value, options, name: str):
     return value
 
 
-def flag(value, name: str) -> bool:
-    """``value`` as a bool if it is one (numpy's included) or the integer 0 or 1 (not a string, not None)."""
+def flag(value, name: str, *, error: type[XtopoError] = XtopoError) -> bool:
+    """``value`` as a bool if it is one (numpy's included) or the integer 0 or 1 (not a string, not None).
+
+    ``error``: the :class:`~xtopo.errors.XtopoError` subclass raised otherwise.
+    """
     if isinstance(value, (bool, np.bool_)) or (isinstance(value, numbers.Integral) and value in (0, 1)):
         return bool(value)
-    raise XtopoError(f"{name} must be True or False, got {value!r}")
+    raise error(f"{name} must be True or False, got {value!r}")
 
 
 def integer(value, name: str, minimum: int = 1, *, error: type[XtopoError] = XtopoError) -> int:

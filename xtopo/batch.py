@@ -623,14 +623,12 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         raise XtopoError("give exactly one of loads=, mean_pressures=, penetrations=")
     control, values = given[0]
     _require_contact()
-    from ._checks import integer, positive_number
     from .contact.scene import scene_parameters
-    from .errors import ContactError
+    from .contact.solve import solver_parameters
 
     # parameters shared by every item are checked here, not N times in the workers
     modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
-    tol = None if tol is None else positive_number(tol, "tol", error=ContactError)
-    maxiter = None if maxiter is None else integer(maxiter, "maxiter", 1, error=ContactError)
+    tol, maxiter = solver_parameters(tol, maxiter)
     scene = {"modulus": modulus}
     if hardness is not None:
         scene["hardness"] = hardness

@@ -14,7 +14,7 @@ import numpy as np
 import xarray as xr
 
 from .._kernels.convolution import Convolution
-from .._checks import positive_number
+from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
@@ -34,9 +34,7 @@ def scene_parameters(modulus, hardness, periodic) -> tuple:
     if hardness is not None:
         hardness = positive_number(hardness, "hardness (or None for elastic)", error=ContactError)
     if periodic is not None:
-        if not isinstance(periodic, (bool, np.bool_, int, np.integer)) or periodic not in (0, 1):
-            raise ContactError(f"periodic must be True, False or None (from the data), got {periodic!r}")
-        periodic = bool(periodic)
+        periodic = flag(periodic, "periodic", error=ContactError)
     return modulus, hardness, periodic
 
 

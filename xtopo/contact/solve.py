@@ -13,7 +13,7 @@ from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 from ..presets import resolve as resolve_preset
 
-__all__ = ["solve", "default_tol", "solver_settings", "result_units", "run_solver"]
+__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "result_units", "run_solver"]
 
 #: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`): the knee of the
 #: error-vs-time curve (benchmarks/tradeoffs.py, docs/tradeoffs.md); it was 1e-6 for float64 before issue 9.
@@ -40,8 +40,13 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
     if tol is None:
         tol = default_tol(scene.dtype) if knobs["tol"] is None else max(knobs["tol"],
                                                                           _PRESET_TOL_FLOOR[scene.dtype])
-    tol = positive_number(tol, "tol", error=ContactError)
-    maxiter = integer(knobs["maxiter"], "maxiter", 1, error=ContactError)
+    return solver_parameters(tol, knobs["maxiter"])
+
+
+def solver_parameters(tol, maxiter) -> tuple:
+    """``(tol, maxiter)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one); None passes."""
+    tol = None if tol is None else positive_number(tol, "tol", error=ContactError)
+    maxiter = None if maxiter is None else integer(maxiter, "maxiter", 1, error=ContactError)
     return tol, maxiter
 
 
