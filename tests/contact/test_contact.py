@@ -144,6 +144,23 @@ def test_repeated_solves_on_one_scene_are_independent(hardness):
     xr.testing.assert_identical(again.drop_attrs(), fresh.drop_attrs())
 
 
+@pytest.mark.parametrize("hardness", [None, 0.05])
+def test_solves_on_one_scene_from_several_threads(hardness):
+    """Solves sharing one scene in threads (dask's threaded scheduler, a thread pool) each give the
+    result of a scene of their own: they must not overwrite each other's buffers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    surf = datasets.fractal_surface((128, 128), 1.0, hurst=0.8, rms_slope=0.1, short_cutoff=4 / 128, seed=11,
+                                    periodic=True, units="um")
+    pressures = [0.002, 0.005, 0.01, 0.02] * 3
+    alone = {p: Scene(surf, hardness=hardness).solve(mean_pressure=p, tol=1e-6) for p in set(pressures)}
+    shared = Scene(surf, hardness=hardness)
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(lambda p: shared.solve(mean_pressure=p, tol=1e-6), pressures))
+    for p, r in zip(pressures, results):
+        xr.testing.assert_identical(r.drop_attrs(), alone[p].drop_attrs())
+
+
 def test_full_contact_and_zero_load():
     surf = datasets.sinusoid((16, 32), 1.0, amplitude=0.01, units="um")
     scene = Scene(surf)

@@ -32,6 +32,7 @@ once per machine.
 from __future__ import annotations
 
 import os
+import threading
 
 import numpy as np
 import scipy.fft as sfft
@@ -115,6 +116,13 @@ class Convolution:
         Floating point type of the arrays and transforms.
     backend : {"auto", "scipy", "pyfftw"}
         FFT library (see the module docstring).
+
+    Notes
+    -----
+    The buffers, work arrays and replicas are shared state: a caller that uses them across
+    several calls (the contact solver) holds :attr:`lock` meanwhile, and ``conv(p)`` takes it
+    itself, so solves on one operator from several threads run one after the other instead
+    of overwriting each other's buffers.
     """
 
     def __init__(self, shape, spacing, modulus: float = 1.0, *, periodic: bool, dtype="float64",
@@ -142,6 +150,7 @@ class Convolution:
         self._workspaces = {}
         self._scratch = {}
         self._self_stiffness = None
+        self.lock = threading.RLock()
 
     @property
     def self_stiffness(self) -> float:
@@ -199,7 +208,12 @@ class Convolution:
         state["_buffers"] = None
         state["_workspaces"] = {}
         state["_scratch"] = {}
+        del state["lock"]
         return state
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        self.lock = threading.RLock()
 
     def _ensure(self):
         if self._buffers is None:
@@ -328,6 +342,7 @@ class Convolution:
         """Displacements ``G * p`` on the active grid (written into ``out`` when given)."""
         if out is None:
             out = np.empty(self.shape, dtype=self.dtype)
-        self.input[...] = p
-        out[...] = self.inverse(self.forward())
+        with self.lock:
+            self.input[...] = p
+            out[...] = self.inverse(self.forward())
         return out

@@ -297,6 +297,13 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     """
     if (load is None) == (penetration is None):
         raise ValueError("give exactly one of load and penetration")
+    with conv.lock:  # the operator's buffers hold this solve's state until it returns
+        return _solve(conv, w, pixel_area=pixel_area, load=load, penetration=penetration, hardness=hardness,
+                      tol=tol, maxiter=maxiter, initial=initial, callback=callback)
+
+
+def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, initial, callback):
+    """:func:`polonsky_keer` with the operator's lock held."""
     if hardness is not None and load is not None and load > 0:
         return _plastic_load_control(conv, w, pixel_area=pixel_area, load=load, hardness=hardness, tol=tol,
                                      maxiter=maxiter, initial=initial)

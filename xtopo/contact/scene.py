@@ -91,6 +91,12 @@ class Scene:
     preset : {"fast", "default", "accurate"}, optional
         Speed-versus-accuracy preset (:mod:`xtopo.presets`): sets ``dtype`` here and the
         ``tol``/``maxiter`` of :meth:`solve` and :meth:`curve` unless those are given.
+
+    Notes
+    -----
+    A scene keeps its FFT plans and work arrays between solves. Solves on one scene from
+    several threads are safe but run one at a time (they share those buffers); for parallel
+    solves give each thread its own scene, or use :func:`xtopo.batch.contact`.
     """
 
     def __init__(self, topography, *, modulus: float = 1.0, hardness: float | None = None, periodic: bool | None = None,
