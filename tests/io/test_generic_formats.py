@@ -285,3 +285,29 @@ def test_a_path_that_is_not_a_path(path):
     for call in (xtopo.io.open_topography, xtopo.io.channels):
         with pytest.raises(ReaderError, match=f"expected a file path .*got {type(path).__name__}"):
             call(path)
+
+
+@pytest.mark.parametrize("option, error, match", [
+    (dict(units="foo"), xtopo.UnitsError, r"units='foo' is not a length unit"),
+    (dict(units="s"), xtopo.UnitsError, r"units='s' is not a length unit"),
+    (dict(periodic="no"), XtopoError, r"periodic must be True or False, got 'no'"),
+    (dict(periodic=2), XtopoError, r"periodic must be True or False, got 2"),
+    (dict(tip_radius="abc"), XtopoError, r"tip_radius .* must be a positive finite number, got 'abc'"),
+    (dict(tip_radius=0.0), XtopoError, r"tip_radius .* must be a positive finite number, got 0.0"),
+    (dict(resolution=float("nan")), XtopoError, r"resolution .* must be a positive finite number, got nan"),
+])
+def test_bad_open_options_name_the_file(tmp_path, heights, option, error, match):
+    """A bad option is refused before the file is read, naming the file (periodic='no' was read as periodic)."""
+    np.save(tmp_path / "a.npy", heights)
+    with pytest.raises(error, match=f"a.npy: {match}"):
+        xtopo.open_topography(tmp_path / "a.npy", physical_size=(5.0, 7.0), file_units="nm", **option)
+
+
+def test_open_options_set_the_attrs(tmp_path, heights):
+    np.save(tmp_path / "a.npy", heights)
+    ds = xtopo.open_topography(tmp_path / "a.npy", physical_size=(5.0, 7.0), file_units="nm", units="um",
+                               periodic=False, tip_radius=np.float32(0.5), resolution=2)
+    assert ds.attrs["periodic"] == 0 and not xtopo.conventions.is_periodic(ds)
+    assert (ds.attrs["tip_radius"], ds.attrs["tip_radius_units"]) == (0.5, "um")
+    assert (ds.attrs["resolution"], ds.attrs["resolution_units"]) == (2.0, "um")
+    np.testing.assert_allclose(ds.height.values, heights * 1e-3)

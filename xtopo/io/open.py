@@ -7,9 +7,10 @@ import os
 
 import numpy as np
 
+from .._checks import flag, positive_number
 from ..conventions import append_history, convert_length, lateral_dims, normalize_units, validate
 from ..conventions import physical_size as _physical_size
-from ..errors import ReaderError, UnsupportedFormatError, XtopoError
+from ..errors import ReaderError, UnitsError, UnsupportedFormatError, XtopoError
 from .registry import READ_OPTIONS, ChannelInfo, detect
 
 __all__ = ["open_topography", "channels", "sha256"]
@@ -67,6 +68,7 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         No reader recognises the content.
     """
     path = _path(path)
+    to, periodic, lengths = _arguments(path, units, periodic, tip_radius=tip_radius, resolution=resolution)
     options = {"physical_size": physical_size, "file_units": file_units, "height_units": height_units}
     fmt, ds = _first_success(path, format, "read", channel=channel, **options)
     if physical_size is not None and "physical_size" not in fmt.options:
@@ -81,28 +83,41 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         ds.attrs.setdefault("source_file", os.path.basename(path))
         ds.attrs.setdefault("source_format", fmt.name)
         ds.attrs.setdefault("source_sha256", sha256(path))
-    if units is not None:
-        to = normalize_units(units)
+    if to is not None:
         try:
             ds = convert_length(ds, to)
         except XtopoError as exc:
             raise ReaderError(path, f"cannot convert the {fmt.name} reader's result to {units!r}: {exc}") from exc
     if periodic is not None:
-        ds.attrs["periodic"] = int(bool(periodic))
+        ds.attrs["periodic"] = int(periodic)
     u = ds["height"].attrs.get("units")
-    for key, val in (("tip_radius", tip_radius), ("resolution", resolution)):
-        if val is not None:
-            val = float(val)
-            if not (np.isfinite(val) and val > 0):
-                raise XtopoError(f"{key} must be a positive length, got {val!r}")
-            ds.attrs[key] = val
-            ds.attrs[f"{key}_units"] = u
+    for key, val in lengths.items():
+        ds.attrs[key] = val
+        ds.attrs[f"{key}_units"] = u
     if not own:
         ds = append_history(ds, f"open_topography({os.path.basename(path)!r}, format={fmt.name!r}, channel={channel!r})")
     try:
         return validate(ds)
     except XtopoError as exc:
         raise ReaderError(path, f"the {fmt.name} reader produced an invalid measurement: {exc}") from exc
+
+
+def _arguments(path, units, periodic, **lengths):
+    """The options of :func:`open_topography` checked before the file is read (errors name the file).
+
+    Returns ``(units, periodic, lengths)``: the normalised result unit (None: the file's), the
+    periodicity as a bool (None: the file's) and the given ``tip_radius``/``resolution`` as floats.
+    """
+    if units is not None:
+        try:
+            units = normalize_units(units)
+        except UnitsError as exc:
+            raise UnitsError(f"{path}: units={units!r} is not a length unit to convert to ({exc})") from None
+    if periodic is not None:
+        periodic = flag(periodic, f"{path}: periodic")
+    given = {key: positive_number(val, f"{path}: {key} (a length in the result's units)")
+             for key, val in lengths.items() if val is not None}
+    return units, periodic, given
 
 
 def _path(path) -> str:
