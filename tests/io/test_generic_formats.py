@@ -278,6 +278,10 @@ def test_hdf5_without_heights_is_not_called_corrupt(tmp_path):
     assert str(err.value) == f"{p}: contains no 1D or 2D array of heights"
     with pytest.raises(UnsupportedFormatError, match=r"labels.h5: no reader accepts.*hdf5: contains no 1D or 2D"):
         xtopo.open_topography(p)
+    # with generic options the NetCDF readers (tried first) refused file_units= instead of saying why
+    # the file is not theirs
+    with pytest.raises(UnsupportedFormatError, match=r"labels.h5: no reader accepts.*hdf5: contains no 1D or 2D"):
+        xtopo.open_topography(p, physical_size=(1, 1), file_units="m")
 
 
 @pytest.mark.parametrize("path", [None, 5, ["a.txt"]])

@@ -133,6 +133,9 @@ def _call(path, fmt, method: str, channel, options: dict):
     given = {k: v for k, v in options.items() if v is not None}
     refused = [k for k in given if k not in fmt.options and k != "physical_size"]
     if refused:
+        # refused only if the file is of this format: otherwise its "not this format" reason counts
+        # (an HDF5 file without heights was reported as a NetCDF file given file_units=)
+        _call(path, fmt, method, channel, {})
         raise ReaderError(path, f"the {fmt.name} format stores its own units; the option(s) {', '.join(refused)} "
                                 "apply only to generic formats without units (text, npy, MATLAB, HDF5)")
     kwargs = {k: v for k, v in given.items() if k in fmt.options}
