@@ -16,7 +16,7 @@ from ..errors import ReaderError, UnitsError, UnsupportedFormatError
 
 __all__ = [
     "MAX_TEXT_BYTES", "looks_like_text", "read_text", "split_lines", "parse_table", "parse_quantity",
-    "length_unit", "token_ulp", "uniform_spacing", "line_measurement", "header_value",
+    "length_unit", "token_ulp", "uniform_spacing", "line_measurement", "header_value", "is_number",
 ]
 
 #: Refuse text files larger than this (a text matrix of 2e7 values).
@@ -107,7 +107,7 @@ def parse_table(path, lines, sep: str | None = None, what: str = "data", ncols: 
         arr = None
     if arr is None or arr.size != n * len(rows):
         toks = body.split()
-        bad = next((t for t in toks if not _is_number(t)), None)
+        bad = next((t for t in toks if not is_number(t)), None)
         if bad is not None:
             raise ReaderError(path, f"{what} contains a token that is not a number: {bad[:40]!r}")
         if len(toks) != n * len(rows):
@@ -134,7 +134,7 @@ def _fields_per_line(body: str, sep, n_lines: int) -> np.ndarray:
     return np.bincount(np.searchsorted(newlines, np.flatnonzero(b == ord(sep))), minlength=n_lines) + 1
 
 
-def _is_number(tok: str) -> bool:
+def is_number(tok: str) -> bool:
     try:
         float(tok)
         return True

@@ -26,7 +26,7 @@ import re
 from ...conventions import length_factor
 from ...errors import ReaderError, UnsupportedFormatError
 from .._generic import generic_measurement, resolve_units
-from .._text import (_is_number, header_value, line_measurement, looks_like_text, parse_quantity, parse_table,
+from .._text import (header_value, is_number, line_measurement, looks_like_text, parse_quantity, parse_table,
                      read_text, token_ulp)
 from ..registry import Format, register
 
@@ -38,7 +38,7 @@ _OPTIONS = ("physical_size", "file_units", "height_units")
 
 
 def _is_data_line(line: str) -> bool:
-    return bool(_NUMBER_START.match(line)) and all(_is_number(t) for t in _fields(line))
+    return bool(_NUMBER_START.match(line)) and all(is_number(t) for t in _fields(line))
 
 
 def split_header(lines, path=None):
@@ -73,9 +73,9 @@ def split_header(lines, path=None):
     data = [ln for ln in lines[start:] if ln.strip() and not ln.lstrip().startswith(_COMMENT)]
     if previous is not None and data:
         fields = _fields(previous)
-        numbers = sum(_is_number(t) for t in fields)
+        numbers = sum(is_number(t) for t in fields)
         if len(fields) == len(_fields(data[0])) and numbers > len(fields) / 2:
-            bad = next(t for t in fields if not _is_number(t))
+            bad = next(t for t in fields if not is_number(t))
             raise ReaderError(path, f"the first data row contains a token that is not a number: {bad[:40]!r} "
                                     "(corrupt row)")
     return header, data
