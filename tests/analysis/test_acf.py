@@ -92,3 +92,18 @@ def test_bad_nb_points_refused(kind, nb_points):
     ds = fractal_surface((16, 16), 1.0, hurst=0.6, seed=3)
     with pytest.raises(xtopo.XtopoError, match="nb_points must be an integer >= 1"):
         ds.topo.acf(kind, nb_points=nb_points)
+
+
+@pytest.mark.parametrize("analysis", ["acf", "psd"])
+@pytest.mark.parametrize("kind", ["1d", "iso"])
+def test_nb_points_far_beyond_the_data_refused(analysis, kind):
+    """nb_points=10**9 allocated gigabytes of empty bins (MemoryError or the OOM killer); sparse bins are fine up
+    to MAX_SPARSE_BINS."""
+    from xtopo.analysis._scale import MAX_SPARSE_BINS
+
+    ds = fractal_surface((16, 16), 1.0, hurst=0.6, seed=3)
+    run = getattr(ds.topo, analysis)
+    with pytest.raises(xtopo.XtopoError, match=r"nb_points must be at most 10000 here \(\d+ values to bin"):
+        run(kind, nb_points=10**9)
+    sparse = run(kind, nb_points=MAX_SPARSE_BINS)     # more bins than values: the empty ones are dropped
+    assert 0 < sparse.size <= 16 * 16 and np.all(np.isfinite(sparse.values))

@@ -8,7 +8,7 @@ import xarray as xr
 
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
-from ..errors import GridError
+from ..errors import GridError, XtopoError
 
 __all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord"]
 
@@ -81,9 +81,22 @@ def prepare(obj) -> Prepared:
     return Prepared(h, _units_of(h), is_periodic(h) or is_periodic(obj), lat, resampled)
 
 
-def per_decade(lo: float, hi: float, nb_points=None) -> int:
-    """Number of log bins: ``nb_points`` or ``POINTS_PER_DECADE`` per decade of ``[lo, hi]``."""
+#: ``nb_points`` may exceed the number of values binned (most bins then stay empty) up to this many bins.
+MAX_SPARSE_BINS = 10_000
+
+
+def per_decade(lo: float, hi: float, nb_points=None, *, samples: int) -> int:
+    """Number of log bins: ``nb_points`` or ``POINTS_PER_DECADE`` per decade of ``[lo, hi]``.
+
+    ``samples``: how many values are binned. ``nb_points`` above both ``samples`` and
+    :data:`MAX_SPARSE_BINS` is refused: such bins are nearly all empty, and a request like
+    ``nb_points=10**9`` would allocate gigabytes of edges and counts.
+    """
     if nb_points is not None:
+        limit = max(MAX_SPARSE_BINS, int(samples))
+        if nb_points > limit:
+            raise XtopoError(f"nb_points must be at most {limit} here ({int(samples)} values to bin; more bins "
+                             f"than values stay empty), got {nb_points!r}")
         return max(1, int(nb_points))
     return max(1, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))))
 
@@ -103,7 +116,7 @@ def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
     if not pos.any():
         raise GridError(f"no positive {dim!r} values to bin")
     lo, hi = x[pos].min(), x[pos].max()
-    plan = BinPlan(np.where(pos, x, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points)))
+    plan = BinPlan(np.where(pos, x, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points, samples=int(pos.sum()))))
     out = xr.apply_ufunc(plan.mean, da, input_core_dims=[[dim]], output_core_dims=[["_bin"]],
                          exclude_dims={dim}, dask="parallelized", output_dtypes=[float],
                          dask_gufunc_kwargs={"output_sizes": {"_bin": len(plan)}, "allow_rechunk": False},

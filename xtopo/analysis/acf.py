@@ -25,7 +25,8 @@ def _iso_plan(ny, nx, dy, dx, periodic, nb_points):
     w = _k.acf_weights(ny, nx, periodic=periodic)
     lo = min(dx, dy)
     hi = float(r.max())
-    return BinPlan(np.where(r > 0, r, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points)), w)
+    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(r > 0)))
+    return BinPlan(np.where(r > 0, r, -1.0), log_edges(lo, hi, bins), w)
 
 
 def _acf_iso_kernel(h, *, periodic, plan):
@@ -46,7 +47,8 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
     dim : {"x", "y"}
         Profile direction for ``kind="1d"``.
     nb_points : int, optional
-        Number of log bins (``"iso"``: default 10 per decade; ``"1d"``: no binning unless given).
+        Number of log bins (``"iso"``: default 10 per decade; ``"1d"``: no binning unless given);
+        empty bins are dropped. At most the number of values binned, or 10 000.
     reliable : bool
         Drop distances below the reliability cutoff.
 

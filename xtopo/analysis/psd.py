@@ -42,7 +42,8 @@ def _iso_plan(ny, nx, dy, dx, nb_points):
     lo = min(2 * np.pi / (ny * dy) if ny > 1 else np.inf, 2 * np.pi / (nx * dx))
     hi = float(q.max())
     mult = np.broadcast_to(_k.rfft_multiplicity(ny, nx), q.shape)
-    return BinPlan(np.where(q > 0, q, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points)), mult)
+    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(q > 0)))
+    return BinPlan(np.where(q > 0, q, -1.0), log_edges(lo, hi, bins), mult)
 
 
 def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, convention: str = "standard",
@@ -64,7 +65,8 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
         ``"auto"``: Hann window for nonperiodic data, none for periodic data. The
         2D window is radial; all windows have ``mean(w²) = 1`` (§4.3).
     nb_points : int, optional
-        Number of log bins (``"iso"``: default 10 per decade; ``"1d"``: no binning unless given).
+        Number of log bins (``"iso"``: default 10 per decade; ``"1d"``: no binning unless given);
+        empty bins are dropped. At most the number of values binned, or 10 000.
     convention : {"standard", "persson"}
         ``"persson"`` divides C2D/Ciso by 4π² (Persson's normalisation).
     equivalent_1d : bool
