@@ -2,7 +2,7 @@
 
 Results are keyed by the content checksum of the measurement (after
 preprocessing: heights, mask, coordinates and the attributes analyses read),
-the function's qualified name, its parameters and the xtopo version, and
+the function and its parameters (by content, with dask's ``tokenize``) and the xtopo version, and
 stored as NetCDF files in a directory the user chooses (default: the user
 cache directory). Writes are atomic (temp file + ``os.replace``), so two
 processes writing the same key never leave a broken file: the last complete
@@ -128,9 +128,15 @@ def checksum(ds) -> str:
 
 
 def _key(func, data_sum: str, params: dict) -> str:
-    name = f"{func.__module__}.{func.__qualname__}"
-    blob = json.dumps({"f": name, "data": data_sum, "params": params, "version": __version__},
-                      sort_keys=True, default=repr)
+    """Key of ``func(ds, **params)``: function and parameters by content (dask's ``tokenize``).
+
+    A name or ``repr`` is not enough: every lambda is ``<lambda>``, closures of one factory share
+    a qualified name, and numpy abbreviates the repr of large arrays.
+    """
+    from dask.base import tokenize
+
+    blob = json.dumps({"f": tokenize(func), "data": data_sum, "params": tokenize(params), "version": __version__},
+                      sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
