@@ -320,3 +320,31 @@ def test_contact_batch_checks_shared_parameters_before_dispatch(kwargs, match):
 
     with pytest.raises(ContactError, match=match):
         batch.contact(_surfaces(2, size=16), [1e-3], scheduler="sync", progress=False, **kwargs)
+
+
+def _weighted_std(ds, *, weights):
+    return xr.Dataset({"s": ((), float(ds["height"].std()) * float(np.sum(weights)), {"units": "m", "long_name": "s"})})
+
+
+def test_store_key_holds_function_arguments_by_content(tmp_path):
+    """Chunk keys held repr() of a partial's arguments: arrays differing beyond numpy's abbreviated
+    repr reused the stale chunk, and a function argument (``analyze(ms, [callable])``) put its memory
+    address into the key, so a new process never reused the store."""
+    ms = _surfaces(2)
+    store = tmp_path / "store"
+    ones = np.ones(5000)
+    other = ones.copy()
+    other[2500] = 6.0  # same repr as ``ones``
+    a = batch.run(functools.partial(_weighted_std, weights=ones), ms, scheduler="sync", store=store, progress=False)
+    b = batch.run(functools.partial(_weighted_std, weights=other), ms, scheduler="sync", store=store, progress=False)
+    assert b.attrs["chunks_reused"] == 0
+    np.testing.assert_allclose(b.s.values, a.s.values * 5005 / 5000)
+    func = functools.partial(batch._analyze_item, analyses=(xtopo.analysis.scalars.scalars,))
+    here = batch.chunk_key(func, "load", ["a"], ["p"], None)
+    import subprocess
+    import sys
+
+    code = ("import functools, xtopo; from xtopo import batch; print(batch.chunk_key(functools.partial("
+            "batch._analyze_item, analyses=(xtopo.analysis.scalars.scalars,)), 'load', ['a'], ['p'], None))")
+    there = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=REPO)
+    assert there.stdout.strip() == here
