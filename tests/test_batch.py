@@ -348,3 +348,26 @@ def test_store_key_holds_function_arguments_by_content(tmp_path):
             "batch._analyze_item, analyses=(xtopo.analysis.scalars.scalars,)), 'load', ['a'], ['p'], None))")
     there = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=REPO)
     assert there.stdout.strip() == here
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"fft_threads": "x"}, "fft_threads must be an integer >= 1, got 'x'"),
+    ({"workers": "two", "scheduler": "threads"}, "workers must be an integer >= 1, got 'two'"),
+    ({"retries": "x"}, "retries must be an integer >= 0"),
+    ({"progress": "no"}, "progress must be True or False"),
+    ({"chunks": True}, "chunks must be an int"),
+    ({"chunks": {"measurement": True}}, "chunk size along 'measurement'.*got True"),
+    ({"dim": 3}, "dim must be a name"),
+    ({"dim": "measurement"}, "dim must be a name.*got 'measurement'"),
+    ({"params": [[0.1, 0.2], [0.3, 0.4]]}, r"load values must be a number or a 1D sequence, got shape \(2, 2\)"),
+    ({"read_options": ["units"]}, "read_options must be a dict"),
+    ({"store": 3}, "batch store must be a directory path.*int"),
+    ({"store": "/proc/no-such-dir/store"}, "cannot create the batch store /proc/no-such-dir/store"),
+])
+def test_run_options_are_checked_before_any_task(kwargs, match):
+    """These raised bare TypeError/ValueError (fft_threads='x', workers='two', dim=3, 2D loads,
+    read_options=[...], store=3 or an uncreatable store), some only after the tasks ran;
+    chunks=True ran one measurement per chunk, progress='no' showed the bar."""
+    kwargs = {"params": LOADS, "scheduler": "sync", **kwargs}
+    with pytest.raises(XtopoError, match=match):
+        batch.run(fft_work, _surfaces(2), **kwargs)

@@ -90,13 +90,20 @@ class Store:
     """
 
     def __init__(self, directory):
-        self.directory = os.path.abspath(os.fspath(directory))
-        if os.path.exists(self.directory) and not os.path.isdir(self.directory):
-            from .errors import XtopoError
+        from .errors import XtopoError
 
+        try:
+            self.directory = os.path.abspath(os.fspath(directory))
+        except TypeError:
+            raise XtopoError(f"batch store must be a directory path (str or os.PathLike), got "
+                             f"{type(directory).__name__}") from None
+        if os.path.exists(self.directory) and not os.path.isdir(self.directory):
             raise XtopoError(f"batch store {self.directory} exists and is not a directory; "
                              "give a directory path (it is created when absent)")
-        os.makedirs(self.directory, exist_ok=True)
+        try:
+            os.makedirs(self.directory, exist_ok=True)
+        except OSError as exc:
+            raise XtopoError(f"cannot create the batch store {self.directory}: {exc.strerror}") from None
 
     def path(self, key: str) -> str:
         """The file of chunk ``key``."""
