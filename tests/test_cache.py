@@ -163,3 +163,31 @@ def test_functions_and_parameters_are_keyed_by_content(tmp_path):
 
     part = functools.partial(weighted, weights=other)  # a partial has no __qualname__ (was an AttributeError)
     xr.testing.assert_identical(cache(part, ds), weighted(ds, weights=other))
+
+
+def _flagged(ds):
+    return scalars(ds).Sq.assign_attrs(reliable=True, settings={"window": "hann"})
+
+
+def test_first_result_equals_hits_and_bad_arguments_raise(tmp_path):
+    """The first call returned bool/dict attrs, hits their stored form (1, JSON): a hit was not
+    identical to the first result. Bad arguments raised bare TypeError/ValueError/AttributeError/
+    FileExistsError (a function returning None only after computing)."""
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1)
+    cache = Cache(tmp_path / "c")
+    first = cache(_flagged, ds)
+    xr.testing.assert_identical(cache(_flagged, ds), first)
+    assert cache.hits == 1 and first.attrs["reliable"] == 1 and first.attrs["settings"] == '{"window": "hann"}'
+    from xtopo.errors import XtopoError
+
+    with pytest.raises(XtopoError, match="cache directory must be a path.*int"):
+        Cache(3)
+    with pytest.raises(XtopoError, match="memory_bytes must be an integer >= 0, got 'big'"):
+        Cache(tmp_path, memory_bytes="big")
+    with pytest.raises(XtopoError, match="needs an xarray Dataset or DataArray.*ndarray"):
+        cache(_flagged, np.zeros((4, 4)))
+    with pytest.raises(XtopoError, match="returned a NoneType"):
+        cache(lambda d: None, ds)
+    (tmp_path / "file").write_text("")
+    with pytest.raises(XtopoError, match="cannot create the cache directory .*file"):
+        Cache(tmp_path / "file")(_flagged, ds)

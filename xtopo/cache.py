@@ -31,8 +31,10 @@ import weakref
 import numpy as np
 import xarray as xr
 
+from ._checks import integer
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
+from .errors import XtopoError
 from .io.netcdf import read_netcdf, to_netcdf
 
 __all__ = ["Cache", "checksum", "default_directory", "freeze"]
@@ -224,13 +226,19 @@ class Cache:
     """
 
     def __init__(self, directory=None, *, memory_bytes: int = MEMORY_BYTES):
-        self.directory = os.fspath(directory) if directory is not None else default_directory()
-        self.memory_bytes = int(memory_bytes)
+        try:
+            self.directory = os.fspath(directory) if directory is not None else default_directory()
+        except TypeError:
+            raise XtopoError(f"cache directory must be a path (str or os.PathLike), got "
+                             f"{type(directory).__name__}") from None
+        self.memory_bytes = integer(memory_bytes, "memory_bytes", minimum=0)
         self.hits = 0
         self.misses = 0
 
     def path(self, func, ds, **params) -> str:
         """The file that holds (or will hold) ``func(ds, **params)``."""
+        if not isinstance(ds, (xr.Dataset, xr.DataArray)):
+            raise XtopoError(f"Cache needs an xarray Dataset or DataArray to key the result, got {type(ds).__name__}")
         return os.path.join(os.path.abspath(self.directory), _key(func, checksum(ds), params) + ".nc")
 
     def _load(self, path: str):
@@ -250,8 +258,9 @@ class Cache:
     def __call__(self, func, ds, **params):
         """``func(ds, **params)``, from the cache when present, else computed and stored.
 
-        DataArray results come back as DataArrays, Dataset results as Datasets; a
-        hit is identical to what the first computation returned.
+        DataArray results come back as DataArrays, Dataset results as Datasets; the
+        first computation returns the stored form too (attributes as NetCDF holds them,
+        e.g. bool → int), so a hit is identical to it.
         """
         path = self.path(func, ds, **params)
         stored = self._load(path)
@@ -260,9 +269,14 @@ class Cache:
             return stored
         self.misses += 1
         result = func(ds, **params)
-        if hasattr(result, "compute"):
-            result = result.compute()
-        os.makedirs(self.directory, exist_ok=True)
+        if not isinstance(result, (xr.Dataset, xr.DataArray)):
+            raise XtopoError(f"Cache stores xarray results; {getattr(func, '__qualname__', func)!r} returned a "
+                             f"{type(result).__name__}")
+        result = result.compute()
+        try:
+            os.makedirs(self.directory, exist_ok=True)
+        except OSError as exc:
+            raise XtopoError(f"cannot create the cache directory {self.directory}: {exc.strerror}") from None
         if isinstance(result, xr.DataArray):
             name = result.name if result.name is not None else "__xtopo_unnamed__"
             out = result.to_dataset(name=name)
@@ -271,8 +285,8 @@ class Cache:
             out = result.copy(deep=False)
             out.attrs = {**result.attrs, "xtopo_cache_kind": "Dataset"}
         to_netcdf(out, path)
-        self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
-        return result
+        stored = self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
+        return result if stored is None else stored
 
     def clear(self) -> int:
         """Delete every cached result; return how many files were removed."""
