@@ -371,3 +371,21 @@ def test_run_options_are_checked_before_any_task(kwargs, match):
     kwargs = {"params": LOADS, "scheduler": "sync", **kwargs}
     with pytest.raises(XtopoError, match=match):
         batch.run(fft_work, _surfaces(2), **kwargs)
+
+
+def _with_attrs(ds, loads):
+    out = fft_work(ds, loads, iterations=2)
+    out["mean_gap"].attrs["normalised"] = True
+    return out.assign_attrs(settings={"iterations": 2}, converged=True)
+
+
+def test_computed_and_reused_chunks_are_identical(tmp_path):
+    """A chunk computed in the run kept bool/dict attrs, one read back from the store had
+    their stored form (1, JSON): the same batch gave different results on a rerun."""
+    store = tmp_path / "store"
+    fresh = batch.run(_with_attrs, _surfaces(2), LOADS, scheduler="sync", store=store, progress=False)
+    reused = batch.run(_with_attrs, _surfaces(2), LOADS, scheduler="sync", store=store, progress=False)
+    assert reused.attrs["chunks_reused"] == 2
+    for key in ("settings", "converged"):
+        assert fresh.attrs[key] == reused.attrs[key]
+    xr.testing.assert_identical(fresh.drop_attrs(deep=False), reused.drop_attrs(deep=False))

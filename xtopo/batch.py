@@ -217,7 +217,10 @@ def _chunk_dataset(names, sources, results, errors, params, dim):
     err = np.array(errors, dtype=object).reshape([len(names)] + ([] if params is None else [len(params)]))
     ds = ds.assign_coords(coords)
     ds[ERROR] = (err_dims, err, {"long_name": "error message of the failed item ('' where it succeeded)"})
-    return ds
+    # attributes as the store holds them (bool → int, dict → JSON): a chunk computed now equals one reused
+    from .io.netcdf import prepare_for_netcdf
+
+    return prepare_for_netcdf(ds, provenance=False)
 
 
 _MALLOC_TUNED = False
