@@ -320,3 +320,72 @@ def test_contact_batch_checks_shared_parameters_before_dispatch(kwargs, match):
 
     with pytest.raises(ContactError, match=match):
         batch.contact(_surfaces(2, size=16), [1e-3], scheduler="sync", progress=False, **kwargs)
+
+
+def _weighted_std(ds, *, weights):
+    return xr.Dataset({"s": ((), float(ds["height"].std()) * float(np.sum(weights)), {"units": "m", "long_name": "s"})})
+
+
+def test_store_key_holds_function_arguments_by_content(tmp_path):
+    """Chunk keys held repr() of a partial's arguments: arrays differing beyond numpy's abbreviated
+    repr reused the stale chunk, and a function argument (``analyze(ms, [callable])``) put its memory
+    address into the key, so a new process never reused the store."""
+    ms = _surfaces(2)
+    store = tmp_path / "store"
+    ones = np.ones(5000)
+    other = ones.copy()
+    other[2500] = 6.0  # same repr as ``ones``
+    a = batch.run(functools.partial(_weighted_std, weights=ones), ms, scheduler="sync", store=store, progress=False)
+    b = batch.run(functools.partial(_weighted_std, weights=other), ms, scheduler="sync", store=store, progress=False)
+    assert b.attrs["chunks_reused"] == 0
+    np.testing.assert_allclose(b.s.values, a.s.values * 5005 / 5000)
+    func = functools.partial(batch._analyze_item, analyses=(xtopo.analysis.scalars.scalars,))
+    here = batch.chunk_key(func, "load", ["a"], ["p"], None)
+    import subprocess
+    import sys
+
+    code = ("import functools, xtopo; from xtopo import batch; print(batch.chunk_key(functools.partial("
+            "batch._analyze_item, analyses=(xtopo.analysis.scalars.scalars,)), 'load', ['a'], ['p'], None))")
+    there = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=REPO)
+    assert there.stdout.strip() == here
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"fft_threads": "x"}, "fft_threads must be an integer >= 1, got 'x'"),
+    ({"workers": "two", "scheduler": "threads"}, "workers must be an integer >= 1, got 'two'"),
+    ({"retries": "x"}, "retries must be an integer >= 0"),
+    ({"progress": "no"}, "progress must be True or False"),
+    ({"chunks": True}, "chunks must be an int"),
+    ({"chunks": {"measurement": True}}, "chunk size along 'measurement'.*got True"),
+    ({"dim": 3}, "dim must be a name"),
+    ({"dim": "measurement"}, "dim must be a name.*got 'measurement'"),
+    ({"params": [[0.1, 0.2], [0.3, 0.4]]}, r"load values must be a number or a 1D sequence, got shape \(2, 2\)"),
+    ({"read_options": ["units"]}, "read_options must be a dict"),
+    ({"store": 3}, "batch store must be a directory path.*int"),
+    ({"store": "/proc/no-such-dir/store"}, "cannot create the batch store /proc/no-such-dir/store"),
+])
+def test_run_options_are_checked_before_any_task(kwargs, match):
+    """These raised bare TypeError/ValueError (fft_threads='x', workers='two', dim=3, 2D loads,
+    read_options=[...], store=3 or an uncreatable store), some only after the tasks ran;
+    chunks=True ran one measurement per chunk, progress='no' showed the bar."""
+    kwargs = {"params": LOADS, "scheduler": "sync", **kwargs}
+    with pytest.raises(XtopoError, match=match):
+        batch.run(fft_work, _surfaces(2), **kwargs)
+
+
+def _with_attrs(ds, loads):
+    out = fft_work(ds, loads, iterations=2)
+    out["mean_gap"].attrs["normalised"] = True
+    return out.assign_attrs(settings={"iterations": 2}, converged=True)
+
+
+def test_computed_and_reused_chunks_are_identical(tmp_path):
+    """A chunk computed in the run kept bool/dict attrs, one read back from the store had
+    their stored form (1, JSON): the same batch gave different results on a rerun."""
+    store = tmp_path / "store"
+    fresh = batch.run(_with_attrs, _surfaces(2), LOADS, scheduler="sync", store=store, progress=False)
+    reused = batch.run(_with_attrs, _surfaces(2), LOADS, scheduler="sync", store=store, progress=False)
+    assert reused.attrs["chunks_reused"] == 2
+    for key in ("settings", "converged"):
+        assert fresh.attrs[key] == reused.attrs[key]
+    xr.testing.assert_identical(fresh.drop_attrs(deep=False), reused.drop_attrs(deep=False))

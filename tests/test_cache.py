@@ -10,18 +10,23 @@ from xtopo.cache import Cache, checksum
 from xtopo.datasets import fractal_surface
 
 
+_CALLS = []
+
+
+def _counted(ds, **kw):
+    # module level: a closure over the list would be another function once the list changed
+    # (functions are keyed by content, captured values included)
+    _CALLS.append(kw)
+    return scalars(ds)
+
+
 def test_hit_returns_identical_result_and_skips_compute(tmp_path):
-    calls = []
-
-    def counted(ds, **kw):
-        calls.append(kw)
-        return scalars(ds)
-
+    _CALLS.clear()
     ds = fractal_surface((64, 64), 1.0, hurst=0.7, seed=1)
     cache = Cache(tmp_path)
-    first = cache(counted, ds)
-    second = cache(counted, ds)
-    assert len(calls) == 1 and cache.hits == 1 and cache.misses == 1
+    first = cache(_counted, ds)
+    second = cache(_counted, ds)
+    assert len(_CALLS) == 1 and cache.hits == 1 and cache.misses == 1
     xr.testing.assert_identical(second, first)
 
 
@@ -125,3 +130,64 @@ def test_memory_copy_follows_the_file(tmp_path):
     assert cache.clear() == 1
     cache(scalars, ds)
     assert cache.misses == 2
+
+
+def _scaled_by(k):
+    def scaled(ds):
+        return (scalars(ds).Sq * k).rename("scaled")
+    return scaled
+
+
+def test_functions_and_parameters_are_keyed_by_content(tmp_path):
+    """Keys were built from the qualified name and repr(params): every lambda (and every closure of one
+    factory) shared one entry, and arrays differing beyond numpy's abbreviated repr hit a stale result."""
+    cache = Cache(tmp_path)
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1)
+    xr.testing.assert_identical(cache(lambda d: scalars(d).Sq, ds), scalars(ds).Sq)
+    xr.testing.assert_identical(cache(lambda d: scalars(d).Sa, ds), scalars(ds).Sa)
+    xr.testing.assert_identical(cache(_scaled_by(2.0), ds), _scaled_by(2.0)(ds))
+    xr.testing.assert_identical(cache(_scaled_by(3.0), ds), _scaled_by(3.0)(ds))
+
+    def weighted(d, *, weights):
+        return (scalars(d).Sq * float(np.sum(weights))).rename("weighted")
+
+    ones = np.ones(5000)
+    other = ones.copy()
+    other[2500] = 6.0  # same repr as ``ones``
+    xr.testing.assert_identical(cache(weighted, ds, weights=ones), weighted(ds, weights=ones))
+    xr.testing.assert_identical(cache(weighted, ds, weights=other), weighted(ds, weights=other))
+    assert cache.misses == 6 and cache.hits == 0
+    xr.testing.assert_identical(cache(weighted, ds, weights=other.copy()), weighted(ds, weights=other))
+    assert cache.hits == 1
+    import functools
+
+    part = functools.partial(weighted, weights=other)  # a partial has no __qualname__ (was an AttributeError)
+    xr.testing.assert_identical(cache(part, ds), weighted(ds, weights=other))
+
+
+def _flagged(ds):
+    return scalars(ds).Sq.assign_attrs(reliable=True, settings={"window": "hann"})
+
+
+def test_first_result_equals_hits_and_bad_arguments_raise(tmp_path):
+    """The first call returned bool/dict attrs, hits their stored form (1, JSON): a hit was not
+    identical to the first result. Bad arguments raised bare TypeError/ValueError/AttributeError/
+    FileExistsError (a function returning None only after computing)."""
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1)
+    cache = Cache(tmp_path / "c")
+    first = cache(_flagged, ds)
+    xr.testing.assert_identical(cache(_flagged, ds), first)
+    assert cache.hits == 1 and first.attrs["reliable"] == 1 and first.attrs["settings"] == '{"window": "hann"}'
+    from xtopo.errors import XtopoError
+
+    with pytest.raises(XtopoError, match="cache directory must be a path.*int"):
+        Cache(3)
+    with pytest.raises(XtopoError, match="memory_bytes must be an integer >= 0, got 'big'"):
+        Cache(tmp_path, memory_bytes="big")
+    with pytest.raises(XtopoError, match="needs an xarray Dataset or DataArray.*ndarray"):
+        cache(_flagged, np.zeros((4, 4)))
+    with pytest.raises(XtopoError, match="returned a NoneType"):
+        cache(lambda d: None, ds)
+    (tmp_path / "file").write_text("")
+    with pytest.raises(XtopoError, match="cannot create the cache directory .*file"):
+        Cache(tmp_path / "file")(_flagged, ds)

@@ -2,6 +2,7 @@
 where the paper uses them (PSD, ACF, VBM, SDRP, contact area)."""
 
 import importlib
+import re
 
 import numpy as np
 import pytest
@@ -299,6 +300,19 @@ def test_unplottable_objects_raise():
         xr.DataArray([1.0, 2.0], dims="t").topo.plot()
     with pytest.raises(XtopoError, match="select one item"):
         xplot.topography(xr.concat([fractal_surface((8, 8), 1.0, hurst=0.8).height] * 2, dim="sample"))
+
+
+@pytest.mark.parametrize("max_pixels", [0, 1, 2.5, "64", None, True])
+def test_bad_max_pixels_or_variable_raise(max_pixels):
+    """max_pixels=2.5 was used, '64'/None raised a bare TypeError, 1/True a HoloViews bounds
+    ValueError; a missing variable= raised a bare KeyError."""
+    ds = fractal_surface((16, 16), 1.0, hurst=0.8)
+    with pytest.raises(XtopoError, match=f"max_pixels must be an integer >= 2, got {re.escape(repr(max_pixels))}"):
+        xplot.topography(ds, max_pixels=max_pixels)
+    with pytest.raises(XtopoError, match="max_pixels must be an integer >= 2"):
+        xplot.downsample(ds.height, max_pixels)
+    with pytest.raises(XtopoError, match=r"variable='pressure' is not a data variable.*\['height'\]"):
+        xplot.topography(ds, variable="pressure")
 
 
 def test_importing_xtopo_does_not_import_holoviews():

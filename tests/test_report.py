@@ -74,6 +74,28 @@ def test_failing_analysis_is_shown_not_fatal(monkeypatch):
     assert "not available" in page and "missing data" in page
 
 
+def test_report_arguments_are_checked(monkeypatch):
+    """analyses='psd' was read as the names 'p', 's', 'd' and analyses=['nope'] as an analysis that
+    failed for these data (a page without plots, no error); maps='no' drew the maps; title=5 raised
+    AttributeError."""
+    from xtopo import report as rep
+    from xtopo.errors import XtopoError
+
+    asked = []
+
+    def stitch(tree, name):
+        asked.append(name)
+        raise XtopoError("not needed here")
+
+    monkeypatch.setattr(rep, "_stitch", stitch)
+    page = rep.report(_twin(), analyses="psd", maps=False, title=5)
+    assert asked == ["psd"] and "<title>5</title>" in page
+    with pytest.raises(XtopoError, match=r"analyses must be one of \('psd', 'acf', 'vbm', 'sdrp'\), got 'nope'"):
+        rep.report(_twin(), analyses=["nope"], maps=False)
+    with pytest.raises(XtopoError, match="maps must be True or False, got 'no'"):
+        rep.report(_twin(), analyses=(), maps="no")
+
+
 @needs_analyses
 def test_report_has_the_four_stitched_plots():
     from xtopo.report import report

@@ -59,9 +59,17 @@ def fingerprint(source) -> str:
 
 
 def chunk_key(func, dim, names, prints, params) -> str:
-    """SHA-256 key of one chunk's inputs."""
-    blob = json.dumps({"f": func_name(func), "dim": dim, "names": list(names), "m": list(prints),
-                       "p": None if params is None else list(params), "v": __version__},
+    """SHA-256 key of one chunk's inputs.
+
+    The function (a partial's arguments included) and the parameter values enter by content
+    (dask's ``tokenize``), which is the same in every process: a ``repr`` holds memory addresses
+    (``<function f at 0x...>``: never reused by a new process) and abbreviates large arrays
+    (``[1., 1., ..., 1.]``: reused when the array changed).
+    """
+    from dask.base import tokenize
+
+    blob = json.dumps({"f": tokenize(func), "dim": dim, "names": list(names),
+                       "m": list(prints), "p": None if params is None else tokenize(list(params)), "v": __version__},
                       sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -82,13 +90,20 @@ class Store:
     """
 
     def __init__(self, directory):
-        self.directory = os.path.abspath(os.fspath(directory))
-        if os.path.exists(self.directory) and not os.path.isdir(self.directory):
-            from .errors import XtopoError
+        from .errors import XtopoError
 
+        try:
+            self.directory = os.path.abspath(os.fspath(directory))
+        except TypeError:
+            raise XtopoError(f"batch store must be a directory path (str or os.PathLike), got "
+                             f"{type(directory).__name__}") from None
+        if os.path.exists(self.directory) and not os.path.isdir(self.directory):
             raise XtopoError(f"batch store {self.directory} exists and is not a directory; "
                              "give a directory path (it is created when absent)")
-        os.makedirs(self.directory, exist_ok=True)
+        try:
+            os.makedirs(self.directory, exist_ok=True)
+        except OSError as exc:
+            raise XtopoError(f"cannot create the batch store {self.directory}: {exc.strerror}") from None
 
     def path(self, key: str) -> str:
         """The file of chunk ``key``."""

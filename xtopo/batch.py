@@ -38,6 +38,7 @@ import numpy as np
 import xarray as xr
 
 from ._batch_store import IO_LOCK, MANIFEST, Store, chunk_key, fingerprint, func_name
+from ._checks import flag, integer
 from .errors import XtopoError
 
 __all__ = ["run", "contact", "analyze", "open_store"]
@@ -86,8 +87,8 @@ def _names_and_sources(measurements):
 def _chunk_sizes(chunks, dim, n_meas, n_par):
     if chunks is None:
         chunks = {}
-    elif isinstance(chunks, (int, np.integer)):
-        chunks = {MEASUREMENT: int(chunks)}
+    elif isinstance(chunks, (int, np.integer)) and not isinstance(chunks, (bool, np.bool_)):
+        chunks = {MEASUREMENT: integer(chunks, "chunks")}
     elif not isinstance(chunks, dict):
         raise XtopoError(f"chunks must be an int (measurements per chunk) or a dict like "
                          f"{{'{MEASUREMENT}': 1, '{dim}': 4}}, got {chunks!r}")
@@ -97,11 +98,29 @@ def _chunk_sizes(chunks, dim, n_meas, n_par):
     sizes = []
     for d, n, default in ((MEASUREMENT, n_meas, 1), (dim, n_par, None)):
         c = chunks.get(d, default)
-        c = n if c is None or c == -1 else c
-        if not isinstance(c, (int, np.integer)) or c < 1:
-            raise XtopoError(f"chunk size along {d!r} must be a positive int (or -1/None for all), got {c!r}")
-        sizes.append(int(c))
+        sizes.append(n if c is None or (c == -1 and not isinstance(c, bool))
+                     else integer(c, f"chunk size along {d!r} (or -1/None for all)"))
     return sizes
+
+
+def _options(dim, workers, fft_threads, retries, progress, params):
+    """The run options checked on the client, before any task is built; returns ``params`` as a list."""
+    if not isinstance(dim, str) or not dim or dim in (MEASUREMENT, ERROR, "source"):
+        raise XtopoError(f"dim must be a name (str) other than {MEASUREMENT!r}, {ERROR!r} and 'source', got {dim!r}")
+    if workers is not None:
+        integer(workers, "workers")
+    if fft_threads is not None:
+        integer(fft_threads, "fft_threads")
+    integer(retries, "retries", minimum=0)
+    flag(progress, "progress")
+    if params is None:
+        return None
+    values = np.atleast_1d(np.asarray(params))
+    if values.ndim != 1:
+        raise XtopoError(f"{dim} values must be a number or a 1D sequence, got shape {values.shape}")
+    if not values.size:
+        raise XtopoError(f"no {dim} values given; give at least one")
+    return values.tolist()
 
 
 # --------------------------------------------------------------------------- the task
@@ -122,6 +141,9 @@ def _load(source, read_options=None) -> xr.Dataset:
 
 def _read_options(read_options) -> dict:
     """``read_options`` checked against :func:`xtopo.open_topography`'s keywords (before any task runs)."""
+    if read_options is not None and not isinstance(read_options, dict):
+        raise XtopoError(f"read_options must be a dict of xtopo.open_topography keywords, got "
+                         f"{type(read_options).__name__}")
     if not read_options:
         return {}
     from .io.open import open_topography
@@ -195,7 +217,10 @@ def _chunk_dataset(names, sources, results, errors, params, dim):
     err = np.array(errors, dtype=object).reshape([len(names)] + ([] if params is None else [len(params)]))
     ds = ds.assign_coords(coords)
     ds[ERROR] = (err_dims, err, {"long_name": "error message of the failed item ('' where it succeeded)"})
-    return ds
+    # attributes as the store holds them (bool → int, dict → JSON): a chunk computed now equals one reused
+    from .io.netcdf import prepare_for_netcdf
+
+    return prepare_for_netcdf(ds, provenance=False)
 
 
 _MALLOC_TUNED = False
@@ -467,9 +492,7 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
         ``chunks_reused`` and ``store``.
     """
     names, sources = _names_and_sources(measurements)
-    params = None if params is None else list(np.atleast_1d(np.asarray(params)).tolist())
-    if params is not None and not params:
-        raise XtopoError(f"no {dim} values given; give at least one")
+    params = _options(dim, workers, fft_threads, retries, progress, params)
     mchunk, pchunk = _chunk_sizes(chunks, dim, len(names), 1 if params is None else len(params))
     read_options = _read_options(read_options)
     # a file read with other options is another measurement: the options enter its fingerprint

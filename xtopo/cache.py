@@ -2,7 +2,7 @@
 
 Results are keyed by the content checksum of the measurement (after
 preprocessing: heights, mask, coordinates and the attributes analyses read),
-the function's qualified name, its parameters and the xtopo version, and
+the function and its parameters (by content, with dask's ``tokenize``) and the xtopo version, and
 stored as NetCDF files in a directory the user chooses (default: the user
 cache directory). Writes are atomic (temp file + ``os.replace``), so two
 processes writing the same key never leave a broken file: the last complete
@@ -31,8 +31,10 @@ import weakref
 import numpy as np
 import xarray as xr
 
+from ._checks import integer
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
+from .errors import XtopoError
 from .io.netcdf import read_netcdf, to_netcdf
 
 __all__ = ["Cache", "checksum", "default_directory", "freeze"]
@@ -128,9 +130,15 @@ def checksum(ds) -> str:
 
 
 def _key(func, data_sum: str, params: dict) -> str:
-    name = f"{func.__module__}.{func.__qualname__}"
-    blob = json.dumps({"f": name, "data": data_sum, "params": params, "version": __version__},
-                      sort_keys=True, default=repr)
+    """Key of ``func(ds, **params)``: function and parameters by content (dask's ``tokenize``).
+
+    A name or ``repr`` is not enough: every lambda is ``<lambda>``, closures of one factory share
+    a qualified name, and numpy abbreviates the repr of large arrays.
+    """
+    from dask.base import tokenize
+
+    blob = json.dumps({"f": tokenize(func), "data": data_sum, "params": tokenize(params), "version": __version__},
+                      sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
@@ -218,13 +226,19 @@ class Cache:
     """
 
     def __init__(self, directory=None, *, memory_bytes: int = MEMORY_BYTES):
-        self.directory = os.fspath(directory) if directory is not None else default_directory()
-        self.memory_bytes = int(memory_bytes)
+        try:
+            self.directory = os.fspath(directory) if directory is not None else default_directory()
+        except TypeError:
+            raise XtopoError(f"cache directory must be a path (str or os.PathLike), got "
+                             f"{type(directory).__name__}") from None
+        self.memory_bytes = integer(memory_bytes, "memory_bytes", minimum=0)
         self.hits = 0
         self.misses = 0
 
     def path(self, func, ds, **params) -> str:
         """The file that holds (or will hold) ``func(ds, **params)``."""
+        if not isinstance(ds, (xr.Dataset, xr.DataArray)):
+            raise XtopoError(f"Cache needs an xarray Dataset or DataArray to key the result, got {type(ds).__name__}")
         return os.path.join(os.path.abspath(self.directory), _key(func, checksum(ds), params) + ".nc")
 
     def _load(self, path: str):
@@ -244,8 +258,9 @@ class Cache:
     def __call__(self, func, ds, **params):
         """``func(ds, **params)``, from the cache when present, else computed and stored.
 
-        DataArray results come back as DataArrays, Dataset results as Datasets; a
-        hit is identical to what the first computation returned.
+        DataArray results come back as DataArrays, Dataset results as Datasets; the
+        first computation returns the stored form too (attributes as NetCDF holds them,
+        e.g. bool → int), so a hit is identical to it.
         """
         path = self.path(func, ds, **params)
         stored = self._load(path)
@@ -254,9 +269,14 @@ class Cache:
             return stored
         self.misses += 1
         result = func(ds, **params)
-        if hasattr(result, "compute"):
-            result = result.compute()
-        os.makedirs(self.directory, exist_ok=True)
+        if not isinstance(result, (xr.Dataset, xr.DataArray)):
+            raise XtopoError(f"Cache stores xarray results; {getattr(func, '__qualname__', func)!r} returned a "
+                             f"{type(result).__name__}")
+        result = result.compute()
+        try:
+            os.makedirs(self.directory, exist_ok=True)
+        except OSError as exc:
+            raise XtopoError(f"cannot create the cache directory {self.directory}: {exc.strerror}") from None
         if isinstance(result, xr.DataArray):
             name = result.name if result.name is not None else "__xtopo_unnamed__"
             out = result.to_dataset(name=name)
@@ -265,8 +285,8 @@ class Cache:
             out = result.copy(deep=False)
             out.attrs = {**result.attrs, "xtopo_cache_kind": "Dataset"}
         to_netcdf(out, path)
-        self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
-        return result
+        stored = self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
+        return result if stored is None else stored
 
     def clear(self) -> int:
         """Delete every cached result; return how many files were removed."""

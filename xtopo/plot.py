@@ -28,6 +28,7 @@ import warnings
 import numpy as np
 import xarray as xr
 
+from ._checks import integer
 from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
 from .errors import UnitsError, XtopoError
 
@@ -149,10 +150,9 @@ def downsample(da: xr.DataArray, max_pixels: int = MAX_PIXELS) -> xr.DataArray:
     da : xarray.DataArray
         A map on ``(y, x)`` or a profile on ``x`` (other dims are kept).
     max_pixels : int
-        Largest number of points per lateral dimension.
+        Largest number of points per lateral dimension (at least 2).
     """
-    if max_pixels < 1:
-        raise XtopoError(f"max_pixels must be a positive integer, got {max_pixels}")
+    max_pixels = integer(max_pixels, "max_pixels", minimum=2)
     factors = {d: math.ceil(da.sizes[d] / max_pixels) for d in LATERAL_DIMS if d in da.dims}
     factors = {d: f for d, f in factors.items() if f > 1}
     if da.dtype == bool:
@@ -203,9 +203,13 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
         Lengths are shown in a readable unit (mm, µm, nm, ...).
     """
     hv = _hv()
+    max_pixels = integer(max_pixels, "max_pixels", minimum=2)  # also for profiles, which do not use it
     if isinstance(obj, xr.Dataset):
         from .conventions import height_of
 
+        if variable != "height" and variable not in obj.data_vars:
+            raise XtopoError(f"variable={variable!r} is not a data variable of the Dataset; choose from "
+                             f"{sorted(map(str, obj.data_vars))}")
         da = height_of(obj) if variable == "height" else obj[variable]
         da = da.assign_attrs({k: v for k, v in obj.attrs.items() if k in ("title", "instrument")} | dict(da.attrs))
     elif isinstance(obj, xr.DataArray):

@@ -15,6 +15,7 @@ import os
 
 import xarray as xr
 
+from ._checks import flag, option
 from .errors import XtopoError
 
 __all__ = ["report", "ANALYSES"]
@@ -53,6 +54,17 @@ def _stitch(tree: xr.DataTree, name: str) -> xr.Dataset:
     if name == "sdrp":
         return stitching.twin_sdrp(tree, 2)
     raise XtopoError(f"unknown analysis {name!r} for the report; choose from {ANALYSES}")
+
+
+def _analyses(analyses) -> tuple:
+    """``analyses`` as a tuple of names from :data:`ANALYSES` (one name may be given as a str)."""
+    if isinstance(analyses, str):
+        analyses = (analyses,)
+    try:
+        analyses = tuple(analyses)
+    except TypeError:
+        raise XtopoError(f"analyses must be a sequence of names from {ANALYSES}, got {analyses!r}") from None
+    return tuple(option(a, ANALYSES, "analyses") for a in analyses)
 
 
 def _as_twin(source) -> xr.DataTree:
@@ -130,7 +142,7 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
         Where to write the page (atomically). Without it the HTML text is returned.
     title : str, optional
         Page title (default: the twin's ``title``).
-    analyses : sequence of {"psd", "acf", "vbm", "sdrp"}
+    analyses : sequence of {"psd", "acf", "vbm", "sdrp"}, or one of them
         Stitched averages to show (``sdrp`` is the scale-dependent curvature, as in
         the paper's figure 5). An analysis that fails for these data is reported
         on the page with its error message instead of a plot.
@@ -152,11 +164,13 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     from .summary import summary_table
     from .twins import measurements
 
+    analyses = _analyses(analyses)
+    maps = flag(maps, "maps")
     tree = _as_twin(source)
     ms = measurements(tree)
     if not ms:
         raise XtopoError("the twin holds no measurements; nothing to report")
-    title = title or str(tree.attrs.get("title") or "xtopo report")
+    title = str(title) if title is not None else str(tree.attrs.get("title") or "xtopo report")
     table = summary_table(ms)
     labels = _labels(table)
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")

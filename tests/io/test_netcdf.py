@@ -105,3 +105,34 @@ def test_bad_attrs_or_heights_in_netcdf_raise_reader_error(tmp_path, attrs, heig
                ).to_netcdf(path)
     with pytest.raises(xtopo.ReaderError, match=f"odd.nc.*{problem}"):
         xtopo.open_topography(path)
+
+
+@pytest.mark.parametrize("engine", ["netcdf4", "h5netcdf"])
+def test_attrs_netcdf_cannot_hold_are_stored_readably(tmp_path, engine):
+    """numpy str, integers beyond 64 bits, nested lists and 2D arrays raised bare TypeError/ValueError
+    (netcdf4), or wrote a file no reader could open again (h5netcdf, nested list)."""
+    ds = _measurement()
+    ds.attrs.update(operator=np.str_("Zoë"), serial=2**70, grid_pts=[[1, 2], [3, 4]], matrix=np.eye(2))
+    ds.height.attrs["calibration"] = [[1.5, 0.0], [0.0, 2.5]]
+    path = tmp_path / "odd-attrs.nc"
+    xtopo.to_netcdf(ds, path, engine=engine)
+    back = xtopo.open_topography(path)
+    assert back.attrs["operator"] == "Zoë"
+    assert back.attrs["serial"] == str(2**70)
+    assert back.attrs["grid_pts"] == "[[1, 2], [3, 4]]"
+    assert back.attrs["matrix"] == "[[1.0, 0.0], [0.0, 1.0]]"
+    assert back.height.attrs["calibration"] == "[[1.5, 0.0], [0.0, 2.5]]"
+    np.testing.assert_array_equal(back.height.values, ds.height.values)
+
+
+def test_bad_write_arguments_raise_xtopo_errors(tmp_path):
+    """path=None/int raised a bare TypeError, compress='no' compressed, complex data raised a bare ValueError."""
+    ds = _measurement()
+    with pytest.raises(xtopo.XtopoError, match="path must be a file path.*int"):
+        xtopo.to_netcdf(ds, 3)
+    with pytest.raises(xtopo.XtopoError, match="compress must be True or False, got 'no'"):
+        xtopo.to_netcdf(ds, tmp_path / "c.nc", compress="no")
+    cplx = xr.Dataset({"spectrum": ("q", np.array([1 + 2j, 3j]))})
+    with pytest.raises(xtopo.ValidationError, match="cannot write .*complex.nc.*complex"):
+        xtopo.to_netcdf(cplx, tmp_path / "complex.nc", engine="netcdf4")
+    assert os.listdir(tmp_path) == []  # neither the target nor a temp file

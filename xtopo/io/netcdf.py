@@ -15,9 +15,10 @@ import tempfile
 import numpy as np
 import xarray as xr
 
+from .._checks import flag
 from .._version import __version__
 from ..conventions import CONVENTIONS
-from ..errors import ReaderError, XtopoError
+from ..errors import ReaderError, ValidationError, XtopoError
 
 __all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
            "ENGINES"]
@@ -27,11 +28,18 @@ ENGINES = ("netcdf4", "h5netcdf")
 PROVENANCE_KEYS = ("Conventions", "xtopo_version", "date_created", "product_version", "processing_level")
 
 
+_INT64 = np.iinfo(np.int64)
+
+
 def _sanitize_value(value):
     if isinstance(value, (bool, np.bool_)):
         return int(value)
     if value is None:
         return None
+    if isinstance(value, str):
+        return str(value)  # numpy's str_ (a str subclass) has no HDF5 type
+    if isinstance(value, int) and not _INT64.min <= value <= _INT64.max:
+        return str(value)  # NetCDF stores at most 64-bit integers
     if isinstance(value, dict):
         return json.dumps(value, default=str, sort_keys=True)
     if isinstance(value, (_dt.datetime, _dt.date)):
@@ -39,9 +47,15 @@ def _sanitize_value(value):
     if isinstance(value, (list, tuple)):
         if all(isinstance(v, str) for v in value):
             return json.dumps(list(value))
-        arr = np.asarray([_sanitize_value(v) for v in value])
-        return arr if arr.dtype.kind in "iuf" else json.dumps(list(value), default=str)
+        try:
+            arr = np.asarray([_sanitize_value(v) for v in value])
+        except ValueError:  # ragged nesting
+            arr = None
+        ok = arr is not None and arr.ndim == 1 and arr.dtype.kind in "iuf"
+        return arr if ok else json.dumps(list(value), default=str)
     if isinstance(value, np.ndarray):
+        if value.ndim > 1:  # NetCDF attributes are 1D
+            return json.dumps(value.tolist(), default=str)
         if value.dtype == bool:
             return value.astype(np.int8)
         return value if value.dtype.kind in "iufS" else json.dumps(value.tolist(), default=str)
@@ -51,7 +65,8 @@ def _sanitize_value(value):
 
 
 def sanitize_attrs(attrs: dict) -> dict:
-    """Attributes NetCDF can store: bool → int, dict/list of str → JSON, None dropped."""
+    """Attributes NetCDF can store: bool → int, dict/list of str/nested list/2D array → JSON,
+    integers beyond 64 bits → str, None dropped."""
     out = {}
     for key, value in attrs.items():
         v = _sanitize_value(value)
@@ -117,7 +132,10 @@ def atomic_write(path, write) -> str:
     A ``write`` that fails (or a process that dies) leaves an existing ``path`` untouched
     and no temporary file behind (the latter except on a hard kill).
     """
-    path = os.fspath(path)
+    try:
+        path = os.fspath(path)
+    except TypeError:
+        raise XtopoError(f"path must be a file path (str or os.PathLike), got {type(path).__name__}") from None
     directory = os.path.dirname(os.path.abspath(path))
     try:
         fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
@@ -155,19 +173,33 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
     -------
     str
         The path written.
+
+    Raises
+    ------
+    ValidationError
+        A variable NetCDF cannot hold (e.g. complex values with ``netcdf4``); nothing is written.
     """
     if isinstance(ds, xr.DataArray):
         ds = ds.to_dataset(name=ds.name or "data")
     if not isinstance(ds, xr.Dataset):
         raise XtopoError(f"to_netcdf expects an xarray Dataset, got {type(ds).__name__}")
     engine = check_engine(engine)
+    compress = flag(compress, "compress")
     out = prepare_for_netcdf(ds)
     encoding = {}
     if compress:
         key = "zlib" if engine == "netcdf4" else "compression"
         val = True if engine == "netcdf4" else "gzip"
         encoding = {v: {key: val} for v in out.data_vars if out[v].dtype.kind == "f"}
-    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine, encoding=encoding))
+    return atomic_write(path, lambda tmp: _write(out, tmp, path, engine=engine, encoding=encoding))
+
+
+def _write(obj, tmp, path, **kwargs):
+    """``obj.to_netcdf(tmp)``; xarray's refusal of content NetCDF cannot hold becomes a ValidationError."""
+    try:
+        obj.to_netcdf(tmp, **kwargs)
+    except (TypeError, ValueError) as exc:
+        raise ValidationError(f"cannot write {os.fspath(path)}: {exc}") from exc
 
 
 def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
@@ -176,7 +208,7 @@ def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
     groups = {node.path: prepare_for_netcdf(node.to_dataset(inherit=False), provenance=node.is_root)
               for node in tree.subtree}
     out = xr.DataTree.from_dict(groups)
-    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, engine=engine))
+    return atomic_write(path, lambda tmp: _write(out, tmp, path, engine=engine))
 
 
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
