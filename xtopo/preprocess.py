@@ -117,7 +117,7 @@ def fill_missing(obj):
     res = _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
                   "fill_missing(harmonic)" if dims == (Y, X) else "fill_missing(linear)")
     if isinstance(obj, xr.Dataset):
-        filled = h.isnull()
+        filled = ~np.isfinite(h)  # what the kernels fill: NaN and ±inf
         res = res.drop_vars(MASK, errors="ignore")
         res[_FILLED] = filled.assign_attrs(long_name="interpolated by fill_missing", flag_meanings="filled")
     return res
