@@ -214,3 +214,13 @@ def test_fill_marks_infinite_heights_as_filled(dask):
     expected[3, 4] = expected[5, 1] = True
     xr.testing.assert_equal(out.filled.compute().reset_coords(drop=True), expected.reset_coords(drop=True))
     assert np.isfinite(out.height.values).all()
+
+
+def test_fill_again_keeps_the_record_of_earlier_fills():
+    # filling a filled (then detrended) measurement again reset ``filled`` to all False
+    h = _rough(8, 8)
+    h[2, 3] = np.nan
+    once = fill_missing(make_measurement(h, spacing=0.5, units="um"))
+    again = fill_missing(detrend(once))
+    xr.testing.assert_identical(again.filled, once.filled)
+    assert bool(again.filled[2, 3])
