@@ -101,3 +101,13 @@ def test_a_measurement_too_small_for_a_curve_adds_nothing_to_the_average():
     alone = xtopo.twin({"big": big}).topo.sdrp()
     assert bool(both.curves.sel(measurement="tiny").isnull().all())
     xr.testing.assert_allclose(both.average, alone.average)
+
+
+def test_twin_from_any_mapping():
+    # a mapping that is not a dict was iterated like a list: its keys were opened as file paths
+    import types
+
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um")
+    tree = xtopo.twin(types.MappingProxyType({"afm": a}))
+    assert list(tree.children) == ["afm"]
+    xr.testing.assert_identical(tree["afm"].to_dataset(), a)

@@ -9,7 +9,7 @@ module builds, stores and restores twins.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
 import xarray as xr
 
@@ -68,7 +68,7 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
     if isinstance(measurements, (str, os.PathLike, xr.Dataset)) or not isinstance(measurements, Iterable):
         raise ValidationError(f"measurements must be a mapping or a list of Datasets/paths, got "
                               f"{type(measurements).__name__}")
-    items = measurements.items() if isinstance(measurements, dict) else enumerate(measurements)
+    items = measurements.items() if isinstance(measurements, Mapping) else enumerate(measurements)
     nodes: dict[str, xr.Dataset] = {}
     for key, m in items:
         if not isinstance(m, (xr.Dataset, str, os.PathLike)):
