@@ -111,3 +111,17 @@ def test_twin_from_any_mapping():
     tree = xtopo.twin(types.MappingProxyType({"afm": a}))
     assert list(tree.children) == ["afm"]
     xr.testing.assert_identical(tree["afm"].to_dataset(), a)
+
+
+@pytest.mark.parametrize("paths", [("/afm/s1", "/afm/s2", "/stylus"), ("/", "/stylus")])
+def test_measurements_below_the_children_refused(tmp_path, paths):
+    # nested measurements were skipped without a word: averages used only /stylus, and the
+    # archive written by to_netcdf lost /afm/s1 and /afm/s2
+    a = fractal_surface((16, 16), 1.0, hurst=0.8, seed=1, units="um")
+    tree = xr.DataTree.from_dict({p: a for p in paths})
+    with pytest.raises(xtopo.ValidationError, match="children of the root"):
+        xtopo.twins.measurements(tree)
+    with pytest.raises(xtopo.ValidationError, match="children of the root"):
+        tree.topo.psd()
+    with pytest.raises(xtopo.ValidationError, match="children of the root"):
+        tree.topo.to_netcdf(tmp_path / "t.nc")

@@ -91,9 +91,20 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
 
 
 def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
-    """The measurement Datasets of a twin by node name (children holding a ``height``)."""
+    """The measurement Datasets of a twin by node name (children holding a ``height``).
+
+    Raises
+    ------
+    ValidationError
+        If ``tree`` is not a DataTree, or a node other than a child of the root holds a
+        ``height`` (a measurement that the twin's analyses and archive would not see).
+    """
     if not isinstance(tree, xr.DataTree):
         raise ValidationError(f"expected a twin (xarray.DataTree, see xtopo.twin), got {type(tree).__name__}")
+    misplaced = [node.path for node in tree.subtree if node.level != 1 and "height" in node.dataset]
+    if misplaced:
+        raise ValidationError(f"a twin holds its measurements as children of the root, but node(s) {misplaced} "
+                              "hold a 'height' too; build the twin with xtopo.twin (one node per measurement)")
     return {name: node.to_dataset() for name, node in tree.children.items() if "height" in node.dataset}
 
 
