@@ -125,3 +125,22 @@ def test_measurements_below_the_children_refused(tmp_path, paths):
         tree.topo.psd()
     with pytest.raises(xtopo.ValidationError, match="children of the root"):
         tree.topo.to_netcdf(tmp_path / "t.nc")
+
+
+def test_archive_keeps_groups_that_are_not_measurements(tmp_path):
+    # to_netcdf wrote only the measurements: a /notes group vanished from the archive
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um")
+    notes = xr.Dataset({"load": ("step", [1.0, 2.0], {"units": "N", "long_name": "applied load"})},
+                       attrs={"comment": "indentation log"})
+    tree = xtopo.twin({"a": a}).assign({"notes": xr.DataTree(notes)})
+    tree.topo.to_netcdf(tmp_path / "t.nc")
+    back = xtopo.open_twin(tmp_path / "t.nc")
+    assert set(back.children) == {"a", "notes"}
+    xr.testing.assert_identical(back["notes"].to_dataset(), notes)
+    xr.testing.assert_identical(back["a"].to_dataset(), a)
+
+
+def test_archive_of_a_dataset_refused(tmp_path):
+    # was AttributeError: 'Dataset' object has no attribute 'to_dataset'
+    with pytest.raises(xtopo.ValidationError, match="expected a twin"):
+        xtopo.twins.to_netcdf(fractal_surface((8, 8), 1.0, hurst=0.8), tmp_path / "t.nc")

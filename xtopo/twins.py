@@ -111,6 +111,8 @@ def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
 def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: bool = True) -> str:
     """Archive a twin as one NetCDF file: a group per measurement, CF/ACDD and provenance on the root.
 
+    Other groups of the tree (notes, stored results) are written as they are.
+
     Parameters
     ----------
     tree : xarray.DataTree
@@ -126,10 +128,12 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     -------
     str
     """
+    ms = measurements(tree)
     root = tree.to_dataset(inherit=False)
-    nodes = {}
+    # other groups (notes, stored results) are archived as they are
+    nodes = {node.path: node.to_dataset(inherit=False) for node in tree.subtree if not node.is_root}
     sums = []
-    for name, ds in measurements(tree).items():
+    for name, ds in ms.items():
         ds = ds.copy(deep=False)
         if checksums and ds.attrs.get("source_sha256"):
             sums.append(f"{name}: {ds.attrs['source_sha256']}")
