@@ -144,3 +144,19 @@ def test_archive_of_a_dataset_refused(tmp_path):
     # was AttributeError: 'Dataset' object has no attribute 'to_dataset'
     with pytest.raises(xtopo.ValidationError, match="expected a twin"):
         xtopo.twins.to_netcdf(fractal_surface((8, 8), 1.0, hurst=0.8), tmp_path / "t.nc")
+
+
+def test_archive_checksums_listed_afresh(tmp_path):
+    # the root's source_checksums of a restored archive were written again with checksums=False
+    # (and after its measurement was removed); checksums='no' counted as True
+    a = fractal_surface((8, 8), 1.0, hurst=0.5, seed=1).assign_attrs(source_sha256="ab" * 32)
+    b = fractal_surface((8, 8), 1.0, hurst=0.5, seed=2)
+    xtopo.twin({"a": a, "b": b}).topo.to_netcdf(tmp_path / "t.nc")
+    back = xtopo.open_twin(tmp_path / "t.nc")
+    assert back.attrs["source_checksums"] == "a: " + "ab" * 32
+    back.topo.to_netcdf(tmp_path / "u.nc", checksums=False)
+    assert "source_checksums" not in xtopo.open_twin(tmp_path / "u.nc").attrs
+    back.drop_nodes("a").topo.to_netcdf(tmp_path / "v.nc")
+    assert "source_checksums" not in xtopo.open_twin(tmp_path / "v.nc").attrs
+    with pytest.raises(xtopo.ValidationError, match="checksums must be True or False, got 'no'"):
+        back.topo.to_netcdf(tmp_path / "w.nc", checksums="no")

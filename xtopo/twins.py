@@ -13,6 +13,7 @@ from collections.abc import Iterable, Mapping
 
 import xarray as xr
 
+from ._checks import flag
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import ValidationError, XtopoError
@@ -129,7 +130,9 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     str
     """
     ms = measurements(tree)
+    checksums = flag(checksums, "checksums", error=ValidationError)
     root = tree.to_dataset(inherit=False)
+    root.attrs.pop("source_checksums", None)  # listed afresh from the measurements archived now
     # other groups (notes, stored results) are archived as they are
     nodes = {node.path: node.to_dataset(inherit=False) for node in tree.subtree if not node.is_root}
     sums = []
