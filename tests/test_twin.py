@@ -160,3 +160,10 @@ def test_archive_checksums_listed_afresh(tmp_path):
     assert "source_checksums" not in xtopo.open_twin(tmp_path / "v.nc").attrs
     with pytest.raises(xtopo.ValidationError, match="checksums must be True or False, got 'no'"):
         back.topo.to_netcdf(tmp_path / "w.nc", checksums="no")
+
+
+@pytest.mark.parametrize("order", [2.0, True, 0, 3, "1", None])
+def test_twin_sdrp_order_must_be_1_or_2(small_twin, order):
+    # 2.0 raised a TypeError (tuple index) after the curves were computed, True was taken as 1
+    with pytest.raises(xtopo.XtopoError, match="order must be"):
+        small_twin.topo.sdrp(order)

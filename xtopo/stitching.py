@@ -360,8 +360,9 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     predicted error is that of :func:`~xtopo.analysis.reliability.stencil_error` of the
     slope or curvature.
     """
-    from .analysis.sdrp import sdrp
+    from .analysis.sdrp import check_order, sdrp
 
+    order = check_order(order)
     _settings(per_decade, max_error)
     ms = _measurements(tree)
     units = units or _common_units(ms)
