@@ -167,3 +167,17 @@ def test_twin_sdrp_order_must_be_1_or_2(small_twin, order):
     # 2.0 raised a TypeError (tuple index) after the curves were computed, True was taken as 1
     with pytest.raises(xtopo.XtopoError, match="order must be"):
         small_twin.topo.sdrp(order)
+
+
+@pytest.mark.parametrize("analysis", ["psd", "acf", "vbm", "sdrp"])
+def test_a_single_point_measurement_adds_nothing_to_the_average(analysis):
+    # twin_psd/acf/sdrp raised a bare ValueError (min of an empty array) for a 1-point line scan
+    big = fractal_surface((32, 32), 1.0, hurst=0.8, seed=1, units="um")
+    point = xtopo.make_measurement(np.array([1.0]), spacing=1.0, units="um")
+    both = getattr(xtopo.twin({"big": big, "point": point}).topo, analysis)()
+    alone = getattr(xtopo.twin({"big": big}).topo, analysis)()
+    assert int(both.curves.sel(measurement="point").count()) == 0
+    xr.testing.assert_allclose(both.average, alone.average)
+    if analysis != "vbm":  # a single point has no slope, no spectrum, no height difference
+        with pytest.raises(xtopo.XtopoError, match="nothing to average|at least two points"):
+            getattr(xtopo.twin({"point": point}).topo, analysis)()

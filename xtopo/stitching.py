@@ -17,7 +17,7 @@ import xarray as xr
 from ._checks import flag, integer, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
 from .conventions import MASK, convert_length, lateral_dims, length_factor
-from .errors import XtopoError
+from .errors import GridError, XtopoError
 from .twins import measurements as _measurements
 
 __all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp"]
@@ -120,10 +120,12 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         raise XtopoError("no curves to average")
     first = next(iter(curves.values()))
     coord = _curve_coord(first)
-    if points is None:
-        lo = min(float(np.min(c[coord].values[c[coord].values > 0])) for c in curves.values() if c.sizes[coord])
-        hi = max(float(np.max(c[coord].values)) for c in curves.values() if c.sizes[coord])
-        grid = collocation_points(lo, hi, per_decade)
+    if points is None:  # a curve without positive abscissae (a single-point scan) adds nothing
+        spans = [(v.min(), v.max()) for v in (np.asarray(c[coord].values, dtype=float) for c in curves.values())
+                 for v in [v[v > 0]] if v.size]
+        if not spans:
+            raise XtopoError(f"no curve has a point at positive {coord}: nothing to average")
+        grid = collocation_points(min(lo for lo, _ in spans), max(hi for _, hi in spans), per_decade)
     else:
         grid = np.asarray(points, dtype=float)
     names = list(curves)
@@ -369,15 +371,19 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     lo, hi = np.inf, 0.0
     for ds in ms.values():
         x = np.asarray(ds["x"].values, dtype=float) * length_factor(ds["x"].attrs.get("units", units), units)
-        lo = min(lo, float(np.min(np.diff(x))))
-        hi = max(hi, float(x[-1] - x[0]) / 2)
+        if x.size > 1:  # a single point has no slope: its curve stays empty
+            lo = min(lo, float(np.min(np.diff(x))))
+            hi = max(hi, float(x[-1] - x[0]) / 2)
+    if not hi > 0:
+        raise GridError("twin_sdrp needs a measurement with at least two points along 'x'")
     grid = collocation_points(lo, hi, per_decade)
     curves, errors, settings = {}, {}, {}
     for name, ds in ms.items():
         ds = _complete(convert_length(ds, units))
         settings[name] = _setting(ds)
         x = np.asarray(ds["x"].values, dtype=float)
-        mine = grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9)) & (grid <= (x[-1] - x[0]) / 2)]
+        mine = grid[:0] if x.size < 2 else grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9))
+                                                & (grid <= (x[-1] - x[0]) / 2)]
         curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
                                       reliable)
         if reliable:
