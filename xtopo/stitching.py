@@ -17,7 +17,7 @@ import xarray as xr
 from ._checks import flag, integer, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
 from .conventions import MASK, convert_length, lateral_dims, length_factor
-from .errors import GridError, XtopoError
+from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
 __all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp"]
@@ -39,6 +39,21 @@ def _curve_coord(curve: xr.DataArray) -> str:
     if len(dims) != 1:
         raise XtopoError(f"expected a curve with one coordinate dimension, got dims {curve.dims}")
     return dims[0]
+
+
+def _check_alike(curves: dict, coord: str) -> None:
+    """Raise unless every curve is on ``coord`` with the same units (of the coordinate and of the values)."""
+    first = next(iter(curves.values()))
+    want = (first[coord].attrs.get("units"), first.attrs.get("units"))
+    for name, c in curves.items():
+        if _curve_coord(c) != coord:
+            raise XtopoError(f"curves must share one coordinate: {name!r} is on {_curve_coord(c)!r}, "
+                             f"the first on {coord!r}")
+        got = (c[coord].attrs.get("units"), c.attrs.get("units"))
+        if got != want:
+            raise UnitsError(f"curves must be in the same units: {name!r} has {coord} in {got[0]!r} and values "
+                             f"in {got[1]!r}, the first {want[0]!r} and {want[1]!r}; compute them from "
+                             "measurements in one length unit (.topo.to_units)")
 
 
 def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str, error=None):
@@ -120,6 +135,7 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         raise XtopoError("no curves to average")
     first = next(iter(curves.values()))
     coord = _curve_coord(first)
+    _check_alike(curves, coord)
     if points is None:  # a curve without positive abscissae (a single-point scan) adds nothing
         spans = [(v.min(), v.max()) for v in (np.asarray(c[coord].values, dtype=float) for c in curves.values())
                  for v in [v[v > 0]] if v.size]
