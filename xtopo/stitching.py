@@ -11,10 +11,12 @@ or the active ``distributed.Client``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, integer, positive_number
+from ._checks import flag, integer, lengths, option, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
 from .conventions import MASK, convert_length, lateral_dims, length_factor
 from .errors import GridError, UnitsError, XtopoError
@@ -110,13 +112,13 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
     per_decade : int
         Density of collocation points when ``points`` is not given.
     points : array_like, optional
-        Explicit collocation points.
+        Explicit collocation points (positive, in the units of the curves' coordinate).
     method : {"interp", "bin"}
         ``"interp"``: log-log interpolation of each curve (smooth or sparse curves:
         SDRP, VBM); ``"bin"``: mean of each curve's points in log bins around the
         collocation points (dense, noisy curves: PSD, ACF; paper §4.10).
-    errors : dict of str to xarray.DataArray, optional
-        Predicted relative standard error of each curve's points (same coordinate).
+    errors : dict of str to xarray.DataArray or None, optional
+        Predicted relative standard error of each curve's points (same coordinate; None: unknown).
     max_error : float, optional
         Largest predicted relative standard error of a reliable average (default
         :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`).
@@ -131,6 +133,14 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         measurement where the curves carry one.
     """
     per_decade, tol = _settings(per_decade, max_error)
+    method = option(method, ("interp", "bin"), "method")
+    for what, given in (("curves", curves), ("errors", {} if errors is None else errors)):
+        if not isinstance(given, Mapping):
+            raise XtopoError(f"{what} must be a mapping of measurement name to DataArray, got {type(given).__name__}")
+        bad = {n: type(c).__name__ for n, c in given.items()
+               if not isinstance(c, xr.DataArray) and not (what == "errors" and c is None)}
+        if bad:
+            raise XtopoError(f"{what} must be xarray.DataArrays{' (or None)' if what == 'errors' else ''}, got {bad}")
     if not curves:
         raise XtopoError("no curves to average")
     first = next(iter(curves.values()))
@@ -143,7 +153,9 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
             raise XtopoError(f"no curve has a point at positive {coord}: nothing to average")
         grid = collocation_points(min(lo for lo, _ in spans), max(hi for _, hi in spans), per_decade)
     else:
-        grid = np.asarray(points, dtype=float)
+        grid = lengths(points, "points", first[coord].attrs.get("units", "?"))
+        if not grid.size:
+            raise XtopoError("points must hold at least one collocation point, got none")
     names = list(curves)
     per = [_onto(curves[n], coord, grid, method, (errors or {}).get(n)) for n in names]
     dim = xr.DataArray(names, dims="measurement", name="measurement")
