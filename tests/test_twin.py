@@ -181,3 +181,15 @@ def test_a_single_point_measurement_adds_nothing_to_the_average(analysis):
     if analysis != "vbm":  # a single point has no slope, no spectrum, no height difference
         with pytest.raises(xtopo.XtopoError, match="nothing to average|at least two points"):
             getattr(xtopo.twin({"point": point}).topo, analysis)()
+
+
+def test_summary_counts_nan_heights_as_missing():
+    # a measurement with NaN heights but no 'mask' variable was reported 0 % missing
+    from xtopo.summary import summary_table
+
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um")
+    a["height"][:2, :] = np.nan  # a quarter, no mask
+    masked = xtopo.make_measurement(a.height.values, spacing=1 / 8, units="um")  # the same with a mask
+    table = summary_table({"nan": a, "masked": masked})
+    expected = xr.DataArray([25.0, 25.0], dims="measurement", coords={"measurement": ["nan", "masked"]})
+    xr.testing.assert_allclose(table.missing_percent, expected)
