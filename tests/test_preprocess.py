@@ -199,3 +199,28 @@ def test_detrend_unknown_mode_refused(mode):
     ds = make_measurement(np.zeros((4, 4)), size=(1.0, 1.0))
     with pytest.raises(xtopo.XtopoError, match="mode must be one of"):
         detrend(ds, mode)
+
+
+@pytest.mark.parametrize("dask", [False, True])
+def test_fill_marks_infinite_heights_as_filled(dask):
+    # an inf height was interpolated like a NaN, but ``filled`` said False there
+    h = _rough(8, 8)
+    ds = make_measurement(h, spacing=0.5, units="um")
+    ds["height"][3, 4] = np.inf
+    ds["height"][5, 1] = np.nan
+    out = fill_missing(ds.chunk() if dask else ds)
+    assert (out.filled.chunks is not None) == dask  # still lazy
+    expected = xr.zeros_like(ds.height, dtype=bool)
+    expected[3, 4] = expected[5, 1] = True
+    xr.testing.assert_equal(out.filled.compute().reset_coords(drop=True), expected.reset_coords(drop=True))
+    assert np.isfinite(out.height.values).all()
+
+
+def test_fill_again_keeps_the_record_of_earlier_fills():
+    # filling a filled (then detrended) measurement again reset ``filled`` to all False
+    h = _rough(8, 8)
+    h[2, 3] = np.nan
+    once = fill_missing(make_measurement(h, spacing=0.5, units="um"))
+    again = fill_missing(detrend(once))
+    xr.testing.assert_identical(again.filled, once.filled)
+    assert bool(again.filled[2, 3])

@@ -212,3 +212,42 @@ def test_average_uses_measurements_until_its_error_is_smallest():
     assert avg.curves.sel(measurement="c").isnull().all()
     strict = average_curves(curves, points=d.values, errors=errors, max_error=0.03)
     assert int(strict["count"].max()) == 0 and strict.average.isnull().all()
+
+
+def test_average_of_curves_in_different_units_refused():
+    """average_curves took the first curve's units for all: a PSD on q in um-1 averaged with one in m-1."""
+    from xtopo.stitching import average_curves
+
+    a = fractal_surface(64, 1.0, hurst=0.8, seed=1, units="um")
+    b = fractal_surface(64, 1.0, hurst=0.8, seed=2, units="um")
+    in_m = b.topo.to_units("m").topo.psd()
+    with pytest.raises(xtopo.UnitsError, match="same units: 'b' has q in 'm-1'"):
+        average_curves({"a": a.topo.psd(), "b": in_m})
+    with pytest.raises(xtopo.XtopoError, match="share one coordinate: 'b' is on 'distance'"):
+        average_curves({"a": a.topo.psd(), "b": b.topo.acf()})
+    same = average_curves({"a": a.topo.psd(), "b": b.topo.psd()})
+    assert same.average.attrs["units"] == a.topo.psd().attrs["units"]
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    (dict(method="mean"), "method must be one of"),                    # KeyError
+    (dict(points="abc"), "points must be a number or a 1D sequence"),  # ValueError from numpy
+    (dict(points=[[1.0, 2.0]]), "points must be a number or a 1D sequence"),  # IndexError in the kernel
+    (dict(points=[np.nan, 10.0]), r"points must be positive finite lengths in um-1, got \[nan\]"),  # silent NaN coord
+    (dict(points=[]), "at least one collocation point"),
+    (dict(errors={"a": 5}), "errors must be xarray.DataArrays"),       # AttributeError
+])
+def test_average_curves_bad_arguments_refused(kwargs, match):
+    from xtopo.stitching import average_curves
+
+    curves = {"a": fractal_surface(64, 1.0, hurst=0.8, seed=1, units="um").topo.psd()}
+    with pytest.raises(xtopo.XtopoError, match=match):
+        average_curves(curves, **kwargs)
+
+
+@pytest.mark.parametrize("curves", [[np.ones(3)], {"a": np.ones(3)}])
+def test_average_curves_of_non_curves_refused(curves):
+    from xtopo.stitching import average_curves
+
+    with pytest.raises(xtopo.XtopoError, match="curves must be"):  # was AttributeError
+        average_curves(curves)

@@ -101,3 +101,95 @@ def test_a_measurement_too_small_for_a_curve_adds_nothing_to_the_average():
     alone = xtopo.twin({"big": big}).topo.sdrp()
     assert bool(both.curves.sel(measurement="tiny").isnull().all())
     xr.testing.assert_allclose(both.average, alone.average)
+
+
+def test_twin_from_any_mapping():
+    # a mapping that is not a dict was iterated like a list: its keys were opened as file paths
+    import types
+
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um")
+    tree = xtopo.twin(types.MappingProxyType({"afm": a}))
+    assert list(tree.children) == ["afm"]
+    xr.testing.assert_identical(tree["afm"].to_dataset(), a)
+
+
+@pytest.mark.parametrize("paths", [("/afm/s1", "/afm/s2", "/stylus"), ("/", "/stylus")])
+def test_measurements_below_the_children_refused(tmp_path, paths):
+    # nested measurements were skipped without a word: averages used only /stylus, and the
+    # archive written by to_netcdf lost /afm/s1 and /afm/s2
+    a = fractal_surface((16, 16), 1.0, hurst=0.8, seed=1, units="um")
+    tree = xr.DataTree.from_dict({p: a for p in paths})
+    with pytest.raises(xtopo.ValidationError, match="children of the root"):
+        xtopo.twins.measurements(tree)
+    with pytest.raises(xtopo.ValidationError, match="children of the root"):
+        tree.topo.psd()
+    with pytest.raises(xtopo.ValidationError, match="children of the root"):
+        tree.topo.to_netcdf(tmp_path / "t.nc")
+
+
+def test_archive_keeps_groups_that_are_not_measurements(tmp_path):
+    # to_netcdf wrote only the measurements: a /notes group vanished from the archive
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um")
+    notes = xr.Dataset({"load": ("step", [1.0, 2.0], {"units": "N", "long_name": "applied load"})},
+                       attrs={"comment": "indentation log"})
+    tree = xtopo.twin({"a": a}).assign({"notes": xr.DataTree(notes)})
+    tree.topo.to_netcdf(tmp_path / "t.nc")
+    back = xtopo.open_twin(tmp_path / "t.nc")
+    assert set(back.children) == {"a", "notes"}
+    xr.testing.assert_identical(back["notes"].to_dataset(), notes)
+    xr.testing.assert_identical(back["a"].to_dataset(), a)
+
+
+def test_archive_of_a_dataset_refused(tmp_path):
+    # was AttributeError: 'Dataset' object has no attribute 'to_dataset'
+    with pytest.raises(xtopo.ValidationError, match="expected a twin"):
+        xtopo.twins.to_netcdf(fractal_surface((8, 8), 1.0, hurst=0.8), tmp_path / "t.nc")
+
+
+def test_archive_checksums_listed_afresh(tmp_path):
+    # the root's source_checksums of a restored archive were written again with checksums=False
+    # (and after its measurement was removed); checksums='no' counted as True
+    a = fractal_surface((8, 8), 1.0, hurst=0.5, seed=1).assign_attrs(source_sha256="ab" * 32)
+    b = fractal_surface((8, 8), 1.0, hurst=0.5, seed=2)
+    xtopo.twin({"a": a, "b": b}).topo.to_netcdf(tmp_path / "t.nc")
+    back = xtopo.open_twin(tmp_path / "t.nc")
+    assert back.attrs["source_checksums"] == "a: " + "ab" * 32
+    back.topo.to_netcdf(tmp_path / "u.nc", checksums=False)
+    assert "source_checksums" not in xtopo.open_twin(tmp_path / "u.nc").attrs
+    back.drop_nodes("a").topo.to_netcdf(tmp_path / "v.nc")
+    assert "source_checksums" not in xtopo.open_twin(tmp_path / "v.nc").attrs
+    with pytest.raises(xtopo.ValidationError, match="checksums must be True or False, got 'no'"):
+        back.topo.to_netcdf(tmp_path / "w.nc", checksums="no")
+
+
+@pytest.mark.parametrize("order", [2.0, True, 0, 3, "1", None])
+def test_twin_sdrp_order_must_be_1_or_2(small_twin, order):
+    # 2.0 raised a TypeError (tuple index) after the curves were computed, True was taken as 1
+    with pytest.raises(xtopo.XtopoError, match="order must be"):
+        small_twin.topo.sdrp(order)
+
+
+@pytest.mark.parametrize("analysis", ["psd", "acf", "vbm", "sdrp"])
+def test_a_single_point_measurement_adds_nothing_to_the_average(analysis):
+    # twin_psd/acf/sdrp raised a bare ValueError (min of an empty array) for a 1-point line scan
+    big = fractal_surface((32, 32), 1.0, hurst=0.8, seed=1, units="um")
+    point = xtopo.make_measurement(np.array([1.0]), spacing=1.0, units="um")
+    both = getattr(xtopo.twin({"big": big, "point": point}).topo, analysis)()
+    alone = getattr(xtopo.twin({"big": big}).topo, analysis)()
+    assert int(both.curves.sel(measurement="point").count()) == 0
+    xr.testing.assert_allclose(both.average, alone.average)
+    if analysis != "vbm":  # a single point has no slope, no spectrum, no height difference
+        with pytest.raises(xtopo.XtopoError, match="nothing to average|at least two points"):
+            getattr(xtopo.twin({"point": point}).topo, analysis)()
+
+
+def test_summary_counts_nan_heights_as_missing():
+    # a measurement with NaN heights but no 'mask' variable was reported 0 % missing
+    from xtopo.summary import summary_table
+
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um")
+    a["height"][:2, :] = np.nan  # a quarter, no mask
+    masked = xtopo.make_measurement(a.height.values, spacing=1 / 8, units="um")  # the same with a mask
+    table = summary_table({"nan": a, "masked": masked})
+    expected = xr.DataArray([25.0, 25.0], dims="measurement", coords={"measurement": ["nan", "masked"]})
+    xr.testing.assert_allclose(table.missing_percent, expected)

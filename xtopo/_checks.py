@@ -56,16 +56,19 @@ def positive_number(value, name: str, *, infinite: bool = False, error: type[Xto
     return float(value)
 
 
-def lengths(values, name: str, units: str, longest: float) -> np.ndarray:
-    """``values`` as a 1D float array of lengths in ``(0, longest]`` (``units`` names their unit)."""
+def lengths(values, name: str, units: str, longest: float | None = None) -> np.ndarray:
+    """``values`` as a 1D float array of lengths in ``(0, longest]`` (``units`` names their unit).
+
+    Without ``longest`` any positive finite value is accepted (e.g. wavevectors in ``m-1``).
+    """
     try:
         v = np.atleast_1d(np.asarray(values, dtype=float)) if not isinstance(values, (str, bytes)) else None
     except (TypeError, ValueError):
         v = None
     if v is None or v.ndim != 1:
         raise XtopoError(f"{name} must be a number or a 1D sequence of numbers (lengths in {units}), got {values!r}")
-    bad = v[~(np.isfinite(v) & (v > 0) & (v <= longest))]
+    bad = v[~(np.isfinite(v) & (v > 0) & (longest is None or v <= longest))]
     if bad.size:
-        raise XtopoError(f"{name} must be positive finite lengths of at most {longest:g} {units} (the size of the "
-                         f"measurement), got {bad.tolist()}")
+        bound = f" in {units}" if longest is None else f" of at most {longest:g} {units} (the size of the measurement)"
+        raise XtopoError(f"{name} must be positive finite lengths{bound}, got {bad.tolist()}")
     return v

@@ -94,7 +94,7 @@ def fill_missing(obj):
     -------
     Same type as ``obj``
         Heights without missing data. For a Dataset the ``mask`` variable is replaced by
-        ``filled`` (``True`` where a value was interpolated).
+        ``filled`` (``True`` where a value was interpolated, by this call or an earlier one).
 
     Raises
     ------
@@ -117,7 +117,9 @@ def fill_missing(obj):
     res = _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
                   "fill_missing(harmonic)" if dims == (Y, X) else "fill_missing(linear)")
     if isinstance(obj, xr.Dataset):
-        filled = h.isnull()
+        filled = ~np.isfinite(h)  # what the kernels fill: NaN and ±inf
+        if _FILLED in obj.data_vars:  # filled before: keep that record too
+            filled = filled | obj[_FILLED].astype(bool)
         res = res.drop_vars(MASK, errors="ignore")
         res[_FILLED] = filled.assign_attrs(long_name="interpolated by fill_missing", flag_meanings="filled")
     return res

@@ -11,13 +11,15 @@ or the active ``distributed.Client``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, integer, positive_number
+from ._checks import flag, integer, lengths, option, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
 from .conventions import MASK, convert_length, lateral_dims, length_factor
-from .errors import XtopoError
+from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
 __all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp"]
@@ -39,6 +41,21 @@ def _curve_coord(curve: xr.DataArray) -> str:
     if len(dims) != 1:
         raise XtopoError(f"expected a curve with one coordinate dimension, got dims {curve.dims}")
     return dims[0]
+
+
+def _check_alike(curves: dict, coord: str) -> None:
+    """Raise unless every curve is on ``coord`` with the same units (of the coordinate and of the values)."""
+    first = next(iter(curves.values()))
+    want = (first[coord].attrs.get("units"), first.attrs.get("units"))
+    for name, c in curves.items():
+        if _curve_coord(c) != coord:
+            raise XtopoError(f"curves must share one coordinate: {name!r} is on {_curve_coord(c)!r}, "
+                             f"the first on {coord!r}")
+        got = (c[coord].attrs.get("units"), c.attrs.get("units"))
+        if got != want:
+            raise UnitsError(f"curves must be in the same units: {name!r} has {coord} in {got[0]!r} and values "
+                             f"in {got[1]!r}, the first {want[0]!r} and {want[1]!r}; compute them from "
+                             "measurements in one length unit (.topo.to_units)")
 
 
 def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str, error=None):
@@ -95,13 +112,13 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
     per_decade : int
         Density of collocation points when ``points`` is not given.
     points : array_like, optional
-        Explicit collocation points.
+        Explicit collocation points (positive, in the units of the curves' coordinate).
     method : {"interp", "bin"}
         ``"interp"``: log-log interpolation of each curve (smooth or sparse curves:
         SDRP, VBM); ``"bin"``: mean of each curve's points in log bins around the
         collocation points (dense, noisy curves: PSD, ACF; paper §4.10).
-    errors : dict of str to xarray.DataArray, optional
-        Predicted relative standard error of each curve's points (same coordinate).
+    errors : dict of str to xarray.DataArray or None, optional
+        Predicted relative standard error of each curve's points (same coordinate; None: unknown).
     max_error : float, optional
         Largest predicted relative standard error of a reliable average (default
         :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`).
@@ -116,16 +133,29 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         measurement where the curves carry one.
     """
     per_decade, tol = _settings(per_decade, max_error)
+    method = option(method, ("interp", "bin"), "method")
+    for what, given in (("curves", curves), ("errors", {} if errors is None else errors)):
+        if not isinstance(given, Mapping):
+            raise XtopoError(f"{what} must be a mapping of measurement name to DataArray, got {type(given).__name__}")
+        bad = {n: type(c).__name__ for n, c in given.items()
+               if not isinstance(c, xr.DataArray) and not (what == "errors" and c is None)}
+        if bad:
+            raise XtopoError(f"{what} must be xarray.DataArrays{' (or None)' if what == 'errors' else ''}, got {bad}")
     if not curves:
         raise XtopoError("no curves to average")
     first = next(iter(curves.values()))
     coord = _curve_coord(first)
-    if points is None:
-        lo = min(float(np.min(c[coord].values[c[coord].values > 0])) for c in curves.values() if c.sizes[coord])
-        hi = max(float(np.max(c[coord].values)) for c in curves.values() if c.sizes[coord])
-        grid = collocation_points(lo, hi, per_decade)
+    _check_alike(curves, coord)
+    if points is None:  # a curve without positive abscissae (a single-point scan) adds nothing
+        spans = [(v.min(), v.max()) for v in (np.asarray(c[coord].values, dtype=float) for c in curves.values())
+                 for v in [v[v > 0]] if v.size]
+        if not spans:
+            raise XtopoError(f"no curve has a point at positive {coord}: nothing to average")
+        grid = collocation_points(min(lo for lo, _ in spans), max(hi for _, hi in spans), per_decade)
     else:
-        grid = np.asarray(points, dtype=float)
+        grid = lengths(points, "points", first[coord].attrs.get("units", "?"))
+        if not grid.size:
+            raise XtopoError("points must hold at least one collocation point, got none")
     names = list(curves)
     per = [_onto(curves[n], coord, grid, method, (errors or {}).get(n)) for n in names]
     dim = xr.DataArray(names, dims="measurement", name="measurement")
@@ -360,23 +390,28 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     predicted error is that of :func:`~xtopo.analysis.reliability.stencil_error` of the
     slope or curvature.
     """
-    from .analysis.sdrp import sdrp
+    from .analysis.sdrp import check_order, sdrp
 
+    order = check_order(order)
     _settings(per_decade, max_error)
     ms = _measurements(tree)
     units = units or _common_units(ms)
     lo, hi = np.inf, 0.0
     for ds in ms.values():
         x = np.asarray(ds["x"].values, dtype=float) * length_factor(ds["x"].attrs.get("units", units), units)
-        lo = min(lo, float(np.min(np.diff(x))))
-        hi = max(hi, float(x[-1] - x[0]) / 2)
+        if x.size > 1:  # a single point has no slope: its curve stays empty
+            lo = min(lo, float(np.min(np.diff(x))))
+            hi = max(hi, float(x[-1] - x[0]) / 2)
+    if not hi > 0:
+        raise GridError("twin_sdrp needs a measurement with at least two points along 'x'")
     grid = collocation_points(lo, hi, per_decade)
     curves, errors, settings = {}, {}, {}
     for name, ds in ms.items():
         ds = _complete(convert_length(ds, units))
         settings[name] = _setting(ds)
         x = np.asarray(ds["x"].values, dtype=float)
-        mine = grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9)) & (grid <= (x[-1] - x[0]) / 2)]
+        mine = grid[:0] if x.size < 2 else grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9))
+                                                & (grid <= (x[-1] - x[0]) / 2)]
         curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
                                       reliable)
         if reliable:

@@ -6,7 +6,7 @@ import numpy as np
 import xarray as xr
 
 from .analysis.scalars import scalars
-from .conventions import HEIGHT, MASK, convert_length, is_nonuniform, physical_size
+from .conventions import HEIGHT, convert_length, height_of, is_nonuniform, physical_size
 
 __all__ = ["summary_table", "format_table", "table_rows"]
 
@@ -32,7 +32,7 @@ def _row(name: str, ds: xr.Dataset) -> dict:
     row["size"] = (physical_size(ds, "y"), physical_size(ds, "x")) if area else (physical_size(ds, "x"),)
     row["grid"] = tuple(int(n) for n in h.shape)
     row["tip_radius"] = float(ds.attrs["tip_radius"]) if "tip_radius" in ds.attrs else np.nan
-    row["missing"] = 100 * float(ds[MASK].mean()) if MASK in ds else 0.0
+    row["missing"] = 100 * float((~np.isfinite(height_of(ds))).mean())  # masked, NaN or inf
     if area:
         row.update(Sq=float(s.Sq), Sdq=float(s.Sdq), Sddq=float(s.Sddq))
     else:

@@ -9,10 +9,11 @@ module builds, stores and restores twins.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
 import xarray as xr
 
+from ._checks import flag
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import ValidationError, XtopoError
@@ -68,7 +69,7 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
     if isinstance(measurements, (str, os.PathLike, xr.Dataset)) or not isinstance(measurements, Iterable):
         raise ValidationError(f"measurements must be a mapping or a list of Datasets/paths, got "
                               f"{type(measurements).__name__}")
-    items = measurements.items() if isinstance(measurements, dict) else enumerate(measurements)
+    items = measurements.items() if isinstance(measurements, Mapping) else enumerate(measurements)
     nodes: dict[str, xr.Dataset] = {}
     for key, m in items:
         if not isinstance(m, (xr.Dataset, str, os.PathLike)):
@@ -91,14 +92,27 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
 
 
 def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
-    """The measurement Datasets of a twin by node name (children holding a ``height``)."""
+    """The measurement Datasets of a twin by node name (children holding a ``height``).
+
+    Raises
+    ------
+    ValidationError
+        If ``tree`` is not a DataTree, or a node other than a child of the root holds a
+        ``height`` (a measurement that the twin's analyses and archive would not see).
+    """
     if not isinstance(tree, xr.DataTree):
         raise ValidationError(f"expected a twin (xarray.DataTree, see xtopo.twin), got {type(tree).__name__}")
+    misplaced = [node.path for node in tree.subtree if node.level != 1 and "height" in node.dataset]
+    if misplaced:
+        raise ValidationError(f"a twin holds its measurements as children of the root, but node(s) {misplaced} "
+                              "hold a 'height' too; build the twin with xtopo.twin (one node per measurement)")
     return {name: node.to_dataset() for name, node in tree.children.items() if "height" in node.dataset}
 
 
 def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: bool = True) -> str:
     """Archive a twin as one NetCDF file: a group per measurement, CF/ACDD and provenance on the root.
+
+    Other groups of the tree (notes, stored results) are written as they are.
 
     Parameters
     ----------
@@ -115,10 +129,14 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     -------
     str
     """
+    ms = measurements(tree)
+    checksums = flag(checksums, "checksums", error=ValidationError)
     root = tree.to_dataset(inherit=False)
-    nodes = {}
+    root.attrs.pop("source_checksums", None)  # listed afresh from the measurements archived now
+    # other groups (notes, stored results) are archived as they are
+    nodes = {node.path: node.to_dataset(inherit=False) for node in tree.subtree if not node.is_root}
     sums = []
-    for name, ds in measurements(tree).items():
+    for name, ds in ms.items():
         ds = ds.copy(deep=False)
         if checksums and ds.attrs.get("source_sha256"):
             sums.append(f"{name}: {ds.attrs['source_sha256']}")

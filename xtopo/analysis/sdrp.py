@@ -6,7 +6,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import lengths
+from .._checks import integer, lengths
 from .._kernels.scaled import sdrp_rms
 from ..conventions import X
 from ..errors import GridError, XtopoError
@@ -14,6 +14,13 @@ from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare
 from .reliability import apply_reliability
 
 __all__ = ["sdrp"]
+
+
+def check_order(order) -> int:
+    """``order`` (1: slope, 2: curvature) as an int; an integer, not a bool or a float."""
+    if integer(order, "order") > 2:
+        raise XtopoError(f"order must be 1 or 2, got {order!r}")
+    return int(order)
 
 
 def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = True) -> xr.DataArray:
@@ -46,8 +53,7 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
         ``sdrp`` (dimensionless slope or curvature in inverse length) on coord
         ``distance``; at ``ℓ = Δx`` (order 1) it equals RΔq, at ``ℓ = 2Δx`` (order 2) RΔ²q.
     """
-    if order not in (1, 2):
-        raise XtopoError(f"order must be 1 or 2, got {order!r}")
+    order = check_order(order)
     prep = prepare(obj)
     h, u = prep.h, prep.units
     prep.check_dim(dim)
