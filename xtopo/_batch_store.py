@@ -90,20 +90,15 @@ class Store:
     """
 
     def __init__(self, directory):
+        from ._checks import make_directory
+        from ._checks import path as checked_path
         from .errors import XtopoError
 
-        try:
-            self.directory = os.path.abspath(os.fspath(directory))
-        except TypeError:
-            raise XtopoError(f"batch store must be a directory path (str or os.PathLike), got "
-                             f"{type(directory).__name__}") from None
+        self.directory = os.path.abspath(checked_path(directory, "batch store", kind="directory path"))
         if os.path.exists(self.directory) and not os.path.isdir(self.directory):
             raise XtopoError(f"batch store {self.directory} exists and is not a directory; "
                              "give a directory path (it is created when absent)")
-        try:
-            os.makedirs(self.directory, exist_ok=True)
-        except OSError as exc:
-            raise XtopoError(f"cannot create the batch store {self.directory}: {exc.strerror}") from None
+        make_directory(self.directory, "batch store")
 
     def path(self, key: str) -> str:
         """The file of chunk ``key``."""

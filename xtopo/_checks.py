@@ -1,4 +1,4 @@
-"""Checks of user-given parameters (analyses, preprocessing, contact, batch). Not public API.
+"""Checks of user-given parameters (analyses, preprocessing, contact, batch, storage). Not public API.
 
 Each check returns the value in the type the caller needs, or raises an
 :class:`~xtopo.errors.XtopoError` that names the parameter, says what it got and
@@ -8,12 +8,13 @@ what it expects (instead of a TypeError or a silent truncation deep inside).
 from __future__ import annotations
 
 import numbers
+import os
 
 import numpy as np
 
 from .errors import XtopoError
 
-__all__ = ["option", "flag", "integer", "positive_number", "lengths"]
+__all__ = ["option", "flag", "integer", "positive_number", "lengths", "path", "make_directory"]
 
 
 def option(value, options, name: str):
@@ -72,3 +73,19 @@ def lengths(values, name: str, units: str, longest: float | None = None) -> np.n
         bound = f" in {units}" if longest is None else f" of at most {longest:g} {units} (the size of the measurement)"
         raise XtopoError(f"{name} must be positive finite lengths{bound}, got {bad.tolist()}")
     return v
+
+
+def path(value, name: str, *, kind: str = "path") -> str:
+    """``value`` as a str path if it is one (str or os.PathLike); ``kind`` says which (e.g. "file path")."""
+    try:
+        return os.fspath(value)
+    except TypeError:
+        raise XtopoError(f"{name} must be a {kind} (str or os.PathLike), got {type(value).__name__}") from None
+
+
+def make_directory(directory: str, what: str) -> None:
+    """Create ``directory`` (and its parents) unless it exists; ``what`` names it in the error."""
+    try:
+        os.makedirs(directory, exist_ok=True)
+    except OSError as exc:
+        raise XtopoError(f"cannot create the {what} {directory}: {exc.strerror}") from None

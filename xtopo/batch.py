@@ -98,8 +98,8 @@ def _chunk_sizes(chunks, dim, n_meas, n_par):
     sizes = []
     for d, n, default in ((MEASUREMENT, n_meas, 1), (dim, n_par, None)):
         c = chunks.get(d, default)
-        sizes.append(n if c is None or (c == -1 and not isinstance(c, bool))
-                     else integer(c, f"chunk size along {d!r} (or -1/None for all)"))
+        everything = c is None or (isinstance(c, (int, np.integer)) and c == -1)   # True == -1 is False
+        sizes.append(n if everything else integer(c, f"chunk size along {d!r} (or -1/None for all)"))
     return sizes
 
 

@@ -31,7 +31,8 @@ import weakref
 import numpy as np
 import xarray as xr
 
-from ._checks import integer
+from ._checks import integer, make_directory
+from ._checks import path as checked_path
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
 from .errors import XtopoError
@@ -226,11 +227,7 @@ class Cache:
     """
 
     def __init__(self, directory=None, *, memory_bytes: int = MEMORY_BYTES):
-        try:
-            self.directory = os.fspath(directory) if directory is not None else default_directory()
-        except TypeError:
-            raise XtopoError(f"cache directory must be a path (str or os.PathLike), got "
-                             f"{type(directory).__name__}") from None
+        self.directory = checked_path(directory, "cache directory") if directory is not None else default_directory()
         self.memory_bytes = integer(memory_bytes, "memory_bytes", minimum=0)
         self.hits = 0
         self.misses = 0
@@ -273,10 +270,7 @@ class Cache:
             raise XtopoError(f"Cache stores xarray results; {getattr(func, '__qualname__', func)!r} returned a "
                              f"{type(result).__name__}")
         result = result.compute()
-        try:
-            os.makedirs(self.directory, exist_ok=True)
-        except OSError as exc:
-            raise XtopoError(f"cannot create the cache directory {self.directory}: {exc.strerror}") from None
+        make_directory(self.directory, "cache directory")
         if isinstance(result, xr.DataArray):
             name = result.name if result.name is not None else "__xtopo_unnamed__"
             out = result.to_dataset(name=name)

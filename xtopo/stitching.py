@@ -147,11 +147,11 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
     coord = _curve_coord(first)
     _check_alike(curves, coord)
     if points is None:  # a curve without positive abscissae (a single-point scan) adds nothing
-        spans = [(v.min(), v.max()) for v in (np.asarray(c[coord].values, dtype=float) for c in curves.values())
-                 for v in [v[v > 0]] if v.size]
-        if not spans:
+        x = np.concatenate([np.asarray(c[coord].values, dtype=float).ravel() for c in curves.values()])
+        x = x[x > 0]
+        if not x.size:
             raise XtopoError(f"no curve has a point at positive {coord}: nothing to average")
-        grid = collocation_points(min(lo for lo, _ in spans), max(hi for _, hi in spans), per_decade)
+        grid = collocation_points(x.min(), x.max(), per_decade)
     else:
         grid = lengths(points, "points", first[coord].attrs.get("units", "?"))
         if not grid.size:

@@ -16,6 +16,7 @@ import numpy as np
 import xarray as xr
 
 from .._checks import flag
+from .._checks import path as checked_path
 from .._version import __version__
 from ..conventions import CONVENTIONS
 from ..errors import ReaderError, ValidationError, XtopoError
@@ -132,10 +133,7 @@ def atomic_write(path, write) -> str:
     A ``write`` that fails (or a process that dies) leaves an existing ``path`` untouched
     and no temporary file behind (the latter except on a hard kill).
     """
-    try:
-        path = os.fspath(path)
-    except TypeError:
-        raise XtopoError(f"path must be a file path (str or os.PathLike), got {type(path).__name__}") from None
+    path = checked_path(path, "path", kind="file path")
     directory = os.path.dirname(os.path.abspath(path))
     try:
         fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
