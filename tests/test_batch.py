@@ -350,6 +350,25 @@ def test_store_key_holds_function_arguments_by_content(tmp_path):
     assert there.stdout.strip() == here
 
 
+def test_store_key_follows_an_edited_module_function(tmp_path, monkeypatch):
+    """A module-level function entered the chunk key by name only: after its body was edited, a
+    new run reused the chunks of the old code."""
+    import importlib
+    import sys
+
+    module = tmp_path / "xtopo_store_probe.py"
+    module.write_text("def stat(ds):\n    return ds.height.std()\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "xtopo_store_probe", raising=False)
+    probe = importlib.import_module("xtopo_store_probe")
+    before = batch.chunk_key(functools.partial(probe.stat), "load", ["a"], ["p"], None)
+    assert batch.chunk_key(functools.partial(probe.stat), "load", ["a"], ["p"], None) == before
+    module.write_text("def stat(ds):\n    return ds.height.mean()  # edited\n")
+    probe = importlib.reload(probe)
+    assert batch.chunk_key(functools.partial(probe.stat), "load", ["a"], ["p"], None) != before
+    sys.modules.pop("xtopo_store_probe", None)
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"fft_threads": "x"}, "fft_threads must be an integer >= 1, got 'x'"),
     ({"workers": "two", "scheduler": "threads"}, "workers must be an integer >= 1, got 'two'"),

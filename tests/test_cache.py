@@ -1,3 +1,4 @@
+import functools
 import multiprocessing as mp
 import os
 
@@ -191,3 +192,50 @@ def test_first_result_equals_hits_and_bad_arguments_raise(tmp_path):
     (tmp_path / "file").write_text("")
     with pytest.raises(XtopoError, match="cannot create the cache directory .*file"):
         Cache(tmp_path / "file")(_flagged, ds)
+
+
+
+def test_an_edited_module_function_is_computed_again(tmp_path, monkeypatch):
+    """A function defined in an importable module was keyed by its name only (dask pickles it by
+    reference): after its body was edited — a reload, a new process — the cache returned the old
+    code's result."""
+    import importlib
+    import sys
+
+    cache = Cache(tmp_path / "cache")
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1)
+    source = "from xtopo.analysis.scalars import scalars\n\ndef stat(ds):\n    return scalars(ds).{}\n"
+    module = tmp_path / "xtopo_cache_probe.py"
+    module.write_text(source.format("Sq"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "xtopo_cache_probe", raising=False)
+    probe = importlib.import_module("xtopo_cache_probe")
+    xr.testing.assert_identical(cache(probe.stat, ds), scalars(ds).Sq)
+    for comment in ("# edited\n", "# edited again\n"):  # the source changes size: no stale bytecode
+        module.write_text(source.format("Sa") + comment)
+        probe = importlib.reload(probe)
+        xr.testing.assert_identical(cache(probe.stat, ds), scalars(ds).Sa)
+    assert cache.misses == 2 and cache.hits == 1  # the second edit left the code as it was: a hit
+    sys.modules.pop("xtopo_cache_probe", None)
+
+
+class _Scaled:
+    def __init__(self, factor):
+        self.factor = factor
+
+    def __call__(self, ds):
+        return scalars(ds).Sq * self.factor
+
+    def method(self, ds):
+        return scalars(ds).Sa * self.factor
+
+
+@pytest.mark.parametrize("func", [np.mean, np.add, len, str, _Scaled(2.0), _Scaled(2.0).method, _counted,
+                                  lambda d: d])
+def test_every_kind_of_callable_has_a_stable_key(tmp_path, func):
+    """Builtins, ufuncs, classes, callable instances and bound methods all key (none has Python code
+    of its own, or it sits one level down), the same way twice."""
+    from xtopo._tokens import callable_token
+
+    assert callable_token(func) == callable_token(func)
+    assert callable_token(func) != callable_token(functools.partial(func, 1))

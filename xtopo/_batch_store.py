@@ -16,6 +16,7 @@ import threading
 
 import xarray as xr
 
+from ._tokens import callable_token
 from ._version import __version__
 from .io.netcdf import PROVENANCE_KEYS, atomic_write, read_netcdf, to_netcdf
 
@@ -62,13 +63,14 @@ def chunk_key(func, dim, names, prints, params) -> str:
     """SHA-256 key of one chunk's inputs.
 
     The function (a partial's arguments included) and the parameter values enter by content
-    (dask's ``tokenize``), which is the same in every process: a ``repr`` holds memory addresses
+    (dask's ``tokenize``; the function's own code too, :mod:`xtopo._tokens`), which is the same in every
+    process: a ``repr`` holds memory addresses
     (``<function f at 0x...>``: never reused by a new process) and abbreviates large arrays
     (``[1., 1., ..., 1.]``: reused when the array changed).
     """
     from dask.base import tokenize
 
-    blob = json.dumps({"f": tokenize(func), "dim": dim, "names": list(names),
+    blob = json.dumps({"f": callable_token(func), "dim": dim, "names": list(names),
                        "m": list(prints), "p": None if params is None else tokenize(list(params)), "v": __version__},
                       sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()

@@ -2,9 +2,9 @@
 
 Results are keyed by the content checksum of the measurement (after
 preprocessing: heights, mask, coordinates and the attributes analyses read),
-the function and its parameters (by content, with dask's ``tokenize``) and the xtopo version, and
-stored as NetCDF files in a directory the user chooses (default: the user
-cache directory). Writes are atomic (temp file + ``os.replace``), so two
+the function and its parameters (by content: dask's ``tokenize``, and the function's own code,
+:mod:`xtopo._tokens`) and the xtopo version, and stored as NetCDF files in a directory the user
+chooses (default: the user cache directory). Writes are atomic (temp file + ``os.replace``), so two
 processes writing the same key never leave a broken file: the last complete
 write wins and both results are identical by construction.
 
@@ -33,6 +33,7 @@ import xarray as xr
 
 from ._checks import integer, make_directory
 from ._checks import path as checked_path
+from ._tokens import callable_token
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
 from .errors import XtopoError
@@ -131,14 +132,14 @@ def checksum(ds) -> str:
 
 
 def _key(func, data_sum: str, params: dict) -> str:
-    """Key of ``func(ds, **params)``: function and parameters by content (dask's ``tokenize``).
+    """Key of ``func(ds, **params)``: function (with its own code, :mod:`xtopo._tokens`) and parameters by content.
 
     A name or ``repr`` is not enough: every lambda is ``<lambda>``, closures of one factory share
     a qualified name, and numpy abbreviates the repr of large arrays.
     """
     from dask.base import tokenize
 
-    blob = json.dumps({"f": tokenize(func), "data": data_sum, "params": tokenize(params), "version": __version__},
+    blob = json.dumps({"f": callable_token(func), "data": data_sum, "params": tokenize(params), "version": __version__},
                       sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
