@@ -193,3 +193,18 @@ def test_summary_counts_nan_heights_as_missing():
     table = summary_table({"nan": a, "masked": masked})
     expected = xr.DataArray([25.0, 25.0], dims="measurement", coords={"measurement": ["nan", "masked"]})
     xr.testing.assert_allclose(table.missing_percent, expected)
+
+
+@pytest.mark.parametrize("engine", ["netcdf4", "h5netcdf"])
+def test_names_in_any_script_survive_the_archive(tmp_path, engine):
+    """Node names kept only ASCII letters: "Stahl ü Probe" became "Stahl___Probe" and "钢" became
+    "unnamed" (two such names: "unnamed", "unnamed_2"). A decomposed "ü" (u + combining diaeresis)
+    is stored in NFC, so it is normalised before it becomes a node name."""
+    ds = fractal_surface((8, 8), 1.0, hurst=0.8, seed=2)
+    names = {"Stahl ü Probe": "Stahl_ü_Probe", "钢": "钢", "Stahl u\u0308": "Stahl_ü", "a/b": "a_b"}
+    tree = xtopo.twin({key: ds for key in names})
+    assert list(tree.children) == list(names.values())
+    tree.topo.to_netcdf(tmp_path / "t.nc", engine=engine)
+    back = xtopo.open_twin(tmp_path / "t.nc")
+    assert list(back.children) == list(names.values())
+    xr.testing.assert_allclose(back["钢"].to_dataset().height, ds.height)

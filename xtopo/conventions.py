@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import re
+import unicodedata
 
 import numpy as np
 import xarray as xr
@@ -449,10 +450,15 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
     return ds
 
 
-_NAME_RE = re.compile(r"[^A-Za-z0-9_.@+-]")
+_NAME_RE = re.compile(r"[^\w.@+-]")  # \w: letters and digits of any script, and "_"
 
 
 def safe_name(name: str) -> str:
-    """A NetCDF/DataTree-safe variant of ``name`` (used for node and variable names)."""
-    s = _NAME_RE.sub("_", str(name)).strip("_")
+    """A NetCDF/DataTree-safe variant of ``name`` (used for node and variable names).
+
+    Letters and digits of any script are kept (netCDF-4 names are UTF-8, stored in Unicode
+    normal form NFC, to which the name is normalised so that it reads back equal); spaces,
+    ``/`` and other punctuation but ``. @ + -`` become ``_``.
+    """
+    s = _NAME_RE.sub("_", unicodedata.normalize("NFC", str(name))).strip("_")
     return s or "unnamed"
