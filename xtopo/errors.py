@@ -15,6 +15,7 @@ __all__ = [
     "ChunkError",
     "ValidationError",
     "ContactError",
+    "WriteError",
     "ConvergenceWarning",
 ]
 
@@ -62,6 +63,17 @@ class ValidationError(XtopoError, ValueError):
 
 class ContactError(XtopoError, ValueError):
     """A contact problem is ill-posed (negative modulus, no load given, ...)."""
+
+
+class WriteError(XtopoError, OSError):
+    """A result could not be written (no permission, no such directory, disk full, ...).
+
+    An :class:`OSError` too, with the ``errno`` of the failure (``None`` when the writer gave
+    none); the message names the target file, not a temporary one.
+    """
+
+    def __str__(self) -> str:
+        return self.strerror if self.strerror is not None else super().__str__()
 
 
 class ConvergenceWarning(UserWarning):

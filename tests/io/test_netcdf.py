@@ -1,4 +1,6 @@
+import errno
 import os
+import re
 
 import numpy as np
 import pytest
@@ -62,7 +64,7 @@ def test_failed_write_leaves_existing_file_intact(tmp_path, monkeypatch):
         raise OSError("disk full")
 
     monkeypatch.setattr(xr.Dataset, "to_netcdf", write_half_then_fail)
-    with pytest.raises(OSError, match="disk full"):
+    with pytest.raises(xtopo.WriteError, match=f"cannot write {re.escape(str(path))}: disk full"):
         xtopo.to_netcdf(ds.assign(height=ds.height * 2), path)
     monkeypatch.undo()
     assert path.read_bytes() == before
@@ -136,3 +138,18 @@ def test_bad_write_arguments_raise_xtopo_errors(tmp_path):
     with pytest.raises(xtopo.ValidationError, match="cannot write .*complex.nc.*complex"):
         xtopo.to_netcdf(cplx, tmp_path / "complex.nc", engine="netcdf4")
     assert os.listdir(tmp_path) == []  # neither the target nor a temp file
+
+
+def test_unwritable_targets_raise_write_error(tmp_path):
+    """A missing directory or a failing writer raised a bare OSError (FileNotFoundError, or the
+    writer's own), which ``except xtopo.XtopoError`` did not catch."""
+    ds = xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.8, seed=1)
+    target = tmp_path / "missing" / "x.nc"
+    with pytest.raises(xtopo.XtopoError, match=f"cannot write {re.escape(str(target))}: No such file") as info:
+        xtopo.to_netcdf(ds, target)
+    assert isinstance(info.value, OSError) and info.value.errno == errno.ENOENT
+    assert str(info.value).startswith("cannot write")
+    tree = xtopo.twin({"a": ds})
+    with pytest.raises(xtopo.WriteError, match="cannot write"):
+        tree.topo.to_netcdf(target)
+    assert not (tmp_path / "missing").exists()

@@ -19,7 +19,7 @@ from .._checks import flag
 from .._checks import path as checked_path
 from .._version import __version__
 from ..conventions import CONVENTIONS
-from ..errors import ReaderError, ValidationError, XtopoError
+from ..errors import ReaderError, ValidationError, WriteError, XtopoError
 
 __all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
            "ENGINES"]
@@ -132,13 +132,19 @@ def atomic_write(path, write) -> str:
 
     A ``write`` that fails (or a process that dies) leaves an existing ``path`` untouched
     and no temporary file behind (the latter except on a hard kill).
+
+    Raises
+    ------
+    WriteError
+        When the file cannot be created or written (an ``OSError`` from ``write`` included);
+        other exceptions of ``write`` propagate unchanged.
     """
     path = checked_path(path, "path", kind="file path")
     directory = os.path.dirname(os.path.abspath(path))
     try:
         fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
     except OSError as exc:  # name the target, not the temporary file
-        raise type(exc)(exc.errno, f"cannot write {path}: {exc.strerror}") from None
+        raise WriteError(exc.errno, f"cannot write {path}: {exc.strerror}") from None
     os.close(fd)
     try:
         write(tmp)
@@ -147,8 +153,11 @@ def atomic_write(path, write) -> str:
     except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
-        if isinstance(exc, OSError) and exc.filename == tmp:
-            raise type(exc)(exc.errno, f"cannot write {path}: {exc.strerror}") from None
+        if isinstance(exc, OSError) and not isinstance(exc, WriteError):
+            error = WriteError(exc.errno, f"cannot write {path}: {exc.strerror or exc}")
+            if exc.filename == tmp:  # the temporary file's name says nothing to the caller
+                raise error from None
+            raise error from exc
         raise
     return path
 
