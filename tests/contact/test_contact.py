@@ -12,7 +12,7 @@ from xtopo import datasets
 from xtopo._kernels.convolution import Convolution
 from xtopo._kernels.greens import love_rectangle
 from xtopo.contact import Scene, gap_distribution, stiffness
-from xtopo.errors import ContactError, ConvergenceWarning, GridError
+from xtopo.errors import ContactError, ConvergenceWarning, GridError, UnitsError
 
 N = 96
 DX = 1.0 / N
@@ -323,6 +323,18 @@ def test_errors():
     with pytest.raises(ContactError, match="real numbers"):
         scene.solve(load=1e-3, initial=bad.astype(str))
     assert issubclass(ContactError, xtopo.XtopoError)
+
+
+def test_heights_and_positions_in_different_units_are_an_error():
+    """Heights in nm on µm positions were solved as if both were nm (a 1000× smaller grid, silently)."""
+    ds = _sphere(16)
+    in_nm = ds.assign(height=(ds.height * 1000).assign_attrs(units="nm"))
+    with pytest.raises(UnitsError, match="height in 'nm', coordinate 'y' in 'um'"):
+        Scene(in_nm)
+    with pytest.raises(UnitsError, match="counter: height in 'nm'"):
+        Scene(ds, counter=in_nm)
+    same = ds.assign(height=ds.height.assign_attrs(units="micrometer"))   # one unit, spelled two ways
+    assert Scene(same).length_units == "um"
 
 
 def test_cylinder_plane_strain_free_line_scan():

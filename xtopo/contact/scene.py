@@ -18,7 +18,7 @@ from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
-from ..errors import ContactError, GridError
+from ..errors import ContactError, GridError, UnitsError
 from ..presets import resolve as resolve_preset
 
 __all__ = ["Scene"]
@@ -57,9 +57,20 @@ def _heights(obj, what: str) -> xr.DataArray:
     return h
 
 
-def _length_units(h: xr.DataArray) -> str:
-    units = h.attrs.get("units") or h.coords["x"].attrs.get("units")
-    return normalize_units(units) if units else "1"
+def _length_units(h: xr.DataArray, what: str = "topography") -> str:
+    """The one length unit of the heights and lateral coordinates of ``h`` (``"1"`` when none is given).
+
+    Heights and positions in different units would make the solver mix them (a height in nm read
+    as µm), so they must agree where both are labelled.
+    """
+    labelled = {name: normalize_units(obj.attrs["units"])
+                for name, obj in [("height", h)] + [(f"coordinate {d!r}", h.coords[d]) for d in h.dims if d in h.coords]
+                if obj.attrs.get("units")}
+    if len(set(labelled.values())) > 1:
+        found = ", ".join(f"{name} in {u!r}" for name, u in labelled.items())
+        raise UnitsError(f"{what}: {found}; contact mechanics needs one length unit for heights and positions "
+                         "(rescale the heights or the coordinates so that they agree)")
+    return next(iter(labelled.values()), "1")
 
 
 class Scene:
@@ -153,7 +164,7 @@ class Scene:
         if h1.dims != h2.dims or h1.shape != h2.shape:
             raise GridError(f"counter surface has dims {h2.dims} shape {h2.shape}, but the topography has "
                             f"{h1.dims} {h1.shape}; interpolate one onto the other's grid first")
-        u1, u2 = _length_units(h1), _length_units(h2)
+        u1, u2 = _length_units(h1), _length_units(h2, "counter")
         if u1 != u2:
             raise GridError(f"counter surface is in {u2!r} but the topography in {u1!r}; convert with "
                             f".topo.to_units({u1!r})")
