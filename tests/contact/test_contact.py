@@ -316,6 +316,11 @@ def test_errors():
             scene.solve(load=1e-3, maxiter=maxiter)
     with pytest.raises(ContactError, match="finite scalar"):
         scene.solve(load="1e-3")
+    for tol in (1, 2.5):   # tol is relative to the peak-to-valley height: ≥ 1 once "converged" in 0 iterations
+        with pytest.raises(ContactError, match="tol must be below 1"):
+            scene.solve(load=1e-3, tol=tol)
+        with pytest.raises(ContactError, match="tol must be below 1"):
+            scene.curve(loads=[1e-3], tol=tol)
     bad = np.zeros(ds.height.shape)
     bad[3, 4] = np.nan
     with pytest.raises(ContactError, match="1 non-finite"):   # a NaN start once gave load 0, "converged"

@@ -44,8 +44,15 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
 
 
 def solver_parameters(tol, maxiter) -> tuple:
-    """``(tol, maxiter)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one); None passes."""
+    """``(tol, maxiter)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one); None passes.
+
+    ``tol`` is in (0, 1), ``maxiter`` an integer ≥ 1.
+    """
     tol = None if tol is None else positive_number(tol, "tol", error=ContactError)
+    if tol is not None and tol >= 1:
+        raise ContactError(f"tol must be below 1, got {tol:g}: it is the largest contact-condition violation as a "
+                           "fraction of the peak-to-valley height, and tol ≥ 1 accepts the starting pressures "
+                           "without a single iteration")
     maxiter = None if maxiter is None else integer(maxiter, "maxiter", 1, error=ContactError)
     return tol, maxiter
 
