@@ -248,6 +248,17 @@ def test_curve_warm_start_stiffness_gap_distribution():
     xr.testing.assert_identical(alone.rename("stiffness"), c.stiffness)
 
 
+def test_curve_stiffness_does_not_depend_on_the_order_of_the_loads():
+    """Unsorted loads took finite differences between values adjacent in the list, not on the curve."""
+    scene = Scene(_sphere(32))
+    shuffled = scene.curve(loads=[4e-3, 1e-3, 2e-3, 3e-3], gap_bins=0).sortby("load")
+    f, d = shuffled["load"].values, shuffled.penetration.values
+    np.testing.assert_allclose(shuffled.stiffness.values, np.gradient(f, d), rtol=1e-12)
+    pens = scene.curve(penetrations=[0.03, 0.01, 0.02], gap_bins=0).sortby("penetration")
+    np.testing.assert_allclose(pens.stiffness.values, np.gradient(pens["load"].values, pens.penetration.values),
+                               rtol=1e-12)
+
+
 def test_curve_inputs_are_checked():
     scene = Scene(_sphere(16))
     c = scene.curve(loads=[1e-4, 2e-4])
