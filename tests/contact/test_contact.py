@@ -317,6 +317,9 @@ def test_errors():
         Scene(ds, backend="cufft")
     with pytest.raises(ContactError, match="periodic must be"):
         Scene(ds, periodic="yes")
+    for dtype in ("float16", "foo", ["f8"]):   # "foo" raised numpy's TypeError
+        with pytest.raises(ContactError, match="dtype must be 'float64' or 'float32'"):
+            Scene(ds, dtype=dtype)
     with pytest.raises(xtopo.XtopoError, match="got int"):
         Scene(ds, counter=3)
     with pytest.raises(ContactError, match="infinite"):

@@ -117,7 +117,11 @@ class Scene:
         dtype = resolve_preset("contact", preset, dtype=dtype)["dtype"]
         self.preset = preset
         modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
-        if np.dtype(dtype) not in (np.dtype("float32"), np.dtype("float64")):
+        try:
+            floating = np.dtype(dtype) in (np.dtype("float32"), np.dtype("float64"))
+        except TypeError:  # not a dtype at all ("foo", a list)
+            floating = False
+        if not floating:
             raise ContactError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
         self.dtype = np.dtype(dtype)
         self.modulus = modulus
