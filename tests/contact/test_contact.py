@@ -328,8 +328,9 @@ def test_errors():
     for maxiter in (2.5, "10", float("inf"), True, 0):
         with pytest.raises(ContactError, match="maxiter must be an integer >= 1"):
             scene.solve(load=1e-3, maxiter=maxiter)
-    with pytest.raises(ContactError, match="finite scalar"):
-        scene.solve(load="1e-3")
+    for load in ("1e-3", 1e-3 + 0j, np.array(1e-3 + 0j), True, object()):   # complex/object: TypeError, True: 1
+        with pytest.raises(ContactError, match="finite scalar"):
+            scene.solve(load=load)
     for tol in (1, 2.5):   # tol is relative to the peak-to-valley height: ≥ 1 once "converged" in 0 iterations
         with pytest.raises(ContactError, match="tol must be below 1"):
             scene.solve(load=1e-3, tol=tol)

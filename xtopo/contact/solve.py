@@ -71,7 +71,9 @@ def _control(scene, load, mean_pressure, penetration):
         raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
     for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
         if v is not None:
-            if isinstance(v, (str, bytes)) or np.ndim(v) != 0 or not np.isfinite(float(v)):
+            real = (not isinstance(v, (str, bytes, bool, np.bool_)) and np.ndim(v) == 0
+                    and not np.iscomplexobj(v) and np.issubdtype(np.asarray(v).dtype, np.number))
+            if not real or not np.isfinite(float(v)):
                 raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
             if name != "penetration" and float(v) < 0:
                 raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
