@@ -215,6 +215,20 @@ def test_capped_load_control_converges(periodic, hurst, slope, cutoff, seed, har
     assert float(r.pressure.max()) <= hardness
 
 
+def test_initial_pressures_from_a_previous_result():
+    """A result with dims in another order was refused (or used transposed); a Dataset without
+    'pressure' raised KeyError."""
+    ds = datasets.sphere((24, 16), (1.5, 1.0), 1.0, kind="paraboloid", units="um")
+    scene = Scene(ds)
+    first = scene.solve(load=2e-3)
+    cold = scene.solve(load=2.2e-3)
+    for initial in (first, first.pressure, first.pressure.T, first.transpose("x", "y")):
+        warm = scene.solve(load=2.2e-3, initial=initial)
+        xr.testing.assert_allclose(warm.pressure, cold.pressure, rtol=0, atol=1e-3 * float(cold.pressure.max()))
+    with pytest.raises(ContactError, match="'pressure' variable"):
+        scene.solve(load=2.2e-3, initial=ds)
+
+
 def test_nonconvergence_is_flagged():
     surf = datasets.fractal_surface((64, 64), 1.0, hurst=0.8, rms_slope=0.1, seed=5, units="um")
     with pytest.warns(ConvergenceWarning):

@@ -92,8 +92,14 @@ def _control(scene, load, mean_pressure, penetration):
 def _initial(scene, initial):
     if initial is None:
         return None
-    p = initial["pressure"] if isinstance(initial, xr.Dataset) else initial
-    p = np.asarray(getattr(p, "values", p))
+    if isinstance(initial, xr.Dataset):
+        if "pressure" not in initial.data_vars:
+            raise ContactError("initial must be a contact result (a Dataset with a 'pressure' variable) or an array "
+                               f"of pressures; this Dataset has only {list(initial.data_vars)}")
+        initial = initial["pressure"]
+    if isinstance(initial, xr.DataArray) and set(initial.dims) == set(scene.dims):
+        initial = initial.transpose(*scene.dims)  # e.g. a result transposed to ("x", "y")
+    p = np.asarray(getattr(initial, "values", initial))
     if p.shape != scene.shape:
         raise ContactError(f"initial pressures have shape {p.shape}, the scene {scene.shape}")
     if not np.issubdtype(p.dtype, np.number) or np.iscomplexobj(p):
