@@ -342,6 +342,8 @@ def test_errors():
     for maxiter in (2.5, "10", float("inf"), True, 0):
         with pytest.raises(ContactError, match="maxiter must be an integer >= 1"):
             scene.solve(load=1e-3, maxiter=maxiter)
+    with pytest.raises(ContactError, match="callback must be a function"):   # was TypeError after iteration 1
+        scene.solve(load=1e-3, callback="print")
     for load in ("1e-3", 1e-3 + 0j, np.array(1e-3 + 0j), True, object()):   # complex/object: TypeError, True: 1
         with pytest.raises(ContactError, match="finite scalar"):
             scene.solve(load=load)

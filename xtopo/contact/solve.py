@@ -151,6 +151,8 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
     """
     load, penetration = _control(scene, load, mean_pressure, penetration)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
+    if callback is not None and not callable(callback):
+        raise ContactError(f"callback must be a function callback(iteration, residual) or None, got {callback!r}")
     if scene.hardness is not None and load is not None and load >= scene.hardness * scene.nominal_area:
         raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
                            "the whole surface would flow; lower the load or raise the hardness")
