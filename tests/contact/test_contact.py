@@ -311,6 +311,10 @@ def test_scene_choices_repr_and_pickle():
     per = Scene(datasets.fractal_surface((32, 32), 1.0, hurst=0.8, seed=1))
     assert "periodic" in repr(per) and "no padding" in repr(per) and "no cap" in repr(per)
     assert per.convolution.fft_shape == (32, 32) and free.convolution.fft_shape == (64, 64)
+    mixed = Scene(datasets.fractal_surface((32, 32), 1.0, hurst=0.8, seed=1),
+              counter=datasets.fractal_surface((32, 32), 1.0, hurst=0.8, seed=2).assign_attrs(periodic=0))
+    # said "periodic attribute (0) of both surfaces" though the topography's is 1
+    assert "free (from the periodic attributes of the topography (1) and the counter surface (0)" in repr(mixed)
     clone = pickle.loads(pickle.dumps(free))
     np.testing.assert_allclose(clone.solve(load=1e-4).pressure, free.solve(load=1e-4).pressure)
 

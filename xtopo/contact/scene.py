@@ -133,18 +133,21 @@ class Scene:
         self.spacing = tuple(spacing(h, d) for d in self.dims)
         reasons = []
         per_attr = is_periodic(topography)
+        source = f"from the data's periodic attribute ({int(per_attr)})"
         if counter is not None:
             h2 = _heights(counter, "counter")
             self._check_same_grid(h, h2)
-            per_attr = per_attr and is_periodic(counter)
+            per_counter = is_periodic(counter)
+            source = (f"from the periodic attributes of the topography ({int(per_attr)}) and the counter surface "
+                      f"({int(per_counter)}): periodic only when both are")
+            per_attr = per_attr and per_counter
             values = np.asarray(h.values, dtype=np.float64) + np.asarray(h2.values, dtype=np.float64)
             reasons.append("compound topography h1 + h2 (counter surface given)")
         else:
             values = np.asarray(h.values, dtype=np.float64)
         if periodic is None:
             self.periodic = bool(per_attr)
-            self._boundary_reason = (f"from the data's periodic attribute ({int(self.periodic)})"
-                                     + (" of both surfaces" if counter is not None else ""))
+            self._boundary_reason = source
         else:
             self.periodic = periodic
             self._boundary_reason = "as requested"
