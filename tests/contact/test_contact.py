@@ -103,6 +103,17 @@ def test_plastic_cap_and_fully_plastic_area():
     assert abs(float(r["load"]) / load - 1) < 1e-3
 
 
+def test_load_beyond_the_fully_plastic_limit_is_an_error():
+    """A curve reaching hardness × nominal area raised the kernel's bare ValueError, after solving
+    the loads before it."""
+    scene = Scene(_sphere(16), hardness=0.05)
+    area = scene.nominal_area
+    for call in (lambda: scene.solve(mean_pressure=0.05), lambda: scene.curve(mean_pressures=[0.01, 0.06]),
+                 lambda: scene.curve(loads=[0.05 * area])):
+        with pytest.raises(ContactError, match="exceeds hardness × nominal area"):
+            call()
+
+
 def test_elastic_plastic_penetration_control_respects_cap():
     r = Scene(_sphere(64), hardness=0.05).solve(penetration=0.02)
     assert float(r.pressure.max()) <= 0.05 * (1 + 1e-12)

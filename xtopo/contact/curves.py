@@ -68,10 +68,11 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     name, values = given[0]
     values = _sequence(name, values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
+    key = {"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]
+    # every value checked before the first solve (a bad last value must not cost the whole curve)
+    controls = [_control(scene, **{"load": None, "mean_pressure": None, "penetration": None, key: v}) for v in values]
     steps, previous = [], None
-    for v in values:
-        kw = {{"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]: v}
-        load, pen = _control(scene, kw.get("load"), kw.get("mean_pressure"), kw.get("penetration"))
+    for v, (load, pen) in zip(values, controls):
         res = run_solver(scene, load=load, penetration=pen, tol=tol, maxiter=maxiter, initial=previous)
         if not res.converged:
             warnings.warn(f"contact solve at {name[:-1]}={v:g} did not converge in {res.iterations} iterations "

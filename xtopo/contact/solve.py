@@ -86,6 +86,10 @@ def _control(scene, load, mean_pressure, penetration):
                 "infinite pressure; prescribe load= or mean_pressure= instead")
     if mean_pressure is not None:
         load = float(mean_pressure) * scene.nominal_area
+    if scene.hardness is not None and load is not None and float(load) >= scene.hardness * scene.nominal_area:
+        raise ContactError(f"load {float(load):g} exceeds hardness × nominal area "
+                           f"({scene.hardness * scene.nominal_area:g}): the whole surface would flow; lower the load "
+                           "or raise the hardness")
     return (None if load is None else float(load)), (None if penetration is None else float(penetration))
 
 
@@ -153,9 +157,6 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
     if callback is not None and not callable(callback):
         raise ContactError(f"callback must be a function callback(iteration, residual) or None, got {callback!r}")
-    if scene.hardness is not None and load is not None and load >= scene.hardness * scene.nominal_area:
-        raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
-                           "the whole surface would flow; lower the load or raise the hardness")
     res = run_solver(scene, load=load, penetration=penetration, tol=tol, maxiter=maxiter,
                      initial=_initial(scene, initial), callback=callback)
     if not res.converged:
