@@ -153,8 +153,8 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
         ``area_fraction``, ``contact_area``, ``penetration``, ``iterations``, ``residual``,
         ``converged``.
     """
-    load, penetration = _control(scene, load, mean_pressure, penetration)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
+    load, penetration = _control(scene, load, mean_pressure, penetration)
     if callback is not None and not callable(callback):
         raise ContactError(f"callback must be a function callback(iteration, residual) or None, got {callback!r}")
     res = run_solver(scene, load=load, penetration=penetration, tol=tol, maxiter=maxiter,
