@@ -312,7 +312,8 @@ def test_read_options_open_generic_files_and_key_the_store(tmp_path, counter):
 
 
 @pytest.mark.parametrize("kwargs,match", [(dict(modulus=-1), "modulus"), (dict(hardness="abc"), "hardness"),
-                                          (dict(tol=0), "tol"), (dict(maxiter=2.5), "maxiter"),
+                                          (dict(tol=0), "tol"), (dict(tol=1), "tol must be below 1"),
+                                          (dict(maxiter=2.5), "maxiter"),
                                           (dict(periodic="yes"), "periodic")])
 def test_contact_batch_checks_shared_parameters_before_dispatch(kwargs, match):
     """A bad scene or solver parameter fails the call at once (it was recorded as N identical item errors)."""

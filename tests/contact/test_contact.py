@@ -12,7 +12,7 @@ from xtopo import datasets
 from xtopo._kernels.convolution import Convolution
 from xtopo._kernels.greens import love_rectangle
 from xtopo.contact import Scene, gap_distribution, stiffness
-from xtopo.errors import ContactError, ConvergenceWarning, GridError
+from xtopo.errors import ContactError, ConvergenceWarning, GridError, UnitsError
 
 N = 96
 DX = 1.0 / N
@@ -101,6 +101,17 @@ def test_plastic_cap_and_fully_plastic_area():
     assert abs(float(r.contact_area) / (load / 0.002) - 1) < 0.02
     assert "plastic" in r and bool(r.converged)
     assert abs(float(r["load"]) / load - 1) < 1e-3
+
+
+def test_load_beyond_the_fully_plastic_limit_is_an_error():
+    """A curve reaching hardness × nominal area raised the kernel's bare ValueError, after solving
+    the loads before it."""
+    scene = Scene(_sphere(16), hardness=0.05)
+    area = scene.nominal_area
+    for call in (lambda: scene.solve(mean_pressure=0.05), lambda: scene.curve(mean_pressures=[0.01, 0.06]),
+                 lambda: scene.curve(loads=[0.05 * area])):
+        with pytest.raises(ContactError, match="exceeds hardness × nominal area"):
+            call()
 
 
 def test_elastic_plastic_penetration_control_respects_cap():
@@ -215,6 +226,20 @@ def test_capped_load_control_converges(periodic, hurst, slope, cutoff, seed, har
     assert float(r.pressure.max()) <= hardness
 
 
+def test_initial_pressures_from_a_previous_result():
+    """A result with dims in another order was refused (or used transposed); a Dataset without
+    'pressure' raised KeyError."""
+    ds = datasets.sphere((24, 16), (1.5, 1.0), 1.0, kind="paraboloid", units="um")
+    scene = Scene(ds)
+    first = scene.solve(load=2e-3)
+    cold = scene.solve(load=2.2e-3)
+    for initial in (first, first.pressure, first.pressure.T, first.transpose("x", "y")):
+        warm = scene.solve(load=2.2e-3, initial=initial)
+        xr.testing.assert_allclose(warm.pressure, cold.pressure, rtol=0, atol=1e-3 * float(cold.pressure.max()))
+    with pytest.raises(ContactError, match="'pressure' variable"):
+        scene.solve(load=2.2e-3, initial=ds)
+
+
 def test_nonconvergence_is_flagged():
     surf = datasets.fractal_surface((64, 64), 1.0, hurst=0.8, rms_slope=0.1, seed=5, units="um")
     with pytest.warns(ConvergenceWarning):
@@ -246,6 +271,17 @@ def test_curve_warm_start_stiffness_gap_distribution():
     assert c.stiffness.attrs["units"] == "E* um" and "stiffness" in c.stiffness.attrs["long_name"]
     alone = stiffness(c.drop_vars("stiffness"))          # standalone: same values, units and coordinate
     xr.testing.assert_identical(alone.rename("stiffness"), c.stiffness)
+
+
+def test_curve_stiffness_does_not_depend_on_the_order_of_the_loads():
+    """Unsorted loads took finite differences between values adjacent in the list, not on the curve."""
+    scene = Scene(_sphere(32))
+    shuffled = scene.curve(loads=[4e-3, 1e-3, 2e-3, 3e-3], gap_bins=0).sortby("load")
+    f, d = shuffled["load"].values, shuffled.penetration.values
+    np.testing.assert_allclose(shuffled.stiffness.values, np.gradient(f, d), rtol=1e-12)
+    pens = scene.curve(penetrations=[0.03, 0.01, 0.02], gap_bins=0).sortby("penetration")
+    np.testing.assert_allclose(pens.stiffness.values, np.gradient(pens["load"].values, pens.penetration.values),
+                               rtol=1e-12)
 
 
 def test_curve_inputs_are_checked():
@@ -286,6 +322,10 @@ def test_scene_choices_repr_and_pickle():
     per = Scene(datasets.fractal_surface((32, 32), 1.0, hurst=0.8, seed=1))
     assert "periodic" in repr(per) and "no padding" in repr(per) and "no cap" in repr(per)
     assert per.convolution.fft_shape == (32, 32) and free.convolution.fft_shape == (64, 64)
+    mixed = Scene(datasets.fractal_surface((32, 32), 1.0, hurst=0.8, seed=1),
+              counter=datasets.fractal_surface((32, 32), 1.0, hurst=0.8, seed=2).assign_attrs(periodic=0))
+    # said "periodic attribute (0) of both surfaces" though the topography's is 1
+    assert "free (from the periodic attributes of the topography (1) and the counter surface (0)" in repr(mixed)
     clone = pickle.loads(pickle.dumps(free))
     np.testing.assert_allclose(clone.solve(load=1e-4).pressure, free.solve(load=1e-4).pressure)
 
@@ -306,6 +346,9 @@ def test_errors():
         Scene(ds, backend="cufft")
     with pytest.raises(ContactError, match="periodic must be"):
         Scene(ds, periodic="yes")
+    for dtype in ("float16", "foo", ["f8"]):   # "foo" raised numpy's TypeError
+        with pytest.raises(ContactError, match="dtype must be 'float64' or 'float32'"):
+            Scene(ds, dtype=dtype)
     with pytest.raises(xtopo.XtopoError, match="got int"):
         Scene(ds, counter=3)
     with pytest.raises(ContactError, match="infinite"):
@@ -314,8 +357,16 @@ def test_errors():
     for maxiter in (2.5, "10", float("inf"), True, 0):
         with pytest.raises(ContactError, match="maxiter must be an integer >= 1"):
             scene.solve(load=1e-3, maxiter=maxiter)
-    with pytest.raises(ContactError, match="finite scalar"):
-        scene.solve(load="1e-3")
+    with pytest.raises(ContactError, match="callback must be a function"):   # was TypeError after iteration 1
+        scene.solve(load=1e-3, callback="print")
+    for load in ("1e-3", 1e-3 + 0j, np.array(1e-3 + 0j), True, object()):   # complex/object: TypeError, True: 1
+        with pytest.raises(ContactError, match="finite scalar"):
+            scene.solve(load=load)
+    for tol in (1, 2.5):   # tol is relative to the peak-to-valley height: ≥ 1 once "converged" in 0 iterations
+        with pytest.raises(ContactError, match="tol must be below 1"):
+            scene.solve(load=1e-3, tol=tol)
+        with pytest.raises(ContactError, match="tol must be below 1"):
+            scene.curve(loads=[1e-3], tol=tol)
     bad = np.zeros(ds.height.shape)
     bad[3, 4] = np.nan
     with pytest.raises(ContactError, match="1 non-finite"):   # a NaN start once gave load 0, "converged"
@@ -323,6 +374,18 @@ def test_errors():
     with pytest.raises(ContactError, match="real numbers"):
         scene.solve(load=1e-3, initial=bad.astype(str))
     assert issubclass(ContactError, xtopo.XtopoError)
+
+
+def test_heights_and_positions_in_different_units_are_an_error():
+    """Heights in nm on µm positions were solved as if both were nm (a 1000× smaller grid, silently)."""
+    ds = _sphere(16)
+    in_nm = ds.assign(height=(ds.height * 1000).assign_attrs(units="nm"))
+    with pytest.raises(UnitsError, match="height in 'nm', coordinate 'y' in 'um'"):
+        Scene(in_nm)
+    with pytest.raises(UnitsError, match="counter: height in 'nm'"):
+        Scene(ds, counter=in_nm)
+    same = ds.assign(height=ds.height.assign_attrs(units="micrometer"))   # one unit, spelled two ways
+    assert Scene(same).length_units == "um"
 
 
 def test_cylinder_plane_strain_free_line_scan():

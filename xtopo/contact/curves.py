@@ -68,10 +68,11 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     name, values = given[0]
     values = _sequence(name, values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
+    key = {"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]
+    # every value checked before the first solve (a bad last value must not cost the whole curve)
+    controls = [_control(scene, **{"load": None, "mean_pressure": None, "penetration": None, key: v}) for v in values]
     steps, previous = [], None
-    for v in values:
-        kw = {{"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]: v}
-        load, pen = _control(scene, kw.get("load"), kw.get("mean_pressure"), kw.get("penetration"))
+    for v, (load, pen) in zip(values, controls):
         res = run_solver(scene, load=load, penetration=pen, tol=tol, maxiter=maxiter, initial=previous)
         if not res.converged:
             warnings.warn(f"contact solve at {name[:-1]}={v:g} did not converge in {res.iterations} iterations "
@@ -106,7 +107,8 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
     Returns
     -------
     xarray.DataArray
-        ``dF/dδ`` (one-sided at the ends, as :func:`numpy.gradient`); NaN where it is
+        ``dF/dδ`` between neighbours in the order of the ``dim`` coordinate (whatever order the
+        values were given in); one-sided at the ends, as :func:`numpy.gradient`; NaN where it is
         undefined: next to a step in which the penetration does not change (full contact of
         a periodic scene, where ``δ`` is fixed and the stiffness infinite) and for curves of
         fewer than two points.
@@ -115,8 +117,10 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
     if ds["load"].dims != (dim,) or ds["penetration"].dims != (dim,):
         raise ContactError(f"stiffness: 'load' and 'penetration' must run along dim={dim!r}; they have dims "
                            f"{ds['load'].dims} and {ds['penetration'].dims}")
-    f = np.asarray(ds["load"].values, dtype=float)
-    d = np.asarray(ds["penetration"].values, dtype=float)
+    # neighbours along the curve, not in the order the values were given: sort by the curve's coordinate
+    order = np.argsort(ds[dim].values, kind="stable") if dim in ds.coords else np.arange(ds.sizes[dim])
+    f = np.asarray(ds["load"].values, dtype=float)[order]
+    d = np.asarray(ds["penetration"].values, dtype=float)[order]
     k = np.full(f.shape, np.nan)
     if f.size >= 2:
         h = np.diff(d)
@@ -128,6 +132,7 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
         # np.gradient's second-order formula on a nonuniform grid, from the two step slopes
         both = ok[:-1] & ok[1:] & (h1 + h2 != 0)
         k[1:-1] = np.where(both, (h1 * s[1:] + h2 * s[:-1]) / np.where(both, h1 + h2, 1.0), np.nan)
+    k[order] = k.copy()
     units = _per_length(ds["load"].attrs.get("units", "1"), ds["penetration"].attrs.get("units", "1"))
     return xr.DataArray(k, dims=(dim,), coords={dim: ds[dim]} if dim in ds.coords else None,
                         attrs={"units": units, "long_name": "contact stiffness dF/dδ"})

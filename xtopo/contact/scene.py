@@ -18,7 +18,7 @@ from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
-from ..errors import ContactError, GridError
+from ..errors import ContactError, GridError, UnitsError
 from ..presets import resolve as resolve_preset
 
 __all__ = ["Scene"]
@@ -57,9 +57,20 @@ def _heights(obj, what: str) -> xr.DataArray:
     return h
 
 
-def _length_units(h: xr.DataArray) -> str:
-    units = h.attrs.get("units") or h.coords["x"].attrs.get("units")
-    return normalize_units(units) if units else "1"
+def _length_units(h: xr.DataArray, what: str = "topography") -> str:
+    """The one length unit of the heights and lateral coordinates of ``h`` (``"1"`` when none is given).
+
+    Heights and positions in different units would make the solver mix them (a height in nm read
+    as µm), so they must agree where both are labelled.
+    """
+    labelled = {name: normalize_units(obj.attrs["units"])
+                for name, obj in [("height", h)] + [(f"coordinate {d!r}", h.coords[d]) for d in h.dims if d in h.coords]
+                if obj.attrs.get("units")}
+    if len(set(labelled.values())) > 1:
+        found = ", ".join(f"{name} in {u!r}" for name, u in labelled.items())
+        raise UnitsError(f"{what}: {found}; contact mechanics needs one length unit for heights and positions "
+                         "(rescale the heights or the coordinates so that they agree)")
+    return next(iter(labelled.values()), "1")
 
 
 class Scene:
@@ -106,7 +117,11 @@ class Scene:
         dtype = resolve_preset("contact", preset, dtype=dtype)["dtype"]
         self.preset = preset
         modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
-        if np.dtype(dtype) not in (np.dtype("float32"), np.dtype("float64")):
+        try:
+            floating = np.dtype(dtype) in (np.dtype("float32"), np.dtype("float64"))
+        except TypeError:  # not a dtype at all ("foo", a list)
+            floating = False
+        if not floating:
             raise ContactError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
         self.dtype = np.dtype(dtype)
         self.modulus = modulus
@@ -118,18 +133,21 @@ class Scene:
         self.spacing = tuple(spacing(h, d) for d in self.dims)
         reasons = []
         per_attr = is_periodic(topography)
+        source = f"from the data's periodic attribute ({int(per_attr)})"
         if counter is not None:
             h2 = _heights(counter, "counter")
             self._check_same_grid(h, h2)
-            per_attr = per_attr and is_periodic(counter)
+            per_counter = is_periodic(counter)
+            source = (f"from the periodic attributes of the topography ({int(per_attr)}) and the counter surface "
+                      f"({int(per_counter)}): periodic only when both are")
+            per_attr = per_attr and per_counter
             values = np.asarray(h.values, dtype=np.float64) + np.asarray(h2.values, dtype=np.float64)
             reasons.append("compound topography h1 + h2 (counter surface given)")
         else:
             values = np.asarray(h.values, dtype=np.float64)
         if periodic is None:
             self.periodic = bool(per_attr)
-            self._boundary_reason = (f"from the data's periodic attribute ({int(self.periodic)})"
-                                     + (" of both surfaces" if counter is not None else ""))
+            self._boundary_reason = source
         else:
             self.periodic = periodic
             self._boundary_reason = "as requested"
@@ -153,7 +171,7 @@ class Scene:
         if h1.dims != h2.dims or h1.shape != h2.shape:
             raise GridError(f"counter surface has dims {h2.dims} shape {h2.shape}, but the topography has "
                             f"{h1.dims} {h1.shape}; interpolate one onto the other's grid first")
-        u1, u2 = _length_units(h1), _length_units(h2)
+        u1, u2 = _length_units(h1), _length_units(h2, "counter")
         if u1 != u2:
             raise GridError(f"counter surface is in {u2!r} but the topography in {u1!r}; convert with "
                             f".topo.to_units({u1!r})")

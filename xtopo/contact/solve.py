@@ -44,8 +44,15 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
 
 
 def solver_parameters(tol, maxiter) -> tuple:
-    """``(tol, maxiter)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one); None passes."""
+    """``(tol, maxiter)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one); None passes.
+
+    ``tol`` is in (0, 1), ``maxiter`` an integer ≥ 1.
+    """
     tol = None if tol is None else positive_number(tol, "tol", error=ContactError)
+    if tol is not None and tol >= 1:
+        raise ContactError(f"tol must be below 1, got {tol:g}: it is the largest contact-condition violation as a "
+                           "fraction of the peak-to-valley height, and tol ≥ 1 accepts the starting pressures "
+                           "without a single iteration")
     maxiter = None if maxiter is None else integer(maxiter, "maxiter", 1, error=ContactError)
     return tol, maxiter
 
@@ -64,7 +71,9 @@ def _control(scene, load, mean_pressure, penetration):
         raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
     for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
         if v is not None:
-            if isinstance(v, (str, bytes)) or np.ndim(v) != 0 or not np.isfinite(float(v)):
+            real = (not isinstance(v, (str, bytes, bool, np.bool_)) and np.ndim(v) == 0
+                    and not np.iscomplexobj(v) and np.issubdtype(np.asarray(v).dtype, np.number))
+            if not real or not np.isfinite(float(v)):
                 raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
             if name != "penetration" and float(v) < 0:
                 raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
@@ -77,14 +86,24 @@ def _control(scene, load, mean_pressure, penetration):
                 "infinite pressure; prescribe load= or mean_pressure= instead")
     if mean_pressure is not None:
         load = float(mean_pressure) * scene.nominal_area
+    if scene.hardness is not None and load is not None and float(load) >= scene.hardness * scene.nominal_area:
+        raise ContactError(f"load {float(load):g} exceeds hardness × nominal area "
+                           f"({scene.hardness * scene.nominal_area:g}): the whole surface would flow; lower the load "
+                           "or raise the hardness")
     return (None if load is None else float(load)), (None if penetration is None else float(penetration))
 
 
 def _initial(scene, initial):
     if initial is None:
         return None
-    p = initial["pressure"] if isinstance(initial, xr.Dataset) else initial
-    p = np.asarray(getattr(p, "values", p))
+    if isinstance(initial, xr.Dataset):
+        if "pressure" not in initial.data_vars:
+            raise ContactError("initial must be a contact result (a Dataset with a 'pressure' variable) or an array "
+                               f"of pressures; this Dataset has only {list(initial.data_vars)}")
+        initial = initial["pressure"]
+    if isinstance(initial, xr.DataArray) and set(initial.dims) == set(scene.dims):
+        initial = initial.transpose(*scene.dims)  # e.g. a result transposed to ("x", "y")
+    p = np.asarray(getattr(initial, "values", initial))
     if p.shape != scene.shape:
         raise ContactError(f"initial pressures have shape {p.shape}, the scene {scene.shape}")
     if not np.issubdtype(p.dtype, np.number) or np.iscomplexobj(p):
@@ -134,11 +153,10 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
         ``area_fraction``, ``contact_area``, ``penetration``, ``iterations``, ``residual``,
         ``converged``.
     """
-    load, penetration = _control(scene, load, mean_pressure, penetration)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
-    if scene.hardness is not None and load is not None and load >= scene.hardness * scene.nominal_area:
-        raise ContactError(f"load {load:g} exceeds hardness × nominal area ({scene.hardness * scene.nominal_area:g}): "
-                           "the whole surface would flow; lower the load or raise the hardness")
+    load, penetration = _control(scene, load, mean_pressure, penetration)
+    if callback is not None and not callable(callback):
+        raise ContactError(f"callback must be a function callback(iteration, residual) or None, got {callback!r}")
     res = run_solver(scene, load=load, penetration=penetration, tol=tol, maxiter=maxiter,
                      initial=_initial(scene, initial), callback=callback)
     if not res.converged:
