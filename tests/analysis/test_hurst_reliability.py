@@ -156,3 +156,13 @@ def test_flags_must_be_booleans(value):
             with pytest.raises(xtopo.XtopoError, match=f"{name} must be True or False"):
                 call()
     assert ds.topo.psd(reliable=np.False_).attrs["reliable"] == 0   # numpy booleans are booleans
+
+
+def test_hurst_on_result_without_reliable_points_names_the_problem():
+    # a tip radius above every scale leaves an empty VBM; hurst() of it raised a bare ValueError (min of empty array)
+    ds = fractal_surface((32, 48), (1.0, 1.5), hurst=0.7, seed=1, periodic=False)
+    ds.attrs.update(tip_radius=0.05, tip_radius_units="m")
+    v = ds.topo.vbm()
+    assert v.sizes["bandwidth"] == 0
+    with pytest.raises(xtopo.XtopoError, match="vbm result has no reliable point"):
+        xtopo.analysis.hurst.hurst(v)

@@ -193,6 +193,9 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
     if scale_range is None:
         if lengths is None:
             pos = x[(x > 0) & _reliable(da, x, is_q)]
+            if not pos.size:
+                raise XtopoError(f"the {da.attrs['analysis']} result has no reliable point at a positive {xdim}: "
+                                 "nothing to fit")
             sc = 2 * np.pi / pos if is_q else pos
             lo, hi = sc.min() * (2 if is_q else 4), sc.max() / (2 if is_q else 8)
         else:
