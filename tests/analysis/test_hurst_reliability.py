@@ -159,9 +159,9 @@ def test_flags_must_be_booleans(value):
 
 
 def test_hurst_on_result_without_reliable_points_names_the_problem():
-    # a tip radius above every scale leaves an empty VBM; hurst() of it raised a bare ValueError (min of empty array)
+    # a resolution above every scale leaves an empty VBM; hurst() of it raised a bare ValueError (min of empty array)
     ds = fractal_surface((32, 48), (1.0, 1.5), hurst=0.7, seed=1, periodic=False)
-    ds.attrs.update(tip_radius=0.05, tip_radius_units="m")
+    ds.attrs.update(resolution=2.0, resolution_units="m")
     v = ds.topo.vbm()
     assert v.sizes["bandwidth"] == 0
     with pytest.raises(xtopo.XtopoError, match="vbm result has no reliable point"):
