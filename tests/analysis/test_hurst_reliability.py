@@ -166,3 +166,10 @@ def test_hurst_on_result_without_reliable_points_names_the_problem():
     assert v.sizes["bandwidth"] == 0
     with pytest.raises(xtopo.XtopoError, match="vbm result has no reliable point"):
         xtopo.analysis.hurst.hurst(v)
+
+
+def test_too_short_default_fit_of_a_result_names_its_analysis():
+    # the message named the unused method argument (default 'psd') for a VBM result
+    v = fractal_surface((32, 48), (1.0, 1.5), hurst=0.7, seed=1, periodic=False).topo.vbm()
+    with pytest.raises(xtopo.XtopoError, match="method='vbm'"):
+        xtopo.analysis.hurst.hurst(v)

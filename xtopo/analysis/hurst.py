@@ -212,7 +212,8 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
     if sel.sum() < 3:
         if scale_range is None:
             what = "is empty" if lo >= hi else f"({lo:g} to {hi:g} {length_units}) holds fewer than 3 points"
-            raise XtopoError(f"the scan is too short for a default fit: the range of scales method={method!r} "
+            raise XtopoError(f"the scan is too short for a default fit: the range of scales "
+                             f"method={da.attrs['analysis']!r} "
                              f"trusts {what}; give scale_range=(lo, hi) explicitly, or use a longer scan")
         raise XtopoError(f"fewer than 3 points between the scales {lo:g} and {hi:g} {length_units}; widen scale_range")
     sub = da.isel({xdim: np.flatnonzero(sel)})
