@@ -2,10 +2,13 @@
 
 Kernels take arrays with the lateral core dims last; extra (batch) dims broadcast
 and dask arrays stay lazy. Global transforms need the lateral dims in one chunk.
+Results have the declared output dtypes (float64 by default) whatever the input
+precision, so numpy and dask agree and a lazy result's ``dtype`` is what it computes to.
 """
 
 from __future__ import annotations
 
+import numpy as np
 import xarray as xr
 
 from .conventions import lateral_dims
@@ -23,6 +26,17 @@ def check_core_chunks(da: xr.DataArray, core_dims, what: str = "this analysis") 
             raise ChunkError(
                 f"{what} needs dimension {dim!r} in a single chunk, but it has {len(chunks)} chunks; "
                 f"rechunk with .chunk({{{dim!r}: -1}}) and chunk along batch dimensions instead")
+
+
+def _declared(kernel, dtypes):
+    """``kernel`` with its output(s) cast to ``dtypes`` (a float32 FFT would otherwise give float32)."""
+    def run(*args, **kwargs):
+        out = kernel(*args, **kwargs)
+        if len(dtypes) == 1:
+            return np.asarray(out, dtype=dtypes[0])
+        return tuple(np.asarray(o, dtype=d) for o, d in zip(out, dtypes))
+
+    return run
 
 
 def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_sizes=None, output_dtypes=None,
@@ -44,15 +58,15 @@ def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_si
     """
     core = tuple(core_dims) if core_dims is not None else lateral_dims(da)
     check_core_chunks(da, core, what)
-    n_out = len(output_core_dims)
+    dtypes = list(output_dtypes or [float] * len(output_core_dims))
     return xr.apply_ufunc(
-        kernel, da,
+        _declared(kernel, dtypes), da,
         input_core_dims=[list(core)],
         output_core_dims=[list(c) for c in output_core_dims],
         exclude_dims=set(exclude_dims),
         kwargs=kwargs or {},
         dask="parallelized",
-        output_dtypes=output_dtypes or [float] * n_out,
+        output_dtypes=dtypes,
         dask_gufunc_kwargs={"output_sizes": output_sizes or {}, "allow_rechunk": False},
         keep_attrs=False,
     )

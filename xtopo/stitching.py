@@ -18,7 +18,7 @@ import xarray as xr
 
 from ._checks import flag, integer, lengths, option, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
-from .conventions import MASK, convert_length, lateral_dims, length_factor
+from .conventions import convert_length, lateral_dims, length_factor
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
@@ -201,12 +201,11 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
 
 
 def _complete(ds: xr.Dataset) -> xr.Dataset:
-    """Measurements with missing data are filled harmonically first (paper §3.2); lazy on dask."""
-    if MASK in ds.data_vars:
-        from .preprocess import fill_missing
+    """Measurements with missing data (``mask``, or NaN heights without one) are filled harmonically
+    first (paper §3.2); lazy on dask, and a no-op for complete data."""
+    from .preprocess import fill_missing
 
-        return fill_missing(ds)
-    return ds
+    return fill_missing(ds)
 
 
 def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: str):

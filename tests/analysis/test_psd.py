@@ -148,3 +148,21 @@ def test_bad_nb_points_refused(periodic_area, kind, nb_points):
     # 0, negative, fractional and True were silently turned into 1 bin; the others crashed in int()
     with pytest.raises(XtopoError, match="nb_points must be an integer >= 1"):
         periodic_area.topo.psd(kind, nb_points=nb_points)
+
+
+@pytest.mark.parametrize("analysis", [lambda d: d.topo.psd("1d"), lambda d: d.topo.psd("2d"),
+                                      lambda d: d.topo.psd("iso"), lambda d: d.topo.acf("1d"),
+                                      lambda d: d.topo.acf("iso")], ids=["psd1d", "psd2d", "psdiso", "acf1d", "acfiso"])
+def test_float32_heights_give_float64_on_both_backends(analysis):
+    # psd 1d/2d and acf 1d of float32 heights came out float32 while dask declared float64:
+    # a lazy result's dtype differed from what it computed to (and from psd iso, vbm, sdrp: float64)
+    ds = fractal_surface((32, 48), (1.0, 1.5), hurst=0.7, periodic=True, seed=4)
+    ds32 = ds.assign(height=ds.height.astype(np.float32))
+    eager = analysis(ds32)
+    lazy = analysis(ds32.chunk())
+    computed = lazy.compute()
+    assert eager.dtype == lazy.dtype == computed.dtype == np.float64
+    xr.testing.assert_allclose(computed, eager)
+    # the float32 heights' spectrum, not a different one: within float32 precision of the float64 analysis
+    exact = analysis(ds32.assign(height=ds32.height.astype(np.float64)))
+    xr.testing.assert_allclose(eager, exact, rtol=1e-4, atol=1e-5 * float(exact.max()))

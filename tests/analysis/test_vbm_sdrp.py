@@ -112,3 +112,16 @@ def test_sdrp_bad_distances_refused(distances):
     ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=2)
     with pytest.raises(xtopo.XtopoError, match="distances must"):
         ds.topo.sdrp(distances=distances)
+
+
+@pytest.mark.parametrize("size", [4e-6, 1.0, 250.0])
+def test_vbm_line_bandwidth_is_length_over_zeta(size):
+    # line scans got sqrt(L)/ζ (the area formula sqrt(Lx Ly) applied to one length): right only for L = 1
+    ds = fractal_surface(256, size, hurst=0.7, periodic=False, seed=1)
+    v = ds.topo.vbm(reliable=False)
+    length = 256 * float(ds.x[1] - ds.x[0])
+    np.testing.assert_allclose(v.bandwidth.values, length / v.magnification.values, rtol=1e-12)
+    # the block of side ℓ = L/ζ holds L/ζ/Δx pixels: the finest block has min_pixels
+    np.testing.assert_allclose(float(v.bandwidth.min()) / float(ds.x[1] - ds.x[0]), 4)
+    area = fractal_surface((32, 128), (size / 4, size), hurst=0.7, periodic=False, seed=1).topo.vbm(reliable=False)
+    np.testing.assert_allclose(area.bandwidth.values, np.sqrt(size**2 / 4) / area.magnification.values, rtol=1e-12)

@@ -149,7 +149,9 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
         scale of ``q`` is the wavelength ``2π/q``. Default: 4 pixels to ``L/8``
         (PSD, SDRP), 4 pixels to ``max(L/64, 32 pixels)`` (ACF, which bends away
         from the power law at large ℓ), 16 pixels to ``L/4`` (VBM, biased in small
-        blocks), within the reliable range.
+        blocks), within the reliable range. For a result, the range follows from its
+        reliable points; a lazy result with a tip-radius cutoff keeps its unreliable
+        points (masked), and its cutoff is computed here to find them.
     reliable : bool
         Only fit reliable scales.
 
@@ -190,7 +192,10 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
         scale = np.where(x > 0, 2 * np.pi / np.where(x > 0, x, 1.0), np.inf) if is_q else x
     if scale_range is None:
         if lengths is None:
-            pos = x[x > 0]
+            pos = x[(x > 0) & _reliable(da, x, is_q)]
+            if not pos.size:
+                raise XtopoError(f"the {da.attrs['analysis']} result has no reliable point at a positive {xdim}: "
+                                 "nothing to fit")
             sc = 2 * np.pi / pos if is_q else pos
             lo, hi = sc.min() * (2 if is_q else 4), sc.max() / (2 if is_q else 8)
         else:
@@ -207,7 +212,8 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
     if sel.sum() < 3:
         if scale_range is None:
             what = "is empty" if lo >= hi else f"({lo:g} to {hi:g} {length_units}) holds fewer than 3 points"
-            raise XtopoError(f"the scan is too short for a default fit: the range of scales method={method!r} "
+            raise XtopoError(f"the scan is too short for a default fit: the range of scales "
+                             f"method={da.attrs['analysis']!r} "
                              f"trusts {what}; give scale_range=(lo, hi) explicitly, or use a longer scan")
         raise XtopoError(f"fewer than 3 points between the scales {lo:g} and {hi:g} {length_units}; widen scale_range")
     sub = da.isel({xdim: np.flatnonzero(sel)})
@@ -228,6 +234,17 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
     ds.attrs = {"analysis": da.attrs["analysis"], "fit_scale_min": float(lo), "fit_scale_max": float(hi),
                 "fit_scale_units": length_units, "abscissa": xdim}
     return ds
+
+
+def _reliable(da, x, is_q):
+    """Which abscissae of a result are reliable: a lazy result (tip-radius cutoff on dask) masks its
+    unreliable scales instead of dropping them, so its cutoff coordinate says which they are."""
+    from .reliability import reliable_scales
+
+    if "reliability_cutoff" not in da.coords:
+        return np.ones(x.shape, bool)
+    cut = np.asarray(da.coords["reliability_cutoff"].values, dtype=float).reshape(1, -1)  # computes a lazy cutoff
+    return np.asarray(reliable_scales(x[:, None], cut, "q" if is_q else "length")).any(axis=1)
 
 
 def _scale_range(scale_range, units):

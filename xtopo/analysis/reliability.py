@@ -23,8 +23,8 @@ from ..conventions import X, Y, length_attr, length_factor
 from ..errors import GridError, XtopoError
 from ._scale import POINTS_PER_DECADE, prepare
 
-__all__ = ["reliability_cutoff", "apply_reliability", "sampling_cutoff", "independent_samples", "stencil_error",
-           "TIP_FACTOR", "SAMPLING_FACTOR", "MAX_RELATIVE_ERROR"]
+__all__ = ["reliability_cutoff", "apply_reliability", "reliable_scales", "sampling_cutoff", "independent_samples",
+           "stencil_error", "TIP_FACTOR", "SAMPLING_FACTOR", "MAX_RELATIVE_ERROR"]
 
 #: the constant ``c`` of eq. (13)
 TIP_FACTOR = 0.5
@@ -133,6 +133,16 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
     return cut
 
 
+def reliable_scales(x, cut, kind: str):
+    """Where the abscissae ``x`` of a curve are reliable for the short cutoff ``cut`` (numpy or xarray, lazy or not).
+
+    ``kind="q"``: ``x <= 2π/cut``; ``kind="length"``: ``x >= cut``. A cutoff ``<= 0`` keeps every scale.
+    """
+    if kind != "q":
+        return x >= cut
+    return (x <= 2 * np.pi / xr.where(cut > 0, cut, np.nan)) | (cut <= 0)  # no division by a zero cutoff
+
+
 def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, reliable: bool) -> xr.DataArray:
     """Drop (or, for lazy data-dependent cutoffs, mask) the unreliable scales of ``result``.
 
@@ -154,15 +164,10 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
     if cut.ndim == 0 and not _is_lazy(cut):
         value = float(cut)
         attrs["reliability_cutoff"] = value
-        if value <= 0:  # no scale is unreliable
-            keep = xr.ones_like(x, dtype=bool)
-        else:
-            keep = x <= 2 * np.pi / value if kind == "q" else x >= value
-        out = result.sel({coord: keep.values})
+        out = result.sel({coord: reliable_scales(x, value, kind).values})
         out.attrs = attrs
         return out
-    keep = (x <= 2 * np.pi / cut) | (cut <= 0) if kind == "q" else x >= cut
-    out = result.where(keep)
+    out = result.where(reliable_scales(x, cut, kind))
     if not _is_lazy(out):
         valid = out.notnull()
         other = [d for d in out.dims if d != coord]
