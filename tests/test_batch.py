@@ -323,6 +323,24 @@ def test_contact_batch_checks_shared_parameters_before_dispatch(kwargs, match):
         batch.contact(_surfaces(2, size=16), [1e-3], scheduler="sync", progress=False, **kwargs)
 
 
+@pytest.mark.parametrize("kwargs,match", [
+    (dict(loads=[0.1, -1]), "load must be ≥ 0"), (dict(loads=[1, "a"]), "load must be a finite scalar"),
+    (dict(loads=[np.nan]), "finite scalar"), (dict(loads=[True]), "finite scalar"),
+    (dict(mean_pressures=[-0.1]), "mean_pressure must be ≥ 0"),
+    (dict(mean_pressures=[0.5], hardness=0.1), "reaches the hardness"),
+    (dict(penetrations=[np.inf]), "penetration must be a finite scalar"),
+    (dict(loads=[[1, 2], [3]]), "load values must be a number or a 1D sequence"),
+])
+def test_contact_batch_checks_control_values_before_dispatch(kwargs, match, monkeypatch):
+    """loads=[-1] gave one identical item error per measurement instead of failing the call at once."""
+    def no_task(*args, **kw):
+        raise AssertionError("a task was dispatched")
+
+    monkeypatch.setattr(batch, "_run_chunk", no_task)
+    with pytest.raises(XtopoError, match=match):
+        batch.contact(_surfaces(2, size=16), scheduler="sync", progress=False, **kwargs)
+
+
 def _weighted_std(ds, *, weights):
     return xr.Dataset({"s": ((), float(ds["height"].std()) * float(np.sum(weights)), {"units": "m", "long_name": "s"})})
 

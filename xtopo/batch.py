@@ -115,7 +115,10 @@ def _options(dim, workers, fft_threads, retries, progress, params):
     flag(progress, "progress")
     if params is None:
         return None
-    values = np.atleast_1d(np.asarray(params))
+    try:
+        values = np.atleast_1d(np.asarray(params))
+    except (TypeError, ValueError):  # ragged: [[1, 2], [3]]
+        raise XtopoError(f"{dim} values must be a number or a 1D sequence, got {params!r}") from None
     if values.ndim != 1:
         raise XtopoError(f"{dim} values must be a number or a 1D sequence, got shape {values.shape}")
     if not values.size:
@@ -647,11 +650,13 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     control, values = given[0]
     _require_contact()
     from .contact.scene import scene_parameters
-    from .contact.solve import solver_parameters
+    from .contact.solve import control_value, solver_parameters
 
     # parameters shared by every item are checked here, not N times in the workers
     modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
     tol, maxiter = solver_parameters(tol, maxiter)
+    _options(control, workers, fft_threads, retries, progress, values)  # a 1D, non-empty sequence
+    values = [control_value(control, v, hardness) for v in np.atleast_1d(np.asarray(values, dtype=object))]
     scene = {"modulus": modulus}
     if hardness is not None:
         scene["hardness"] = hardness

@@ -13,7 +13,7 @@ from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 from ..presets import resolve as resolve_preset
 
-__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "result_units", "run_solver"]
+__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "control_value", "result_units", "run_solver"]
 
 #: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`): the knee of the
 #: error-vs-time curve (benchmarks/tradeoffs.py, docs/tradeoffs.md); it was 1e-6 for float64 before issue 9.
@@ -65,18 +65,28 @@ def result_units(scene) -> dict:
     return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2"}
 
 
+def control_value(name: str, v, hardness: float | None = None) -> float:
+    """One ``load``/``mean_pressure``/``penetration`` value checked without a scene (a finite real
+    scalar, ≥ 0 unless a penetration; a mean pressure below ``hardness``); returns it as a float."""
+    real = (not isinstance(v, (str, bytes, bool, np.bool_)) and np.ndim(v) == 0
+            and not np.iscomplexobj(v) and np.issubdtype(np.asarray(v).dtype, np.number))
+    if not real or not np.isfinite(float(v)):
+        raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
+    if name != "penetration" and float(v) < 0:
+        raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
+    if name == "mean_pressure" and hardness is not None and float(v) >= hardness:
+        raise ContactError(f"mean_pressure {float(v):g} reaches the hardness ({hardness:g}): the whole surface "
+                           "would flow; lower the mean pressure or raise the hardness")
+    return float(v)
+
+
 def _control(scene, load, mean_pressure, penetration):
     given = [v is not None for v in (load, mean_pressure, penetration)]
     if sum(given) != 1:
         raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
     for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
         if v is not None:
-            real = (not isinstance(v, (str, bytes, bool, np.bool_)) and np.ndim(v) == 0
-                    and not np.iscomplexobj(v) and np.issubdtype(np.asarray(v).dtype, np.number))
-            if not real or not np.isfinite(float(v)):
-                raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
-            if name != "penetration" and float(v) < 0:
-                raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
+            control_value(name, v)
     if penetration is not None and scene.periodic and scene.hardness is None:
         limit = -float(np.mean(scene.w, dtype=np.float64))
         if float(penetration) >= limit:
