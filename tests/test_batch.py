@@ -323,6 +323,38 @@ def test_contact_batch_checks_shared_parameters_before_dispatch(kwargs, match):
         batch.contact(_surfaces(2, size=16), [1e-3], scheduler="sync", progress=False, **kwargs)
 
 
+def test_contact_batch_solves_every_measurement_in_one_length_unit():
+    """A copy in nm was loaded with 0.01 E*·nm² (not the 0.01 E*·µm² the `load` coordinate said); its contact
+    area and penetration lost their units, and its maps joined the µm ones on a 31×31 union grid."""
+    _scene()
+    s = fractal_surface((16, 16), 1.0, hurst=0.8, rms_slope=0.1, seed=0, periodic=True, units="um")
+    ms = {"um": s, "nm": s.topo.to_units("nm")}
+    res = batch.contact(ms, [0.01], scheduler="sync", progress=False, maps=True)
+    assert res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+    assert res["load"].attrs["units"] == "E* um2"
+    # 0.01 E*·µm² on a 1 µm × 1 µm surface: mean pressure 0.01 E* for both copies
+    np.testing.assert_allclose(res.mean_pressure.values, 0.01, rtol=1e-12)
+    um, nm = res.sel(measurement="um"), res.sel(measurement="nm")
+    assert um.area_fraction.item() == nm.area_fraction.item() > 0
+    for name, units in (("contact_area", "um2"), ("penetration", "um")):
+        assert res[name].attrs["units"] == units
+        np.testing.assert_allclose(nm[name].values, um[name].values, rtol=1e-6)
+    assert dict(res.pressure.sizes) == {"measurement": 2, "load": 1, "y": 16, "x": 16}
+    xr.testing.assert_allclose(res.x.reset_coords(drop=True), s.x.reset_coords(drop=True))
+    xr.testing.assert_allclose(nm.pressure.drop_vars(["measurement", "source"]),
+                               um.pressure.drop_vars(["measurement", "source"]), rtol=1e-6, atol=1e-8)
+    # asked in nm: the same physical load is 1e4 E*·nm²
+    in_nm = batch.contact(ms, [1e4], scheduler="sync", progress=False, units="nm")
+    assert in_nm["load"].attrs["units"] == "E* nm2" and in_nm.penetration.attrs["units"] == "nm"
+    np.testing.assert_array_equal(in_nm.area_fraction.values, res.area_fraction.values)
+    # data without a unit cannot join a batch in µm: that item fails and says why
+    bare = s.copy()
+    for v in ("height", "x", "y"):
+        bare[v].attrs.pop("units")
+    mixed = batch.contact({"um": s, "bare": bare}, [0.01], scheduler="sync", progress=False)
+    assert mixed.error.sel(measurement="um").item() == "" and "no length unit" in mixed.error.sel(measurement="bare").item()
+
+
 @pytest.mark.parametrize("kwargs,match", [
     (dict(loads=[0.1, -1]), "load must be ≥ 0"), (dict(loads=[1, "a"]), "load must be a finite scalar"),
     (dict(loads=[np.nan]), "finite scalar"), (dict(loads=[True]), "finite scalar"),

@@ -39,7 +39,8 @@ import xarray as xr
 
 from ._batch_store import IO_LOCK, MANIFEST, Store, chunk_key, fingerprint, func_name
 from ._checks import flag, integer
-from .errors import XtopoError
+from .conventions import _length_units_of, convert_length, normalize_units
+from .errors import UnitsError, XtopoError
 
 __all__ = ["run", "contact", "analyze", "open_store"]
 
@@ -586,10 +587,24 @@ def open_store(directory) -> xr.Dataset:
 # --------------------------------------------------------------------------- contact
 
 
-def _contact_item(ds, values, *, control, scene, solve, maps):
-    """Contact solutions of one measurement for each value of ``control`` (runs in the worker)."""
+def _contact_item(ds, values, *, control, scene, solve, maps, units=None):
+    """Contact solutions of one measurement for each value of ``control`` (runs in the worker).
+
+    ``units``: the length unit the measurement is converted to before solving (None: as it is;
+    ``"1"``: a batch of unitless data, which a measurement with a length unit cannot join).
+    """
     from .contact import Scene
 
+    if units == "1":
+        try:
+            found = _length_units_of(ds)
+        except UnitsError:
+            found = None
+        if found is not None:
+            raise UnitsError(f"this measurement is in {found!r}, but the batch is solved without a length unit (its "
+                             "first measurement has none); give batch.contact(units=...) and units to every one")
+    elif units is not None:
+        ds = convert_length(ds, units)
     sc = Scene(ds, **scene)
     out = []
     for v in values:
@@ -600,7 +615,39 @@ def _contact_item(ds, values, *, control, scene, solve, maps):
         r = r.drop_vars(control, errors="ignore").expand_dims({control: [v]})
         r[control].attrs = attrs
         out.append(r)
-    return xr.concat(out, dim=control, combine_attrs="drop_conflicts", data_vars="all")
+    out = xr.concat(out, dim=control, combine_attrs="drop_conflicts", data_vars="all")
+    return _snap_grid(out) if maps else out
+
+
+def _snap_grid(ds):
+    """``x``/``y`` as ``x0 + m·Δ`` with ``Δ`` rounded to 10 significant digits (and ``x0`` to 1e-6 of it).
+
+    A grid converted from another unit is off by rounding (0.0625 µm from nm: 0.06250000000000001),
+    and maps on it would not align with those of the same grid given in µm (an outer join of both).
+    """
+    snapped = {}
+    for d in ("x", "y"):
+        if d in ds.coords and ds.sizes.get(d, 0) > 1:
+            c = ds.coords[d]
+            v = np.asarray(c.values, dtype=float)
+            step = float(f"{(v[-1] - v[0]) / (v.size - 1):.10g}")
+            q = 10.0 ** (np.floor(np.log10(abs(step))) - 6) if step else 1.0
+            snapped[d] = c.copy(data=np.round(v[0] / q) * q + np.arange(v.size) * step)
+    return ds.assign_coords(snapped)
+
+
+def _contact_units(units, sources, read_options) -> str | None:
+    """The one length unit of a contact batch: ``units``, else the first measurement's (a file's: the unit it
+    is read in, metres unless ``read_options`` say otherwise); ``"1"`` when the first measurement has none."""
+    if units is not None:
+        return normalize_units(units)
+    first = sources[0]
+    if not isinstance(first, xr.Dataset):
+        return normalize_units(read_options.get("units") or "m")
+    try:
+        return _length_units_of(first)
+    except UnitsError:  # unitless data: solved as they are
+        return "1"
 
 
 def _require_contact():
@@ -614,20 +661,27 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
             hardness: float | None = None, periodic: bool | None = None, tol: float | None = None,
             maxiter: int | None = None, maps: bool = False, chunks=None, client=None, scheduler=None,
             workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
-            retries: int = 1, read_options: dict | None = None) -> xr.Dataset:
+            retries: int = 1, read_options: dict | None = None, units: str | None = None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
     Exactly one of ``loads``, ``mean_pressures``, ``penetrations`` is given; it becomes the
     second dimension of the result (``load``, ``mean_pressure`` or ``penetration``). Each task
     builds an :class:`xtopo.contact.Scene` in its worker and solves its items.
 
+    Every measurement is converted to one length unit (``units``) before it is solved, so
+    that a load means the same force on each of them whatever unit it was given in (a load
+    of 0.01 E*·µm² applied to a copy in nm would otherwise be 10⁶ times smaller) and the
+    results share their labels (the ``load`` coordinate, contact areas, penetrations, the
+    x/y coordinates of the maps).
+
     Parameters
     ----------
     measurements : mapping, DataTree, or sequence of Dataset / path
         The topographies (paths are read in the workers).
     loads, mean_pressures, penetrations : sequence of float
-        The controlled quantity, in the units the Scene uses (load in units of
-        ``E*`` × length², mean pressure in units of ``E*``, penetration in length).
+        The controlled quantity: load in units of ``E*`` × ``units``² (``E*`` × ``units``
+        for line scans: force per unit length), mean pressure in units of ``E*``,
+        penetration in ``units``.
     modulus, hardness, periodic
         Passed to :class:`xtopo.contact.Scene` (``periodic=None``: from the measurement).
     tol, maxiter
@@ -637,6 +691,10 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         (load, mean pressure, area fraction, penetration, iterations, residual, converged).
     chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options
         See :func:`run`.
+    units : str, optional
+        Length unit of the solves (``"um"``, ``"nm"``, ...). Default: the unit of the first
+        measurement (for a file, the unit it is read in: metres unless ``read_options`` give
+        ``units``), as :func:`xtopo.stitching.twin_psd` does.
 
     Returns
     -------
@@ -663,7 +721,8 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     if periodic is not None:
         scene["periodic"] = periodic
     solve = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}
-    func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps)
+    units = _contact_units(units, _names_and_sources(measurements)[1], _read_options(read_options))
+    func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units)
     long_name = {"load": "normal load", "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
     return run(func, measurements, values, dim=control, dim_attrs={"long_name": f"{long_name} (imposed)"},
                chunks=chunks, client=client, scheduler=scheduler, workers=workers, store=store, progress=progress,
