@@ -341,8 +341,8 @@ def test_contact_batch_solves_every_measurement_in_one_length_unit():
         np.testing.assert_allclose(nm[name].values, um[name].values, rtol=1e-6)
     assert dict(res.pressure.sizes) == {"measurement": 2, "load": 1, "y": 16, "x": 16}
     xr.testing.assert_allclose(res.x.reset_coords(drop=True), s.x.reset_coords(drop=True))
-    xr.testing.assert_allclose(nm.pressure.drop_vars(["measurement", "source"]),
-                               um.pressure.drop_vars(["measurement", "source"]), rtol=1e-6, atol=1e-8)
+    xr.testing.assert_allclose(nm.pressure.drop_vars(["measurement", "source", "history"]),
+                               um.pressure.drop_vars(["measurement", "source", "history"]), rtol=1e-6, atol=1e-8)
     # asked in nm: the same physical load is 1e4 E*·nm²
     in_nm = batch.contact(ms, [1e4], scheduler="sync", progress=False, units="nm")
     assert in_nm["load"].attrs["units"] == "E* nm2" and in_nm.penetration.attrs["units"] == "nm"
@@ -353,6 +353,27 @@ def test_contact_batch_solves_every_measurement_in_one_length_unit():
         bare[v].attrs.pop("units")
     mixed = batch.contact({"um": s, "bare": bare}, [0.01], scheduler="sync", progress=False)
     assert mixed.error.sel(measurement="um").item() == "" and "no length unit" in mixed.error.sel(measurement="bare").item()
+
+
+def test_contact_batch_keeps_each_measurements_history(tmp_path):
+    """The solves' history lines differ by load, so the batch dropped history altogether: neither the
+    input's processing nor the contact computation was recorded."""
+    _scene()
+    ms = {f"s{i}": fractal_surface((16, 16), 1.0, hurst=0.8, rms_slope=0.1, seed=i, periodic=True, units="um")
+          for i in range(2)}
+    ms["s1"] = xtopo.preprocess.detrend(ms["s1"])
+    kw = dict(scheduler="sync", progress=False, chunks={"load": 1}, hardness=0.5, store=tmp_path / "store")
+    res = batch.contact({**ms, "missing": str(tmp_path / "missing.nc")}, [0.01, 0.02], **kw)
+    for name, ds in ms.items():
+        lines = res.history.sel(measurement=name).item().split("\n")
+        assert lines[:-1] == ds.attrs["history"].split("\n")       # the input's history, then one line
+        assert "load" in lines[-1] and "E* um2" in lines[-1] and "hardness=0.5" in lines[-1]
+        assert "no counter surface" in lines[-1] and "periodic" in lines[-1]
+    assert res.history.sel(measurement="missing").item() == ""
+    assert res.history.sel(measurement="s0").item() != res.history.sel(measurement="s1").item()
+    again = batch.contact({**ms, "missing": str(tmp_path / "missing.nc")}, [0.01, 0.02], **kw)
+    assert again.attrs["chunks_reused"] == 4
+    xr.testing.assert_identical(again.history, res.history)
 
 
 @pytest.mark.parametrize("kwargs,match", [

@@ -186,6 +186,20 @@ def test_contact_command(files, tmp_path, capsys):
         assert ds.sizes["load"] == 2 and "pressure" in ds
 
 
+def test_contact_command_keeps_the_input_history(files, tmp_path, capsys):
+    """The output had only the last load's solve line as history (none with different histories per load):
+    the measurement's processing and the contact computation were lost."""
+    _need_contact()
+    out = tmp_path / "c.nc"
+    assert main(["contact", files[0], "--loads", "1e-14", "2e-14", "--hardness", "0.5", "-o", str(out)]) == 0
+    before = xtopo.open_topography(files[0]).attrs["history"].split("\n")
+    with xr.open_dataset(out) as ds:
+        lines = ds.attrs["history"].split("\n")
+    assert lines[:len(before)] == before
+    contact_lines = [line for line in lines if line.startswith("xtopo contact")]
+    assert len(contact_lines) == 1 and "(E* m2)" in contact_lines[0] and "hardness=0.5" in contact_lines[0]
+
+
 def test_batch_contact_against_separate_dask_scheduler(files, tmp_path, capsys, loopback_scheduler):
     _need_contact()
     store = tmp_path / "store"

@@ -39,13 +39,14 @@ import xarray as xr
 
 from ._batch_store import IO_LOCK, MANIFEST, Store, chunk_key, fingerprint, func_name
 from ._checks import flag, integer
-from .conventions import _length_units_of, convert_length, normalize_units
+from .conventions import _length_units_of, append_history, convert_length, normalize_units
 from .errors import UnitsError, XtopoError
 
 __all__ = ["run", "contact", "analyze", "open_store"]
 
 MEASUREMENT = "measurement"
 ERROR = "error"
+HISTORY = "history"
 _ADDRESS_PREFIXES = ("tcp://", "tls://", "inproc://", "ucx://", "ws://", "wss://")
 _LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
 
@@ -106,8 +107,9 @@ def _chunk_sizes(chunks, dim, n_meas, n_par):
 
 def _options(dim, workers, fft_threads, retries, progress, params):
     """The run options checked on the client, before any task is built; returns ``params`` as a list."""
-    if not isinstance(dim, str) or not dim or dim in (MEASUREMENT, ERROR, "source"):
-        raise XtopoError(f"dim must be a name (str) other than {MEASUREMENT!r}, {ERROR!r} and 'source', got {dim!r}")
+    if not isinstance(dim, str) or not dim or dim in (MEASUREMENT, ERROR, HISTORY, "source"):
+        raise XtopoError(f"dim must be a name (str) other than {MEASUREMENT!r}, {ERROR!r}, {HISTORY!r} and 'source', "
+                         f"got {dim!r}")
     if workers is not None:
         integer(workers, "workers")
     if fft_threads is not None:
@@ -207,7 +209,14 @@ def _chunk_dataset(names, sources, results, errors, params, dim):
     coords = {MEASUREMENT: (MEASUREMENT, list(names), {"long_name": "measurement"}),
               "source": (MEASUREMENT, [s if isinstance(s, str) else "" for s in sources],
                          {"long_name": "file the measurement was read from ('' for in-memory data)"})}
-    good = [r.expand_dims({MEASUREMENT: [n]}) for n, r in zip(names, results) if r is not None]
+    # each measurement's own history (its input's, plus what the function did) would conflict with the
+    # others' and be dropped as a Dataset attribute: it is kept per measurement, as a coordinate
+    history = [r.attrs.get("history", "") if r is not None else "" for r in results]
+    if any(history):
+        coords[HISTORY] = (MEASUREMENT, history, {"long_name": "processing history of each measurement's result "
+                                                                "('' for a failed one)"})
+    good = [r.drop_attrs(deep=False).assign_attrs({k: v for k, v in r.attrs.items() if k != "history"})
+            .expand_dims({MEASUREMENT: [n]}) for n, r in zip(names, results) if r is not None]
     if good:
         ds = xr.concat(good, dim=MEASUREMENT, join="outer", combine_attrs="drop_conflicts", data_vars="all")
         ds = ds.reindex({MEASUREMENT: list(names)})
@@ -407,7 +416,22 @@ def _failure_block(spec, msg: str):
                           [[msg] * n for _ in spec["names"]], spec["params"], spec["dim"])
 
 
+def _same_histories(blocks):
+    """Every block with the ``history`` coordinate where one has it, the same along a row (one measurement's
+    chunks of parameter values): the first non-empty entry of the row (a failed chunk has none)."""
+    attrs = next((b[HISTORY].attrs for row in blocks for b in row if HISTORY in b.coords), None)
+    if attrs is None:
+        return blocks
+    out = []
+    for row in blocks:
+        found = [[str(h) for h in b[HISTORY].values] if HISTORY in b.coords else [] for b in row]
+        merged = [next((h[i] for h in found if h and h[i]), "") for i in range(row[0].sizes[MEASUREMENT])]
+        out.append([b.assign_coords({HISTORY: (MEASUREMENT, merged, dict(attrs))}) for b in row])
+    return out
+
+
 def _combine(blocks, dim, has_params, dim_attrs):
+    blocks = _same_histories(blocks)
     if has_params:
         ds = xr.combine_nested(blocks, concat_dim=[MEASUREMENT, dim], join="outer", combine_attrs="drop_conflicts",
                                data_vars="all", coords="minimal", compat="override")
@@ -616,7 +640,20 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None):
         r[control].attrs = attrs
         out.append(r)
     out = xr.concat(out, dim=control, combine_attrs="drop_conflicts", data_vars="all")
+    # the solves' own history lines differ by load (and were dropped): the input's history plus one line for all
+    out.attrs["history"] = ds.attrs.get("history", "")
+    out = append_history(out, _contact_line(sc, control, out[control].attrs.get("units", "?"), scene, solve))
     return _snap_grid(out) if maps else out
+
+
+def _contact_line(sc, control, units, scene, solve) -> str:
+    """The history line of a contact computation: what was modelled and how it was solved."""
+    boundary = ("periodic" if sc.periodic else "free") + (" (as requested)" if "periodic" in scene else " (from the data)")
+    counter = "compound topography h1 + h2" if scene.get("counter") is not None else "no counter surface (rigid rough surface)"
+    settings = ", ".join(f"{k}={v:g}" for k, v in solve.items()) or "default tol and maxiter"
+    return (f"xtopo contact at each {control} of the {control!r} coordinate ({units}): Scene(E*={sc.modulus:g} "
+            f"{sc.modulus_units}, hardness={'none' if sc.hardness is None else f'{sc.hardness:g}'}, boundary {boundary}, "
+            f"{counter}, lengths in {sc.length_units}); Polonsky-Keer solve, {settings}")
 
 
 def _snap_grid(ds):
