@@ -200,6 +200,32 @@ def test_contact_command_keeps_the_input_history(files, tmp_path, capsys):
     assert len(contact_lines) == 1 and "(E* m2)" in contact_lines[0] and "hardness=0.5" in contact_lines[0]
 
 
+def test_contact_commands_take_mean_pressures(files, tmp_path, capsys):
+    """Only --loads (E*·m² for files read in metres) existed: a mean pressure had to be multiplied by the
+    scan's area by hand, and `--loads 0.01` on a 1 µm scan meant 1e10 E*."""
+    _need_contact()
+    by_load, by_pressure = tmp_path / "l.nc", tmp_path / "p.nc"
+    assert main(["contact", files[0], "--loads", "1e-14", "2e-14", "-o", str(by_load)]) == 0
+    assert main(["contact", files[0], "--mean-pressures", "0.01", "0.02", "-o", str(by_pressure)]) == 0
+    assert "mean_pressure  load  area_fraction" in capsys.readouterr().out
+    with xr.open_dataset(by_load) as lo, xr.open_dataset(by_pressure) as pr:
+        assert pr["mean_pressure"].attrs["units"] == "E*" and pr["load"].attrs["units"] == "E* m2"
+        # the scan is 1 µm × 1 µm: mean pressure 0.01 E* is a load of 1e-14 E*·m²
+        np.testing.assert_allclose(pr["load"].values, [1e-14, 2e-14], rtol=1e-12)
+        np.testing.assert_array_equal(pr.area_fraction.values, lo.area_fraction.values)
+    store = tmp_path / "store"
+    assert main(["batch", "contact", *files[:2], "--mean-pressures", "0.01", "--scheduler", "sync", "-q",
+                 "-o", str(store)]) == 0
+    with xr.open_dataset(store / "result.nc") as res:
+        assert dict(res.sizes) == {"measurement": 2, "mean_pressure": 1}
+        np.testing.assert_allclose(res["load"].values, 1e-14, rtol=1e-12)
+    for command in (["contact", files[0]], ["batch", "contact", files[0], "-o", str(store)]):
+        for extra in ([], ["--loads", "1e-14", "--mean-pressures", "0.01"]):
+            with pytest.raises(SystemExit) as e:
+                main(command + extra)
+            assert e.value.code == 2 and "--loads" in capsys.readouterr().err
+
+
 def test_batch_contact_against_separate_dask_scheduler(files, tmp_path, capsys, loopback_scheduler):
     _need_contact()
     store = tmp_path / "store"

@@ -107,21 +107,28 @@ def _solve_kwargs(args) -> dict:
     return {k: v for k, v in (("tol", args.tol), ("maxiter", args.maxiter)) if v is not None}
 
 
+def _control(args) -> tuple[str, list]:
+    """``("load", --loads)`` or ``("mean_pressure", --mean-pressures)``."""
+    return ("load", args.loads) if args.loads is not None else ("mean_pressure", args.mean_pressures)
+
+
 def _cmd_contact(args) -> int:
     from .batch import _contact_item, _require_contact
     from .io import open_topography
     from .io.netcdf import to_netcdf
 
     _require_contact()
+    control, values = _control(args)
     ds = open_topography(args.file, channel=args.channel, **read_options(args))
-    res = _contact_item(ds, args.loads, control="load", scene=_scene_kwargs(args), solve=_solve_kwargs(args),
+    res = _contact_item(ds, values, control=control, scene=_scene_kwargs(args), solve=_solve_kwargs(args),
                         maps=not args.scalars_only)
-    print(f"xtopo contact: {args.file}, {len(args.loads)} load(s)\n")
-    cols = [c for c in ("mean_pressure", "area_fraction", "penetration", "iterations", "converged") if c in res]
-    print("  ".join(["load"] + cols))
-    for i, load in enumerate(res["load"].values):
-        print("  ".join([f"{load:.4g}"] + [f"{res[c].values[i]:.4g}" if res[c].dtype.kind == "f"
-                                          else str(res[c].values[i]) for c in cols]))
+    print(f"xtopo contact: {args.file}, {len(values)} {control.replace('_', ' ')}(s)\n")
+    cols = [c for c in ("load", "mean_pressure", "area_fraction", "penetration", "iterations", "converged")
+            if c in res and c != control]
+    print("  ".join([control] + cols))
+    for i, value in enumerate(res[control].values):
+        print("  ".join([f"{value:.4g}"] + [f"{res[c].values[i]:.4g}" if res[c].dtype.kind == "f"
+                                           else str(res[c].values[i]) for c in cols]))
     to_netcdf(res, args.output)
     print(f"\nwrote {args.output}")
     if "converged" in res and not bool(res["converged"].all()):
@@ -168,7 +175,8 @@ def _cmd_batch_contact(args) -> int:
     common = _batch_common(args)
     solve = _solve_kwargs(args)
     scene = _scene_kwargs(args)
-    result = contact(args.files, args.loads, modulus=scene["modulus"], hardness=scene.get("hardness"),
+    control, values = _control(args)
+    result = contact(args.files, **{f"{control}s": values}, modulus=scene["modulus"], hardness=scene.get("hardness"),
                      periodic=scene.get("periodic"), tol=solve.get("tol"), maxiter=solve.get("maxiter"),
                      maps=args.maps, **common)
     return _report_batch(result, args.output)
@@ -202,6 +210,17 @@ def _cmd_convert(args) -> int:
 
 
 # --------------------------------------------------------------------------- parsers
+
+
+def _add_control_options(p) -> None:
+    """``--loads`` or ``--mean-pressures`` (exactly one)."""
+    g = p.add_argument_group("what is imposed (exactly one)").add_mutually_exclusive_group(required=True)
+    g.add_argument("--loads", type=float, nargs="+", metavar="LOAD",
+                   help="normal loads in units of E* × m² (files are read in metres): 1e-14 on a 1 µm × 1 µm "
+                        "scan is a mean pressure of 0.01 E*; line scans: force per unit length, in E* × m")
+    g.add_argument("--mean-pressures", type=float, nargs="+", metavar="P",
+                   help="mean pressures (load / nominal area) in units of E* (of --modulus), whatever the size "
+                        "and length unit of the scan; e.g. 0.01")
 
 
 def _add_scene_options(p) -> None:
@@ -241,10 +260,9 @@ def add_commands(sub) -> None:
 
     p = sub.add_parser("contact", help="contact mechanics of one measurement at several loads",
                        description="Solve the contact of a rigid flat with the measured topography at each "
-                                   "load; print the scalars and write the results (maps included) to NetCDF.")
+                                   "load (or mean pressure); print the scalars and write the results (maps included) to NetCDF.")
     p.add_argument("file", help="measurement file")
-    p.add_argument("--loads", type=float, nargs="+", required=True, metavar="LOAD",
-                   help="normal loads (units of E* × length²)")
+    _add_control_options(p)
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
     p.add_argument("--scalars-only", action="store_true", help="leave the pressure/gap maps out of the output")
     p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
@@ -261,8 +279,7 @@ def add_commands(sub) -> None:
     p = bsub.add_parser("contact", help="contact at several loads for each file",
                         description="Contact of every file at every load (dims measurement × load).")
     p.add_argument("files", nargs="+", help="measurement files")
-    p.add_argument("--loads", type=float, nargs="+", required=True, metavar="LOAD",
-                   help="normal loads (units of E* × length²)")
+    _add_control_options(p)
     p.add_argument("--maps", action="store_true", help="keep pressure/gap maps (large); default scalars only")
     _add_scene_options(p)
     _add_batch_options(p)
