@@ -314,12 +314,13 @@ def test_read_options_open_generic_files_and_key_the_store(tmp_path, counter):
 @pytest.mark.parametrize("kwargs,match", [(dict(modulus=-1), "modulus"), (dict(hardness="abc"), "hardness"),
                                           (dict(tol=0), "tol"), (dict(tol=1), "tol must be below 1"),
                                           (dict(maxiter=2.5), "maxiter"),
-                                          (dict(periodic="yes"), "periodic")])
+                                          (dict(periodic="yes"), "periodic"),
+                                          (dict(maps="no"), "maps must be True or False"),
+                                          (dict(maps=None), "maps must be True or False")])
 def test_contact_batch_checks_shared_parameters_before_dispatch(kwargs, match):
-    """A bad scene or solver parameter fails the call at once (it was recorded as N identical item errors)."""
-    from xtopo.errors import ContactError
-
-    with pytest.raises(ContactError, match=match):
+    """A bad scene or solver parameter fails the call at once (it was recorded as N identical item errors);
+    maps="no" kept the maps (a truthy string), maps=None dropped them."""
+    with pytest.raises(XtopoError, match=match):
         batch.contact(_surfaces(2, size=16), [1e-3], scheduler="sync", progress=False, **kwargs)
 
 

@@ -750,6 +750,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     # parameters shared by every item are checked here, not N times in the workers
     modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
     tol, maxiter = solver_parameters(tol, maxiter)
+    maps = flag(maps, "maps")
     _options(control, workers, fft_threads, retries, progress, values)  # a 1D, non-empty sequence
     values = [control_value(control, v, hardness) for v in np.atleast_1d(np.asarray(values, dtype=object))]
     scene = {"modulus": modulus}
