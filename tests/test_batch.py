@@ -356,6 +356,14 @@ def test_contact_batch_solves_every_measurement_in_one_length_unit():
     assert mixed.error.sel(measurement="um").item() == "" and "no length unit" in mixed.error.sel(measurement="bare").item()
 
 
+@pytest.mark.parametrize("control,units", [("mean_pressures", "E*"), ("penetrations", "m")])
+def test_contact_batch_coordinate_has_units_when_every_item_failed(tmp_path, control, units):
+    """The mean_pressure/penetration coordinate took its units from the results: with none, it had none."""
+    res = batch.contact([str(tmp_path / "missing.nc")], scheduler="sync", progress=False, **{control: [0.01]})
+    assert res.attrs["n_failed"] == 1
+    assert res[control[:-1]].attrs["units"] == units and "long_name" in res[control[:-1]].attrs
+
+
 def test_contact_batch_keeps_each_measurements_history(tmp_path):
     """The solves' history lines differ by load, so the batch dropped history altogether: neither the
     input's processing nor the contact computation was recorded."""

@@ -762,7 +762,12 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     units = _contact_units(units, _names_and_sources(measurements)[1], _read_options(read_options))
     func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units)
     long_name = {"load": "normal load", "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
-    return run(func, measurements, values, dim=control, dim_attrs={"long_name": f"{long_name} (imposed)"},
+    dim_attrs = {"long_name": f"{long_name} (imposed)"}
+    # the coordinate's units when no item gives them (all failed); a load's depend on the scan (area or line)
+    dim_units = {"mean_pressure": "E*", "penetration": units}.get(control)
+    if dim_units is not None:
+        dim_attrs["units"] = dim_units
+    return run(func, measurements, values, dim=control, dim_attrs=dim_attrs,
                chunks=chunks, client=client, scheduler=scheduler, workers=workers, store=store, progress=progress,
                fft_threads=fft_threads, retries=retries,
                read_options=read_options)
