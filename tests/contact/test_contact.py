@@ -397,3 +397,24 @@ def test_cylinder_plane_strain_free_line_scan():
     r = scene.solve(load=np.pi * a**2 / 4)
     assert abs(float(r.contact_area) / 2 / a - 1) < 0.01
     assert r["load"].attrs["units"] == "E* um"
+
+
+def test_results_keep_the_measurements_provenance(tmp_path):
+    """A solve or a curve started its attrs afresh: the file, its checksum and the processing
+    history of the measurement were lost from the result (and from its NetCDF file)."""
+    heights = datasets.fractal_surface((32, 32), 1.0, hurst=0.8, rms_height=0.01, seed=3).height.values
+    path = tmp_path / "s.npy"
+    np.save(path, heights)
+    measured = xtopo.preprocess.detrend(xtopo.open_topography(path, physical_size=(1.0, 1.0), file_units="m",
+                                                               periodic=True))
+    assert measured.attrs["source_file"] and measured.attrs["history"].count("\n") >= 1
+    scene = Scene(measured)
+    for result, last in ((scene.solve(mean_pressure=0.01), "xtopo.contact.solve("),
+                         (scene.curve(mean_pressures=[0.01, 0.02]), "xtopo.contact.curve(")):
+        for key in ("source_file", "source_sha256"):
+            assert result.attrs[key] == measured.attrs[key]
+        lines = result.attrs["history"].split("\n")
+        assert lines[:-1] == measured.attrs["history"].split("\n")
+        assert lines[-1].startswith(last)
+    bare = Scene(measured.height.assign_attrs(units="m")).solve(mean_pressure=0.01)  # a DataArray has none
+    assert bare.attrs["history"].startswith("xtopo.contact.solve(") and "source_file" not in bare.attrs

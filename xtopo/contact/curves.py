@@ -88,7 +88,8 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     ds["stiffness"] = stiffness(ds, dim=dim, atol=tol * scale)
     if gap_bins:
         ds["gap_distribution"] = gap_distribution(ds, bins=gap_bins)
-    ds.attrs.pop("history", None)
+    ds.attrs.pop("history", None)  # that of the first solve: the measurement's, then one load's line
+    ds.attrs.update(scene.provenance)
     return append_history(ds, f"xtopo.contact.curve({name}={len(values)} values)")
 
 

@@ -23,6 +23,9 @@ from ..presets import resolve as resolve_preset
 
 __all__ = ["Scene"]
 
+#: Attributes of the measurement that every result of a scene keeps.
+PROVENANCE = ("source_file", "source_sha256", "history")
+
 
 def scene_parameters(modulus, hardness, periodic) -> tuple:
     """``(modulus, hardness, periodic)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one).
@@ -153,6 +156,9 @@ class Scene:
             self._boundary_reason = "as requested"
         self._reasons = reasons
         self.coords = {d: h.coords[d] for d in self.dims}
+        attrs = getattr(topography, "attrs", {})
+        #: what the results carry of the measurement: its file, checksum and processing history
+        self.provenance = {k: attrs[k] for k in PROVENANCE if attrs.get(k)}
         self.heights = values
         # rigid surface relative to its highest point (≤ 0): first contact at penetration 0
         self.w = (values - values.max()).astype(self.dtype)

@@ -236,5 +236,6 @@ def to_dataset(scene, res, tol) -> xr.Dataset:
     }
     if scene.hardness is not None:
         ds.attrs["hardness"] = scene.hardness
+    ds.attrs.update(scene.provenance)  # the measurement's file, checksum and history
     return append_history(ds, f"xtopo.contact.solve(load={res.load:.6g}, boundary="
                               f"{'periodic' if scene.periodic else 'free'}, hardness={scene.hardness})")
