@@ -418,3 +418,17 @@ def test_results_keep_the_measurements_provenance(tmp_path):
         assert lines[-1].startswith(last)
     bare = Scene(measured.height.assign_attrs(units="m")).solve(mean_pressure=0.01)  # a DataArray has none
     assert bare.attrs["history"].startswith("xtopo.contact.solve(") and "source_file" not in bare.attrs
+
+
+def test_gap_distribution_of_full_contact_is_undefined():
+    """A step in full contact (no free point) gave a density of 0 in every bin, which integrates to 0,
+    not 1: it is NaN now; a step with free points still integrates to 1. The steps' coordinate was
+    dropped from the result."""
+    x = np.arange(8.0)
+    gap = np.stack([np.zeros((8, 8)), np.add.outer(x, x) / 14.0])
+    ds = xr.Dataset({"gap": (("load", "y", "x"), gap, {"units": "m"}),
+                     "contact": (("load", "y", "x"), gap == 0)}, coords={"load": [2.0, 1.0]})
+    dens = gap_distribution(ds, bins=7)
+    assert bool(dens.sel(load=2.0).isnull().all())
+    width = float(dens.gap_bin[1] - dens.gap_bin[0])
+    np.testing.assert_allclose(float(dens.sel(load=1.0).sum()) * width, 1.0)

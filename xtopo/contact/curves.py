@@ -143,6 +143,7 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
     """Probability density of the gap over the non-contacting points, per load step.
 
     The bin edges span ``[0, max gap]`` over all steps; coordinate ``gap_bin`` holds bin centres.
+    A step in full contact (no point outside the contact) has no gap distribution: NaN.
     """
     _curve_variables(ds, ["gap", "contact"], "gap_distribution")
     bins = integer(bins, "bins", 1, error=ContactError)
@@ -159,12 +160,13 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
     width = np.diff(edges)
     with np.errstate(invalid="ignore", divide="ignore"):
         total = dens.sum(axis=1, keepdims=True)
-        dens = np.where(total > 0, dens / np.where(total > 0, total, 1) / width, 0.0)
+        dens = np.where(total > 0, dens / np.where(total > 0, total, 1) / width, np.nan)
     dens = dens.reshape(values.shape[:len(extra)] + (bins,))
     centres = 0.5 * (edges[1:] + edges[:-1])
     lu = gap.attrs.get("units", "1")
-    return xr.DataArray(dens, dims=(*extra, "gap_bin"),
-                        coords={"gap_bin": ("gap_bin", centres, {"units": lu, "long_name": "gap (bin centre)"})},
+    coords = {d: gap.coords[d] for d in extra if d in gap.coords}  # the steps' load/penetration
+    coords["gap_bin"] = ("gap_bin", centres, {"units": lu, "long_name": "gap (bin centre)"})
+    return xr.DataArray(dens, dims=(*extra, "gap_bin"), coords=coords,
                         attrs={"units": f"{lu}-1", "long_name": "probability density of the gap outside contact"})
 
 
