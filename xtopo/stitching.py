@@ -229,7 +229,11 @@ def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: 
         with np.errstate(divide="ignore"):
             err = xr.DataArray(np.where(n > 0, 0.5 / np.sqrt(np.where(n > 0, n, 1.0)), np.inf), dims=coord)
     else:
-        err = stencil_error(ds, x, quantity=quantity, dim=direction).rename(distance=coord).drop_vars(coord)
+        # the zero lag (ACF) has no relative error: NaN there
+        err = stencil_error(ds, x[x > 0], quantity=quantity, dim=direction).reindex(distance=x)
+        if err.chunks is not None:  # reindexing a lazy array splits it where the new lag sits
+            err = err.chunk({"distance": -1})
+        err = err.rename(distance=coord).drop_vars(coord)
     return curve, err.assign_coords({coord: curve[coord]})
 
 
