@@ -8,6 +8,7 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._kernels import scalars as _k
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
+from ._scale import provenance
 
 __all__ = ["scalars"]
 
@@ -112,4 +113,4 @@ def scalars(obj) -> xr.Dataset:
         out[name] = _annotate(name, r.isel(parameter=i, drop=True), units)
     ds = xr.Dataset(out)
     ds.attrs = {"title": "scalar roughness parameters", "periodic": int(periodic)}
-    return ds
+    return provenance(ds, obj, "scalars")
