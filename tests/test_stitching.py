@@ -270,3 +270,24 @@ def test_nan_heights_without_mask_are_filled_like_masked_ones(lazy):
         got = getattr(xtopo.twin({"a": nan, "b": b}).topo, name)(max_error=np.inf)
         xr.testing.assert_allclose(got.compute(), expected.compute())
         assert int(got["count"].max()) == 2
+
+
+@pytest.mark.parametrize("reliable", [True, False])
+def test_twin_average_coords_and_cutoffs_have_units_and_long_names(reliable):
+    """The 'measurement' coord had no long_name; the cutoffs took the first measurement's method and tip
+    radius as if all shared them, and without any cutoff (reliable=False) were NaN with units ''."""
+    a = fractal_surface((32, 32), 1.0, hurst=0.8, seed=1, units="um")
+    a.attrs.update(tip_radius=0.5, tip_radius_units="um")
+    b = fractal_surface(64, 0.5, hurst=0.8, seed=2, units="um")
+    b.attrs.update(resolution=0.02, resolution_units="um")
+    tree = xtopo.twin({"a": a, "b": b})
+    for name in ("psd", "acf", "vbm", "sdrp"):
+        avg = getattr(tree.topo, name)(reliable=reliable)
+        assert avg.measurement.attrs == {"long_name": "measurement"}
+        for var in list(avg.data_vars) + [c for c in avg.coords if c != "measurement"]:
+            assert {"units", "long_name"} <= set(avg[var].attrs), (name, var)
+        if reliable:
+            assert avg.reliability_cutoff.attrs == {"units": "um", "long_name": "short reliability cutoff"}
+            assert (avg.reliability_cutoff > 0).all()
+        else:
+            assert "reliability_cutoff" not in avg

@@ -158,7 +158,7 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
             raise XtopoError("points must hold at least one collocation point, got none")
     names = list(curves)
     per = [_onto(curves[n], coord, grid, method, (errors or {}).get(n)) for n in names]
-    dim = xr.DataArray(names, dims="measurement", name="measurement")
+    dim = xr.DataArray(names, dims="measurement", name="measurement", attrs={"long_name": "measurement"})
     coord_var = (coord, grid, dict(first[coord].attrs))
 
     def stack(items):
@@ -188,11 +188,12 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
                       "curve_error": err})
     cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else xr.Variable((), np.nan)
             for c in curves.values()]
-    if all(v.ndim == 0 for v in cuts):
-        units = next((c.coords["reliability_cutoff"].attrs.get("units") for c in curves.values()
-                      if "reliability_cutoff" in c.coords), "")
-        out["reliability_cutoff"] = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").assign_attrs(
-            units=units, long_name="short reliability cutoff")
+    units = next((c.coords["reliability_cutoff"].attrs.get("units") for c in curves.values()
+                  if "reliability_cutoff" in c.coords), None)
+    if units is not None and all(v.ndim == 0 for v in cuts):
+        # the cutoffs' own attrs (method, tip radius) differ between measurements: only what they share
+        out["reliability_cutoff"] = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").drop_attrs(
+            deep=False).assign_attrs(units=units, long_name="short reliability cutoff")
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
                  "collocation_method": method, "max_error": tol,
                  "weighting": "equal weight per measurement over its reliable scales; measurements in order of "
@@ -229,7 +230,11 @@ def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: 
         with np.errstate(divide="ignore"):
             err = xr.DataArray(np.where(n > 0, 0.5 / np.sqrt(np.where(n > 0, n, 1.0)), np.inf), dims=coord)
     else:
-        err = stencil_error(ds, x, quantity=quantity, dim=direction).rename(distance=coord).drop_vars(coord)
+        # the zero lag (ACF) has no relative error: NaN there
+        err = stencil_error(ds, x[x > 0], quantity=quantity, dim=direction).reindex(distance=x)
+        if err.chunks is not None:  # reindexing a lazy array splits it where the new lag sits
+            err = err.chunk({"distance": -1})
+        err = err.rename(distance=coord).drop_vars(coord)
     return curve, err.assign_coords({coord: curve[coord]})
 
 

@@ -158,3 +158,18 @@ def test_distribution_bad_kind_refused(kind):
     ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
     with pytest.raises(xtopo.XtopoError, match="kind must be one of"):
         ds.topo.distribution(kind)
+
+
+@pytest.mark.parametrize("engine", ["netcdf4", "h5netcdf"])
+def test_scalars_direction_is_fixed_width_unicode_for_line_and_area_scans(tmp_path, engine):
+    # line scans gave an object-dtype 'direction' (expand_dims), area scans '<U1'
+    x = np.linspace(0, 1, 64) ** 1.2
+    line, area = fractal_surface(256, 1.0, hurst=0.7), fractal_surface((32, 32), 1.0, hurst=0.7)
+    for ds in (line, batch(line, 2, dask=True), make_measurement(np.sin(7 * x), x=x, units="m"), area):
+        s = ds.topo.scalars()
+        assert s.direction.dtype.kind == "U", ds.sizes
+        assert s.direction.attrs["long_name"] == "direction of the profiles"
+    s = line.topo.scalars()
+    back = xr.open_dataset(xtopo.to_netcdf(s, tmp_path / "s.nc", engine=engine), engine=engine).load()
+    assert back.direction.dtype == s.direction.dtype == area.topo.scalars().direction.dtype
+    xr.testing.assert_allclose(back, s)

@@ -4,6 +4,8 @@ import dask.array as dsa
 import numpy as np
 import pytest
 
+import xtopo
+
 from xtopo._kernels.estimator_error import mean_square_relative_error
 from xtopo.analysis.acf import acf
 from xtopo.analysis.reliability import stencil_error
@@ -80,3 +82,20 @@ def test_stencil_error_is_lazy_on_dask():
     assert isinstance(lazy.data, dsa.Array)
     np.testing.assert_allclose(lazy.compute().values, stencil_error(surf, [2.0, 8.0], quantity="curvature").values)
     assert lazy.attrs["units"] == "1" and lazy["distance"].attrs["units"] == surf["x"].attrs["units"]
+
+
+@pytest.mark.parametrize("lengths", [[0.0], [-2.0, 4.0], [np.nan], [np.inf], "8", [[2.0, 8.0]], None])
+def test_stencil_error_refuses_bad_lengths(lengths):
+    # [0.0] passed unchecked, NaN/str/None gave a bare ValueError/TypeError from numpy deep inside
+    surf = fractal_surface(128, 128.0, hurst=0.7, periodic=False, seed=1)
+    with pytest.raises(xtopo.XtopoError, match="lengths must be"):
+        stencil_error(surf, lengths)
+
+
+@pytest.mark.parametrize("kw,match", [({"dim": "z"}, "dim='z' is not a lateral dimension"),
+                                      ({"fraction": 0.0}, "fraction must be a positive"),
+                                      ({"fraction": np.nan}, "fraction must be a positive")])
+def test_stencil_error_refuses_bad_dim_and_fraction(kw, match):
+    surf = fractal_surface(128, 128.0, hurst=0.7, periodic=False, seed=1)
+    with pytest.raises(xtopo.XtopoError, match=match):
+        stencil_error(surf, [2.0, 8.0], **kw)

@@ -10,7 +10,7 @@ from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
 from ..errors import GridError, XtopoError
 
-__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord"]
+__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance"]
 
 #: default density of logarithmic bins/collocation points
 POINTS_PER_DECADE = 10
@@ -132,5 +132,32 @@ def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepar
     return da
 
 
-def history(da, line):
-    return append_history(da, line)
+#: attrs of a measurement that say where it came from; every analysis result carries them on
+SOURCE_ATTRS = ("source_file", "source_sha256")
+
+
+def _param(value) -> str:
+    """``value`` for a history line: short sequences in full, long ones summarised."""
+    if isinstance(value, (str, bytes)) or np.ndim(value) == 0:
+        return repr(value.item() if isinstance(value, (np.generic, np.ndarray)) else value)
+    v = np.asarray(value)
+    if v.size <= 8:
+        return repr(v.tolist())
+    return f"<{v.size} values from {v.min().item()!r} to {v.max().item()!r}>" if v.dtype.kind in "iuf" else \
+        f"<{v.size} values>"
+
+
+def provenance(result, obj, analysis: str, **params):
+    """``result`` (a DataArray or Dataset) with the provenance of the measurement ``obj`` it was computed from.
+
+    ``source_file`` and ``source_sha256`` are copied when ``obj`` has them, and ``history`` is
+    ``obj``'s history plus one line naming the analysis and its parameters. Only attrs change:
+    dask results stay lazy. The one place where analysis results get their provenance.
+    """
+    src = getattr(obj, "attrs", {})
+    result.attrs = {k: v for k, v in result.attrs.items() if k not in SOURCE_ATTRS + ("history",)}
+    result.attrs.update({k: src[k] for k in SOURCE_ATTRS if k in src})
+    if src.get("history"):
+        result.attrs["history"] = src["history"]
+    args = ", ".join(f"{k}={_param(v)}" for k, v in params.items())
+    return append_history(result, f"xtopo.{analysis}({args})")

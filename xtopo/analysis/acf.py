@@ -13,7 +13,7 @@ from .._kernels import correlation as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
 from ..errors import XtopoError
-from ._scale import finish, length_coord, log_bin, per_decade, prepare
+from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["acf"]
@@ -88,4 +88,5 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
         out = out.assign_coords(distance=length_coord("distance", plan.centers, u, "distance"))
         out = finish(out, "acf", f"{u}2", "radially averaged height-difference autocorrelation function", prep,
                      "acf", kind="iso")
-    return apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
+    out = apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
+    return provenance(out, obj, "acf", kind=kind, dim=dim, nb_points=nb_points, reliable=reliable)

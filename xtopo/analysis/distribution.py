@@ -10,6 +10,7 @@ from .._checks import integer, option
 from .._kernels.derivatives import forward_difference, second_difference
 from ..conventions import X, Y, height_of, is_periodic, lateral_dims, spacing
 from ..errors import XtopoError
+from ._scale import provenance
 
 __all__ = ["distribution"]
 
@@ -87,4 +88,4 @@ def distribution(obj, kind: str = "height", *, dim: str = X, bins: int = 100) ->
     centers.attrs = {"units": qunits, "long_name": f"{long_name} (bin centre)"}
     ds = xr.Dataset({"probability_density": dens}, coords={"bin_center": centers})
     ds.attrs = {"title": f"{long_name} distribution", "kind": kind, "direction": dim if kind != "height" else ""}
-    return ds
+    return provenance(ds, obj, "distribution", kind=kind, dim=dim, bins=bins)

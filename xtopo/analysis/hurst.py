@@ -24,7 +24,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import XtopoError
-from ._scale import prepare
+from ._scale import prepare, provenance
 
 __all__ = ["hurst", "fit_power_law", "fit_power_law_whittle"]
 
@@ -233,7 +233,9 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
     })
     ds.attrs = {"analysis": da.attrs["analysis"], "fit_scale_min": float(lo), "fit_scale_max": float(hi),
                 "fit_scale_units": length_units, "abscissa": xdim}
-    return ds
+    if lengths is None:  # fitted to a given result: its own history says how it was computed
+        return provenance(ds, obj, "hurst", scale_range=scale_range)
+    return provenance(ds, obj, "hurst", method=method, kind=kind, dim=dim, scale_range=scale_range, reliable=reliable)
 
 
 def _reliable(da, x, is_q):

@@ -18,7 +18,7 @@ from .._kernels import spectra as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
 from ..errors import GridError, XtopoError
-from ._scale import finish, length_coord, log_bin, per_decade, prepare
+from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["psd"]
@@ -141,5 +141,7 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
                          equivalent_1d=0, **params)
     if kind == "2d":
         out.attrs.update(reliable=0, reliability_note="2D maps are not cut; use kind='iso' or '1d'")
-        return out
-    return apply_reliability(out, obj, coord="q", kind="q", reliable=reliable)
+    else:
+        out = apply_reliability(out, obj, coord="q", kind="q", reliable=reliable)
+    return provenance(out, obj, "psd", kind=kind, dim=dim, window=window, nb_points=nb_points,
+                      convention=convention, equivalent_1d=equivalent_1d, reliable=reliable)

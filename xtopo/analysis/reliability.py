@@ -18,6 +18,7 @@ import xarray as xr
 
 from .._apply import apply_lateral
 from .._checks import flag, positive_number
+from .._checks import lengths as check_lengths
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import X, Y, length_attr, length_factor
 from ..errors import GridError, XtopoError
@@ -305,7 +306,7 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
     obj : xarray.Dataset or xarray.DataArray
         The measurement (missing data filled first); nonuniform line scans are resampled.
     lengths : array_like
-        Distances ``ℓ`` in the measurement's length unit (stencil length: ``ℓ`` of
+        Positive distances ``ℓ`` in the measurement's length unit (stencil length: ``ℓ`` of
         ``A(ℓ)``, of the slope ``D^(η)``, or the full span ``2ηΔx`` of the curvature).
     quantity : {"acf", "slope", "curvature"}
         The estimator.
@@ -326,12 +327,14 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
     if quantity not in _STENCILS:
         raise XtopoError(f"quantity must be one of {sorted(_STENCILS)}, got {quantity!r}")
     offsets, weights = _STENCILS[quantity]
+    fraction = positive_number(fraction, "fraction")
     prep = prepare(obj)
+    prep.check_dim(dim)
     n, dx = prep.h.sizes[dim], prep.spacing(dim)
     other = [d for d in prep.lat if d != dim]
     rows = prep.h.sizes[other[0]] if other else 1
     dy = prep.spacing(other[0]) if other else 0.0
-    lengths = np.atleast_1d(np.asarray(lengths, dtype=float))
+    lengths = check_lengths(lengths, "lengths", prep.units)  # beyond the scan: NaN (the stencil does not fit)
     curve = acf(obj, kind="1d", dim=dim, reliable=False)
     keep = max(3, int(np.ceil(fraction * n)))
     curve = curve.isel(distance=slice(0, keep))

@@ -8,6 +8,7 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._kernels import scalars as _k
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
+from ._scale import provenance
 
 __all__ = ["scalars"]
 
@@ -94,20 +95,22 @@ def scalars(obj) -> xr.Dataset:
         ry = apply_lateral(_k.profile_parameters, h, core_dims=(X, Y), output_core_dims=[["parameter"]],
                            output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
                            kwargs=dict(dx=dy, periodic=periodic, rows=1), what="scalars")
-        r = xr.concat([rx, ry], dim=xr.DataArray(["x", "y"], dims="direction", name="direction"))
+        r = xr.concat([rx, ry], dim="direction")
     elif is_nonuniform(h):
         xv = np.asarray(h[X].values, dtype=float)
         r = apply_lateral(_k.nonuniform_parameters, h, output_core_dims=[["parameter"]],
                           output_sizes={"parameter": len(_k.LINE_PARAMETERS)}, kwargs=dict(x=xv), what="scalars")
-        r = r.expand_dims(direction=["x"])
+        r = r.expand_dims("direction")
     else:
         r = apply_lateral(_k.profile_parameters, h, output_core_dims=[["parameter"]],
                           output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
                           kwargs=dict(dx=spacing(h, X), periodic=periodic, rows=0), what="scalars")
-        r = r.expand_dims(direction=["x"])
+        r = r.expand_dims("direction")
+    # a fixed-width unicode label for line and area scans alike (expand_dims would make it an object array)
+    r = r.assign_coords(direction=("direction", np.array([X, Y][: r.sizes["direction"]]),
+                                   {"long_name": "direction of the profiles"}))
     for i, name in enumerate(_k.LINE_PARAMETERS):
         out[name] = _annotate(name, r.isel(parameter=i, drop=True), units)
     ds = xr.Dataset(out)
-    ds["direction"].attrs = {"long_name": "direction of the profiles"}
     ds.attrs = {"title": "scalar roughness parameters", "periodic": int(periodic)}
-    return ds
+    return provenance(ds, obj, "scalars")

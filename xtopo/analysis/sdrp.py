@@ -10,7 +10,7 @@ from .._checks import integer, lengths
 from .._kernels.scaled import sdrp_rms
 from ..conventions import X
 from ..errors import GridError, XtopoError
-from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare
+from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["sdrp"]
@@ -24,6 +24,7 @@ def check_order(order) -> int:
 
 
 def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = True) -> xr.DataArray:
+    given = distances
     """Scale-dependent RMS slope (``order=1``) or RMS curvature (``order=2``).
 
     ``D^(η) h = (h(x+ηΔx) - h(x))/(ηΔx)`` (eq. 9) and
@@ -78,4 +79,5 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
         out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, "sdrp", order=1, direction=dim)
     else:
         out = finish(out, "sdrp", f"{u}-1", "scale-dependent RMS curvature", prep, "sdrp", order=2, direction=dim)
-    return apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
+    out = apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
+    return provenance(out, obj, "sdrp", order=order, dim=dim, distances=given, reliable=reliable)

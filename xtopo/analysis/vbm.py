@@ -9,7 +9,7 @@ from .._apply import apply_lateral
 from .._checks import integer
 from .._kernels import bandwidth as _k
 from ..conventions import X
-from ._scale import finish, length_coord, prepare
+from ._scale import finish, length_coord, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["vbm"]
@@ -52,4 +52,5 @@ def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
                             magnification=("bandwidth", levels, {"units": "1", "long_name": "magnification ζ"}))
     out = out.isel(bandwidth=slice(None, None, -1))
     out = finish(out, "vbm", u, "mean tilt-corrected RMS height", prep, "vbm", min_pixels=int(min_pixels))
-    return apply_reliability(out, obj, coord="bandwidth", kind="length", reliable=reliable)
+    out = apply_reliability(out, obj, coord="bandwidth", kind="length", reliable=reliable)
+    return provenance(out, obj, "vbm", min_pixels=min_pixels, reliable=reliable)
