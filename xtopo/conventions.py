@@ -286,6 +286,17 @@ def height_of(obj) -> xr.DataArray:
     return h
 
 
+#: Attributes that say where a measurement came from and what was done to it: every result computed
+#: from it (analyses, contact solutions) carries them on.
+PROVENANCE_ATTRS = ("source_file", "source_sha256", "history")
+
+
+def provenance_of(obj) -> dict:
+    """The :data:`PROVENANCE_ATTRS` that ``obj`` (a Dataset or DataArray) has set."""
+    attrs = getattr(obj, "attrs", {})
+    return {k: attrs[k] for k in PROVENANCE_ATTRS if attrs.get(k)}
+
+
 def append_history(obj, line: str):
     """Return ``obj`` with ``line`` appended to its ``history`` attribute (one line per step)."""
     obj = obj.copy(deep=False)

@@ -7,7 +7,8 @@ import numpy as np
 import xarray as xr
 
 from .._kernels.binning import BinPlan, log_edges
-from ..conventions import X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
+from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is_nonuniform, is_periodic,
+                           lateral_dims, provenance_of, spacing)
 from ..errors import GridError, XtopoError
 
 __all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance"]
@@ -132,10 +133,6 @@ def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepar
     return da
 
 
-#: attrs of a measurement that say where it came from; every analysis result carries them on
-SOURCE_ATTRS = ("source_file", "source_sha256")
-
-
 def _param(value) -> str:
     """``value`` for a history line: short sequences in full, long ones summarised."""
     if isinstance(value, (str, bytes)) or np.ndim(value) == 0:
@@ -154,10 +151,7 @@ def provenance(result, obj, analysis: str, **params):
     ``obj``'s history plus one line naming the analysis and its parameters. Only attrs change:
     dask results stay lazy. The one place where analysis results get their provenance.
     """
-    src = getattr(obj, "attrs", {})
-    result.attrs = {k: v for k, v in result.attrs.items() if k not in SOURCE_ATTRS + ("history",)}
-    result.attrs.update({k: src[k] for k in SOURCE_ATTRS if k in src})
-    if src.get("history"):
-        result.attrs["history"] = src["history"]
+    result.attrs = {k: v for k, v in result.attrs.items() if k not in PROVENANCE_ATTRS}
+    result.attrs.update(provenance_of(obj))
     args = ", ".join(f"{k}={_param(v)}" for k, v in params.items())
     return append_history(result, f"xtopo.{analysis}({args})")

@@ -17,14 +17,12 @@ from .._kernels.convolution import Convolution
 from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
-from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, spacing
+from ..conventions import (LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, provenance_of,
+                           spacing)
 from ..errors import ContactError, GridError, UnitsError
 from ..presets import resolve as resolve_preset
 
 __all__ = ["Scene"]
-
-#: Attributes of the measurement that every result of a scene keeps.
-PROVENANCE = ("source_file", "source_sha256", "history")
 
 
 def scene_parameters(modulus, hardness, periodic) -> tuple:
@@ -156,9 +154,8 @@ class Scene:
             self._boundary_reason = "as requested"
         self._reasons = reasons
         self.coords = {d: h.coords[d] for d in self.dims}
-        attrs = getattr(topography, "attrs", {})
         #: what the results carry of the measurement: its file, checksum and processing history
-        self.provenance = {k: attrs[k] for k in PROVENANCE if attrs.get(k)}
+        self.provenance = provenance_of(topography)
         self.heights = values
         # rigid surface relative to its highest point (≤ 0): first contact at penetration 0
         self.w = (values - values.max()).astype(self.dtype)
