@@ -18,7 +18,7 @@ import xarray as xr
 from .._checks import flag
 from .._checks import path as checked_path
 from .._version import __version__
-from ..conventions import CONVENTIONS
+from ..conventions import CONVENTIONS, provenance_of
 from ..errors import ReaderError, ValidationError, WriteError, XtopoError
 
 __all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
@@ -168,7 +168,8 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
     Parameters
     ----------
     ds : xarray.Dataset or xarray.DataArray
-        A measurement or an analysis result (a DataArray is written as its Dataset).
+        A measurement or an analysis result (a DataArray is written as its Dataset, its
+        ``source_file``, ``source_sha256`` and ``history`` as the file's global attributes).
     path : str or os.PathLike
         Target file; replaced only once the new file is complete.
     engine : {"netcdf4", "h5netcdf"}, optional
@@ -187,7 +188,11 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
         A variable NetCDF cannot hold (e.g. complex values with ``netcdf4``); nothing is written.
     """
     if isinstance(ds, xr.DataArray):
-        ds = ds.to_dataset(name=ds.name or "data")
+        # its provenance (an analysis result's source file and history) belongs to the file (CF: global)
+        moved = provenance_of(ds)
+        ds = ds.copy(deep=False)
+        ds.attrs = {k: v for k, v in ds.attrs.items() if k not in moved}
+        ds = ds.to_dataset(name=ds.name or "data").assign_attrs(moved)
     if not isinstance(ds, xr.Dataset):
         raise XtopoError(f"to_netcdf expects an xarray Dataset, got {type(ds).__name__}")
     engine = check_engine(engine)
