@@ -65,3 +65,12 @@ def test_nonuniform_line_scan():
         spacing(ds, "x")
     with pytest.raises(GridError, match="strictly increasing"):
         make_measurement(np.ones(3), x=[0, 2, 1])
+
+
+def test_height_of_does_not_write_into_the_dataset():
+    ds = make_measurement(np.ones((4, 4)), spacing=1.0, units="m", periodic=True, tip_radius=2e-8)
+    height_of(ds)
+    assert ds.height.attrs == {"units": "m", "long_name": "height"}
+    # so a later conversion is seen by the height (it carried tip_radius 2e-8 next to units "nm")
+    nm = convert_length(ds, "nm")
+    assert height_of(nm).attrs["tip_radius"] == pytest.approx(20.0)

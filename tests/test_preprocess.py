@@ -224,3 +224,18 @@ def test_fill_again_keeps_the_record_of_earlier_fills():
     again = fill_missing(detrend(once))
     xr.testing.assert_identical(again.filled, once.filled)
     assert bool(again.filled[2, 3])
+
+
+# ---------------------------------------------------------------- audit: preprocess edge cases
+
+def test_preprocess_leaves_the_input_height_attrs_alone():
+    # height_of copied periodic/tip_radius into the caller's own height variable; later changes of the
+    # Dataset's attrs (periodic=0, a converted tip radius) were then shadowed by these stale copies
+    ds = make_measurement(_rough(8, 8), spacing=0.5, units="um", periodic=True, tip_radius=0.1)
+    before = dict(ds.height.attrs)
+    detrend(ds, "mean")
+    fill_missing(ds)
+    xtopo.conventions.height_of(ds)
+    assert ds.height.attrs == before
+    ds.attrs["periodic"] = 0
+    assert not xtopo.conventions.is_periodic(xtopo.conventions.height_of(ds))

@@ -276,6 +276,8 @@ def height_of(obj) -> xr.DataArray:
     h = obj[HEIGHT]
     if MASK in obj:
         h = h.where(~obj[MASK].astype(bool))
+    else:  # a new variable: the attrs set below must not land on the Dataset's own height
+        h = h.copy(deep=False)
     attrs = dict(obj[HEIGHT].attrs)
     for key in MEASUREMENT_ATTRS:
         if key in obj.attrs and key not in attrs:
