@@ -239,3 +239,14 @@ def test_preprocess_leaves_the_input_height_attrs_alone():
     assert ds.height.attrs == before
     ds.attrs["periodic"] = 0
     assert not xtopo.conventions.is_periodic(xtopo.conventions.height_of(ds))
+
+
+def test_detrend_and_fill_history_one_line_per_step():
+    ds = make_measurement(_rough(8, 8), spacing=0.5, units="um")
+    ds.attrs["history"] = "read\n"  # a trailing newline gave an empty line
+    out = fill_missing(detrend(detrend(ds)))
+    assert out.attrs["history"].split("\n") == ["read", "detrend(mode='plane', per_line=False)",
+                                                "detrend(mode='plane', per_line=False)", "fill_missing(harmonic)"]
+    assert "history" not in out.height.attrs
+    ds.attrs["history"] = np.array(["read", "scaled"])  # as some readers give a multi-line text attr
+    assert detrend(ds, "mean").attrs["history"] == "read\nscaled\ndetrend(mode='mean', per_line=False)"

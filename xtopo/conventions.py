@@ -321,6 +321,9 @@ def append_history(obj, line: str):
     """Return ``obj`` with ``line`` appended to its ``history`` attribute (one line per step)."""
     obj = obj.copy(deep=False)
     hist = obj.attrs.get("history", "")
+    if isinstance(hist, np.ndarray):  # some readers give text attrs as arrays of lines
+        hist = "\n".join(str(v) for v in hist.ravel())
+    hist = str(hist).rstrip("\n") if hist is not None else ""
     obj.attrs["history"] = f"{hist}\n{line}" if hist else line
     return obj
 
