@@ -250,3 +250,23 @@ def test_detrend_and_fill_history_one_line_per_step():
     assert "history" not in out.height.attrs
     ds.attrs["history"] = np.array(["read", "scaled"])  # as some readers give a multi-line text attr
     assert detrend(ds, "mean").attrs["history"] == "read\nscaled\ndetrend(mode='mean', per_line=False)"
+
+
+@pytest.mark.parametrize("mode", ["plane", "curvature"])
+def test_detrend_tilt_of_periodic_surface_makes_it_nonperiodic(mode):
+    # subtracting a tilt leaves a step where a periodic surface wraps around; keeping periodic=1 made
+    # the analyses differentiate across that step (PSD x12 at short wavelengths, Sdq +55% for H = 0.8)
+    from xtopo.datasets import fractal_surface
+
+    s = fractal_surface((128, 128), 1.0, hurst=0.8, seed=3)
+    out = detrend(s, mode)
+    assert out.attrs["periodic"] == 0 and not xtopo.conventions.is_periodic(out)
+    assert out.attrs["history"].endswith("; periodic set to 0")
+    assert detrend(s.height.assign_attrs(periodic=1), mode).attrs["periodic"] == 0  # DataArray too
+    assert xtopo.conventions.is_periodic(s)  # the input is untouched
+    # short wavelengths are those of the surface, not of a step's q^-2 tail
+    ratio = out.topo.psd(kind="1d", dim="x", reliable=False) / s.topo.psd(kind="1d", dim="x", reliable=False)
+    assert 0.8 < float(ratio[-10:].mean()) < 1.25
+    # the mean keeps a periodic surface periodic
+    assert detrend(s, "mean").attrs["periodic"] == 1
+    assert detrend(s, "mean", per_line=True).attrs["periodic"] == 1

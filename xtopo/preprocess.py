@@ -30,14 +30,21 @@ def _positions(h, dim):
     return np.asarray(h.coords[dim].values, dtype=float) if dim in h.coords else np.arange(h.sizes[dim], dtype=float)
 
 
-def _finish(obj, h_in, result, line: str):
-    """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``."""
+def _finish(obj, h_in, result, line: str, *, nonperiodic: bool = False):
+    """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``.
+
+    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0.
+    """
     # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
     result = h_in.copy(data=result.transpose(*h_in.dims).data)
     result.attrs = dict(obj[h_in.name].attrs if isinstance(obj, xr.Dataset) else obj.attrs)
+    if nonperiodic and "periodic" in result.attrs:
+        result.attrs["periodic"] = 0
     if isinstance(obj, xr.Dataset):
         out = obj.copy(deep=False)
         out[h_in.name] = result
+        if nonperiodic:
+            out.attrs["periodic"] = 0
         return append_history(out, line)
     return append_history(result, line)
 
@@ -58,13 +65,17 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
     Returns
     -------
     Same type as ``obj``
-        Detrended heights (same units); missing data stay missing and are ignored by the fit.
-        Nonuniform line scans are fitted at their positions.
+        Detrended heights (same units, float64); missing data stay missing and are ignored by
+        the fit. Nonuniform line scans are fitted at their positions. A periodic measurement
+        stays periodic with ``mode="mean"`` only: a tilt or curvature is no periodic function,
+        so its subtraction leaves a step where the surface wraps around, and the result has
+        ``periodic=0`` (analyses then window it instead of differentiating across the step).
     """
     degree = _poly.DEGREES[option(mode, _poly.DEGREES, "mode")]
     per_line = flag(per_line, "per_line")
     h = height_of(obj)
     dims = lateral_dims(h)
+    breaks_periodicity = degree > 0 and is_periodic(h)
     if dims == (Y, X):
         out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], what="detrend",
                             kwargs={"y": _positions(h, Y), "x": _positions(h, X), "degree": degree,
@@ -72,8 +83,11 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
     else:
         out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], what="detrend",
                             kwargs={"x": _positions(h, X), "degree": degree})
-    return _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
-                   f"detrend(mode={mode!r}, per_line={bool(per_line)})")
+    line = f"detrend(mode={mode!r}, per_line={bool(per_line)})"
+    if breaks_periodicity:
+        line += "; periodic set to 0"
+    return _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out, line,
+                   nonperiodic=breaks_periodicity)
 
 
 def fill_missing(obj):
