@@ -270,3 +270,28 @@ def test_detrend_tilt_of_periodic_surface_makes_it_nonperiodic(mode):
     # the mean keeps a periodic surface periodic
     assert detrend(s, "mean").attrs["periodic"] == 1
     assert detrend(s, "mean", per_line=True).attrs["periodic"] == 1
+
+
+@pytest.mark.parametrize("dims", [("y", "x"), ("x", "y")])
+def test_fill_single_row_map_needs_no_y_spacing(dims):
+    # a 1×N map (or N×1) without a 'spacing' attr on its single-point axis raised GridError
+    # ("cannot infer the spacing of 'y'"), though no y-neighbours enter the fill
+    h = np.arange(6.0)
+    h[2] = np.nan
+    ds = make_measurement(h[None, :] if dims == ("y", "x") else h[:, None], size=(1.0, 6.0) if dims == ("y", "x")
+                          else (6.0, 1.0), units="um")
+    single = "y" if dims == ("y", "x") else "x"
+    del ds[single].attrs["spacing"]
+    for obj in (ds, ds.height):
+        out = fill_missing(obj)
+        np.testing.assert_allclose(out.values.ravel() if isinstance(out, xr.DataArray) else out.height.values.ravel(),
+                                   np.arange(6.0))
+
+
+def test_fill_with_y_in_another_unit_uses_the_true_anisotropy():
+    # y in nm and x in um (a dataset validate would refuse): the fill weighted y-neighbours 10⁶x too weakly
+    h = _rough(20, 20, seed=9)
+    h[8:12, 6:14] = np.nan
+    m = make_measurement(h, spacing=(1.0, 1.0), units="um")
+    mixed = m.assign_coords(y=m.y.copy(data=m.y.values * 1000).assign_attrs(units="nm"))
+    np.testing.assert_allclose(fill_missing(mixed).height.values, fill_missing(m).height.values, atol=1e-12)

@@ -18,8 +18,9 @@ from ._apply import apply_lateral
 from ._checks import flag, option
 from ._kernels import laplace_fill as _fill
 from ._kernels import polyfit as _poly
-from .conventions import MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
-from .errors import GridError
+from .conventions import (MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims,
+                          length_factor, spacing)
+from .errors import GridError, UnitsError
 
 __all__ = ["detrend", "fill_missing"]
 
@@ -119,7 +120,8 @@ def fill_missing(obj):
     dims = lateral_dims(h)
     periodic = is_periodic(obj)
     if dims == (Y, X):
-        kwargs = {"periodic": periodic, "dy": spacing(h, Y), "dx": spacing(h, X)}
+        dy, dx = _fill_spacings(h)
+        kwargs = {"periodic": periodic, "dy": dy, "dx": dx}
         out = apply_lateral(_checked(_fill.harmonic_fill_2d), h, output_core_dims=[dims], kwargs=kwargs,
                             what="fill_missing")
     else:
@@ -137,6 +139,26 @@ def fill_missing(obj):
         res = res.drop_vars(MASK, errors="ignore")
         res[_FILLED] = filled.assign_attrs(long_name="interpolated by fill_missing", flag_meanings="filled")
     return res
+
+
+def _fill_spacings(h) -> tuple[float, float]:
+    """``(dy, dx)`` of a map in one length unit, for the weights of the harmonic fill.
+
+    An axis of a single pixel has no neighbours along it, so its spacing does not enter the
+    fill (a 1×N map needs no y spacing); it is given as 1. A ``y`` in another unit than ``x``
+    (a Dataset that :func:`~xtopo.conventions.validate` would refuse) is converted: only the
+    ratio of the spacings matters.
+    """
+    dy = spacing(h, Y) if h.sizes[Y] > 1 else 1.0
+    dx = spacing(h, X) if h.sizes[X] > 1 else 1.0
+    if h.sizes[Y] > 1 and h.sizes[X] > 1:
+        uy, ux = (h.coords[d].attrs.get("units") for d in (Y, X))
+        if uy is not None and ux is not None:
+            try:
+                dy *= length_factor(uy, ux)
+            except UnitsError:
+                pass  # not length units: take the spacings as they are
+    return dy, dx
 
 
 def _checked(kernel):
