@@ -251,3 +251,18 @@ def test_average_curves_of_non_curves_refused(curves):
 
     with pytest.raises(xtopo.XtopoError, match="curves must be"):  # was AttributeError
         average_curves(curves)
+
+
+def test_average_curves_accepts_a_curve_on_a_decreasing_coordinate():
+    # log-log interpolation of a curve whose coordinate runs downwards gave NaN everywhere
+    from xtopo.stitching import average_curves
+
+    q = np.geomspace(1, 100, 30)
+
+    def curve(v, at):
+        return xr.DataArray(v, dims="q", coords={"q": ("q", at, {"units": "m-1"})}, attrs={"units": "m3"})
+
+    up = average_curves({"a": curve(q ** -2.0, q)}, points=[2, 10, 50])
+    down = average_curves({"a": curve(q[::-1] ** -2.0, q[::-1])}, points=[2, 10, 50])
+    np.testing.assert_allclose(down.average.values, [0.25, 0.01, 0.0004], rtol=1e-12)
+    xr.testing.assert_identical(up, down)
