@@ -266,3 +266,10 @@ def test_average_curves_accepts_a_curve_on_a_decreasing_coordinate():
     down = average_curves({"a": curve(q[::-1] ** -2.0, q[::-1])}, points=[2, 10, 50])
     np.testing.assert_allclose(down.average.values, [0.25, 0.01, 0.0004], rtol=1e-12)
     xr.testing.assert_identical(up, down)
+
+
+def test_twin_average_names_a_measurement_without_data():
+    s = fractal_surface((32, 32), 1.0, hurst=0.7, units="um", seed=1)
+    empty = xtopo.make_measurement(np.full((8, 8), np.nan), spacing=1.0, units="um")
+    with pytest.raises(xtopo.GridError, match="measurement 'empty'.*all data are missing"):
+        xtopo.twin({"s": s, "empty": empty}).topo.psd()
