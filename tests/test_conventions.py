@@ -65,3 +65,41 @@ def test_nonuniform_line_scan():
         spacing(ds, "x")
     with pytest.raises(GridError, match="strictly increasing"):
         make_measurement(np.ones(3), x=[0, 2, 1])
+
+
+def test_height_of_does_not_write_into_the_dataset():
+    ds = make_measurement(np.ones((4, 4)), spacing=1.0, units="m", periodic=True, tip_radius=2e-8)
+    height_of(ds)
+    assert ds.height.attrs == {"units": "m", "long_name": "height"}
+    # so a later conversion is seen by the height (it carried tip_radius 2e-8 next to units "nm")
+    nm = convert_length(ds, "nm")
+    assert height_of(nm).attrs["tip_radius"] == pytest.approx(20.0)
+
+
+@pytest.mark.parametrize("value,expected", [
+    (1, True), (0, False), (True, True), (np.int8(1), True), (np.bool_(False), False), (1.0, True),
+    ("1", True), ("0", False), ("true", True), ("False", False), (" TRUE ", True), (b"1", True),
+    (np.array([1]), True), (np.array(["false"]), False)])
+def test_periodic_attr_spellings_accepted_by_is_periodic_and_validate(value, expected):
+    # files spell the flag as text ("true": NetCDF has no boolean attribute); "1" was accepted but "true" refused
+    ds = make_measurement(np.ones((3, 3)), spacing=1.0)
+    ds.attrs["periodic"] = value
+    assert xtopo.conventions.is_periodic(ds) is expected
+    validate(ds)
+
+
+@pytest.mark.parametrize("value", [2, -1, 0.5, "yes", "1.0", "", None, [1], np.array([0, 1])])
+def test_periodic_attr_other_values_refused_by_both(value):
+    ds = make_measurement(np.ones((3, 3)), spacing=1.0)
+    ds.attrs["periodic"] = value
+    with pytest.raises(ValidationError, match="periodic"):
+        xtopo.conventions.is_periodic(ds)
+    with pytest.raises(ValidationError, match="periodic"):
+        validate(ds)
+
+
+@pytest.mark.parametrize("value", ["false", "0", None, 2])
+def test_make_measurement_periodic_must_be_a_bool(value):
+    # periodic="false" was stored as periodic=1 (bool of a non-empty string)
+    with pytest.raises(ValidationError, match="periodic must be True or False"):
+        make_measurement(np.ones(3), spacing=1.0, periodic=value)

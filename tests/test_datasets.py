@@ -142,3 +142,83 @@ def test_long_modes_carry_the_band_power_of_the_truth():
     q = np.exp(lq)
     exact = np.trapezoid(truth.c_native(q) * q * q, lq) / (2 * np.pi)
     np.testing.assert_allclose(power, exact, rtol=0.02)
+
+
+# ---------------------------------------------------------------- audit: argument checks
+
+@pytest.mark.parametrize("kwargs", [
+    dict(shape=-4), dict(shape=0), dict(shape=(4, 0)), dict(shape=4.5), dict(shape="8"), dict(shape=None),
+    dict(shape=True), dict(shape=(2, 3, 4)), dict(shape=()),
+    dict(size=0.0), dict(size=-1.0), dict(size=np.inf), dict(size=np.nan), dict(size="1"), dict(size=(1.0, 2.0)),
+    dict(hurst=0), dict(hurst=1), dict(hurst="0.5"), dict(hurst=None), dict(hurst=[0.5]), dict(hurst=0.5j),
+    dict(rms_height=-1.0), dict(rms_height=0.0), dict(rms_height=np.nan), dict(rms_slope=-1.0), dict(prefactor=0.0),
+    dict(short_cutoff=0.0), dict(short_cutoff=-1.0), dict(long_cutoff=0.0), dict(long_cutoff=np.nan),
+    dict(seed=-1), dict(seed=1.5), dict(seed=None), dict(periodic="false"), dict(periodic=None)])
+def test_fractal_surface_refuses_bad_arguments(kwargs):
+    # were: silent truncation (4.5 -> 4, "8"), silent NaN or negated surfaces (rms_height<=0, prefactor<0),
+    # ZeroDivisionError (size or cutoff 0), TypeError/ValueError from numpy (seed, hurst text), periodic="false" -> 1
+    args = dict(shape=8, size=1.0, hurst=0.5)
+    args.update(kwargs)
+    with pytest.raises(xtopo.XtopoError):
+        fractal_surface(args.pop("shape"), args.pop("size"), **args)
+
+
+def test_fractal_surface_single_point_grid_says_why_it_is_empty():
+    with pytest.raises(xtopo.XtopoError, match="more than one point"):
+        fractal_surface(1, 1.0, hurst=0.5)
+    fractal_surface(np.int64(8), np.float32(1.0), hurst=np.float32(0.5), seed=np.int64(2))  # numpy scalars are fine
+
+
+@pytest.mark.parametrize("kwargs", [dict(radius=-1.0), dict(radius=0.0), dict(radius=np.nan), dict(shape=4.5),
+                                    dict(shape=0), dict(size=-1.0), dict(center=(1.0, 2.0)), dict(center="a"),
+                                    dict(kind=None), dict(periodic="false")])
+def test_sphere_refuses_bad_arguments(kwargs):
+    args = dict(shape=4, size=1.0, radius=1.0)
+    args.update(kwargs)
+    with pytest.raises(xtopo.XtopoError):
+        sphere(args.pop("shape"), args.pop("size"), args.pop("radius"), **args)
+
+
+@pytest.mark.parametrize("kwargs", [dict(wavelength=0.0), dict(wavelength=-1.0), dict(amplitude=np.nan),
+                                    dict(shape=4.7), dict(shape=-4), dict(periodic="false")])
+def test_sinusoid_refuses_bad_arguments(kwargs):
+    args = dict(shape=4, size=1.0)
+    args.update(kwargs)
+    with pytest.raises(xtopo.XtopoError):
+        sinusoid(args.pop("shape"), args.pop("size"), **args)
+
+
+@pytest.mark.parametrize("kwargs", [
+    dict(pixels=0), dict(pixels=4.5), dict(pixels=(4, 4, 4)), dict(size=0.0), dict(offset=-0.1),
+    dict(tip_radius=np.nan), dict(tip_radius=0.0), dict(noise=-1.0), dict(noise=np.nan),
+    dict(missing_fraction=1.5), dict(missing_fraction=-0.1), dict(missing_fraction=np.nan),
+    dict(resolution=-1.0), dict(line="no"), dict(seed=-1)])
+def test_measure_refuses_bad_arguments(kwargs):
+    # missing_fraction=1.5 looped forever; tip_radius=NaN and seed=-1 raised bare ValueErrors;
+    # a negative noise or resolution and line="no" were taken silently
+    surf = fractal_surface((32, 32), 1.0, hurst=0.7)
+    with pytest.raises(xtopo.XtopoError):
+        measure(surf, **kwargs)
+
+
+def test_measure_everything_missing_and_single_row_patches():
+    surf = fractal_surface((32, 32), 1.0, hurst=0.7)
+    assert bool(measure(surf, missing_fraction=1.0).mask.all())
+    # a 1×N map: patches scale with the long axis, not the single pixel across it
+    row = measure(fractal_surface((1, 512), (1 / 512, 1.0), hurst=0.7), missing_fraction=0.5, seed=1)
+    m = row.mask.values[0]
+    assert 0.45 <= m.mean() <= 0.7
+    assert np.count_nonzero(np.diff(m.astype(int)) == 1) < 40  # a few patches, not hundreds of single points
+
+
+def test_measure_refuses_a_batch_of_surfaces():
+    surf = fractal_surface((16, 16), 1.0, hurst=0.7)
+    with pytest.raises(xtopo.GridError, match="extra dims"):
+        measure(xr.concat([surf, surf], dim="sample"))
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "1", None])
+def test_example_twin_refuses_bad_seed(seed):
+    # 1.5 was silently truncated to 1, -1 raised numpy's ValueError
+    with pytest.raises(xtopo.XtopoError, match="seed"):
+        example_twin(seed)

@@ -224,3 +224,98 @@ def test_fill_again_keeps_the_record_of_earlier_fills():
     again = fill_missing(detrend(once))
     xr.testing.assert_identical(again.filled, once.filled)
     assert bool(again.filled[2, 3])
+
+
+# ---------------------------------------------------------------- audit: preprocess edge cases
+
+def test_preprocess_leaves_the_input_height_attrs_alone():
+    # height_of copied periodic/tip_radius into the caller's own height variable; later changes of the
+    # Dataset's attrs (periodic=0, a converted tip radius) were then shadowed by these stale copies
+    ds = make_measurement(_rough(8, 8), spacing=0.5, units="um", periodic=True, tip_radius=0.1)
+    before = dict(ds.height.attrs)
+    detrend(ds, "mean")
+    fill_missing(ds)
+    xtopo.conventions.height_of(ds)
+    assert ds.height.attrs == before
+    ds.attrs["periodic"] = 0
+    assert not xtopo.conventions.is_periodic(xtopo.conventions.height_of(ds))
+
+
+def test_detrend_and_fill_history_one_line_per_step():
+    ds = make_measurement(_rough(8, 8), spacing=0.5, units="um")
+    ds.attrs["history"] = "read\n"  # a trailing newline gave an empty line
+    out = fill_missing(detrend(detrend(ds)))
+    assert out.attrs["history"].split("\n") == ["read", "detrend(mode='plane', per_line=False)",
+                                                "detrend(mode='plane', per_line=False)", "fill_missing(harmonic)"]
+    assert "history" not in out.height.attrs
+    ds.attrs["history"] = np.array(["read", "scaled"])  # as some readers give a multi-line text attr
+    assert detrend(ds, "mean").attrs["history"] == "read\nscaled\ndetrend(mode='mean', per_line=False)"
+
+
+@pytest.mark.parametrize("mode", ["plane", "curvature"])
+def test_detrend_tilt_of_periodic_surface_makes_it_nonperiodic(mode):
+    # subtracting a tilt leaves a step where a periodic surface wraps around; keeping periodic=1 made
+    # the analyses differentiate across that step (PSD x12 at short wavelengths, Sdq +55% for H = 0.8)
+    from xtopo.datasets import fractal_surface
+
+    s = fractal_surface((128, 128), 1.0, hurst=0.8, seed=3)
+    out = detrend(s, mode)
+    assert out.attrs["periodic"] == 0 and not xtopo.conventions.is_periodic(out)
+    assert out.attrs["history"].endswith("; periodic set to 0")
+    assert detrend(s.height.assign_attrs(periodic=1), mode).attrs["periodic"] == 0  # DataArray too
+    assert xtopo.conventions.is_periodic(s)  # the input is untouched
+    # short wavelengths are those of the surface, not of a step's q^-2 tail
+    ratio = out.topo.psd(kind="1d", dim="x", reliable=False) / s.topo.psd(kind="1d", dim="x", reliable=False)
+    assert 0.8 < float(ratio[-10:].mean()) < 1.25
+    # the mean keeps a periodic surface periodic
+    assert detrend(s, "mean").attrs["periodic"] == 1
+    assert detrend(s, "mean", per_line=True).attrs["periodic"] == 1
+
+
+@pytest.mark.parametrize("dims", [("y", "x"), ("x", "y")])
+def test_fill_single_row_map_needs_no_y_spacing(dims):
+    # a 1×N map (or N×1) without a 'spacing' attr on its single-point axis raised GridError
+    # ("cannot infer the spacing of 'y'"), though no y-neighbours enter the fill
+    h = np.arange(6.0)
+    h[2] = np.nan
+    ds = make_measurement(h[None, :] if dims == ("y", "x") else h[:, None], size=(1.0, 6.0) if dims == ("y", "x")
+                          else (6.0, 1.0), units="um")
+    single = "y" if dims == ("y", "x") else "x"
+    del ds[single].attrs["spacing"]
+    for obj in (ds, ds.height):
+        out = fill_missing(obj)
+        np.testing.assert_allclose(out.values.ravel() if isinstance(out, xr.DataArray) else out.height.values.ravel(),
+                                   np.arange(6.0))
+
+
+def test_fill_with_y_in_another_unit_uses_the_true_anisotropy():
+    # y in nm and x in um (a dataset validate would refuse): the fill weighted y-neighbours 10⁶x too weakly
+    h = _rough(20, 20, seed=9)
+    h[8:12, 6:14] = np.nan
+    m = make_measurement(h, spacing=(1.0, 1.0), units="um")
+    mixed = m.assign_coords(y=m.y.copy(data=m.y.values * 1000).assign_attrs(units="nm"))
+    np.testing.assert_allclose(fill_missing(mixed).height.values, fill_missing(m).height.values, atol=1e-12)
+
+
+def test_detrend_plane_plus_noise_recovers_the_noise_least_squares():
+    # independent check: the result is the noise minus its own least-squares plane, whatever the units
+    y, x = np.mgrid[0:40, 0:50].astype(float)
+    y, x = 0.3 * y, 0.7 * x
+    noise = np.random.default_rng(0).standard_normal((40, 50))
+    out = detrend(make_measurement(noise + 2 + 0.3 * x - 0.2 * y, spacing=(0.3, 0.7), units="nm"))
+    A = np.stack([np.ones(x.size), x.ravel(), y.ravel()], axis=1)
+    own_plane = (A @ np.linalg.lstsq(A, noise.ravel(), rcond=None)[0]).reshape(noise.shape)
+    np.testing.assert_allclose(out.height.values, noise - own_plane, atol=1e-12)
+    assert out.height.attrs["units"] == "nm"
+
+
+@pytest.mark.parametrize("dask", [False, True])
+def test_fill_reproduces_a_harmonic_function_on_an_anisotropic_grid(dask):
+    # x² - y² + xy has a vanishing spacing-weighted discrete Laplacian: the fill is exact, not only for planes
+    y, x = np.mgrid[0:40, 0:50].astype(float)
+    y, x = 0.3 * y, 0.7 * x
+    h = x ** 2 - y ** 2 + 0.5 * x * y + 3
+    hole = (y / 0.3 - 20) ** 2 + (x / 0.7 - 25) ** 2 < 100
+    ds = make_measurement(np.where(hole, np.nan, h), spacing=(0.3, 0.7), units="nm")
+    out = fill_missing(ds.chunk() if dask else ds)
+    np.testing.assert_allclose(out.height.values, h, atol=1e-9)

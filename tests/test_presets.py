@@ -103,3 +103,10 @@ def test_fast_preset_maxiter_is_a_cap():
         warnings.simplefilter("ignore", ConvergenceWarning)
         r = Scene(surf, preset="fast").solve(mean_pressure=0.02, maxiter=3)
     assert int(r.iterations) == 3 and not bool(r.converged)
+
+
+@pytest.mark.parametrize("family,preset", [(["contact"], None), ({}, None), ("contact", ["fast"]), ("contact", {})])
+def test_resolver_refuses_unhashable_names(family, preset):
+    # a list or dict raised TypeError: unhashable type
+    with pytest.raises(XtopoError, match="no presets for|preset must be one of"):
+        presets.resolve(family, preset)

@@ -291,3 +291,42 @@ def test_twin_average_coords_and_cutoffs_have_units_and_long_names(reliable):
             assert (avg.reliability_cutoff > 0).all()
         else:
             assert "reliability_cutoff" not in avg
+
+
+def test_average_curves_accepts_a_curve_on_a_decreasing_coordinate():
+    # log-log interpolation of a curve whose coordinate runs downwards gave NaN everywhere
+    from xtopo.stitching import average_curves
+
+    q = np.geomspace(1, 100, 30)
+
+    def curve(v, at):
+        return xr.DataArray(v, dims="q", coords={"q": ("q", at, {"units": "m-1"})}, attrs={"units": "m3"})
+
+    up = average_curves({"a": curve(q ** -2.0, q)}, points=[2, 10, 50])
+    down = average_curves({"a": curve(q[::-1] ** -2.0, q[::-1])}, points=[2, 10, 50])
+    np.testing.assert_allclose(down.average.values, [0.25, 0.01, 0.0004], rtol=1e-12)
+    xr.testing.assert_identical(up, down)
+
+
+def test_twin_average_names_a_measurement_without_data():
+    s = fractal_surface((32, 32), 1.0, hurst=0.7, units="um", seed=1)
+    empty = xtopo.make_measurement(np.full((8, 8), np.nan), spacing=1.0, units="um")
+    with pytest.raises(xtopo.GridError, match="measurement 'empty'.*all data are missing"):
+        xtopo.twin({"s": s, "empty": empty}).topo.psd()
+
+
+def test_twin_average_of_two_overlapping_crops_follows_the_whole_surface():
+    # independent check: the slope curve averaged over two overlapping crops of one surface is the mean of the
+    # crops' own curves, and close to that of the whole surface (the overlap counts twice)
+    from xtopo.analysis.sdrp import sdrp
+
+    s = fractal_surface((256, 512), (0.5, 1.0), hurst=0.7, units="um", seed=1, periodic=False)
+    a, b = s.isel(x=slice(0, 300)), s.isel(x=slice(212, 512))
+    b = b.assign_coords(x=b.x - b.x[0])
+    avg = xtopo.stitching.twin_sdrp(xtopo.twin({"a": a, "b": b}), reliable=False).compute()
+    small = (avg.distance < 0.02).values  # scales well below the crops' size (0.59 um)
+    d = avg.distance.values[small]
+    own = (sdrp(a, 1, dim="x", distances=d, reliable=False) + sdrp(b, 1, dim="x", distances=d, reliable=False)) / 2
+    np.testing.assert_allclose(avg.average.values[small], own.values, rtol=1e-9)
+    whole = sdrp(s, 1, dim="x", distances=d, reliable=False)
+    np.testing.assert_allclose(avg.average.values[small], whole.values, rtol=0.05)

@@ -208,3 +208,40 @@ def test_names_in_any_script_survive_the_archive(tmp_path, engine):
     back = xtopo.open_twin(tmp_path / "t.nc")
     assert list(back.children) == list(names.values())
     xr.testing.assert_allclose(back["钢"].to_dataset().height, ds.height)
+
+
+def test_summary_table_takes_a_list_one_measurement_or_a_twin():
+    # a list raised AttributeError ('list' object has no attribute 'items'), a Dataset KeyError 'height'
+    # (a Dataset is a Mapping of its variables), a DataTree AttributeError
+    from xtopo.summary import format_table, summary_table
+
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um").assign_attrs(title="afm")
+    b = fractal_surface(16, 1.0, hurst=0.8, seed=2, units="um").assign_attrs(title="afm")  # same title: deduplicated
+    c = fractal_surface(16, 1.0, hurst=0.8, seed=3, units="um")
+    c.attrs = {}  # no name: measurement_<index>
+    by_dict = summary_table({"afm": a, "afm_2": b, "measurement_2": c})
+    for given in ([a, b, c], (a, b, c)):
+        xr.testing.assert_identical(summary_table(given), by_dict)
+    xr.testing.assert_identical(summary_table(a), by_dict.isel(measurement=[0]))
+    xr.testing.assert_identical(summary_table(xtopo.twin({"afm": a})), by_dict.isel(measurement=[0]))
+    xr.testing.assert_identical(summary_table({"afm": xtopo.conventions.height_of(a)}),
+                                by_dict.isel(measurement=[0]))  # a height DataArray
+    assert "afm_2" in format_table(summary_table([a, b]))
+
+
+@pytest.mark.parametrize("bad", [3, "a.nc", {"a": 3}, [xr.Dataset()], {"a": xr.Dataset({"h": ("x", [1.0])})}])
+def test_summary_table_refuses_what_is_no_measurement(bad):
+    from xtopo.summary import summary_table
+
+    with pytest.raises(xtopo.ValidationError, match="measurement"):
+        summary_table(bad)
+
+
+def test_summary_table_refuses_a_batch_and_prints_metres():
+    from xtopo.summary import format_table, summary_table
+
+    a = fractal_surface((8, 8), 1.0, hurst=0.8, seed=1, units="um")
+    with pytest.raises(xtopo.GridError, match="extra dims"):  # was TypeError from float() of an array
+        summary_table({"batch": xr.concat([a, a], dim="sample")})
+    line = fractal_surface(16, 1.0, hurst=0.8, seed=2, rms_height=1.0, units="m")
+    assert "1e+03 mm" not in format_table(summary_table({"l": line}))  # 1 m (and Rq 0.99999...) print as 1 m

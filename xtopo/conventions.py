@@ -19,12 +19,14 @@ attribute ``grid="nonuniform"``.
 from __future__ import annotations
 
 import functools
+import numbers
 import re
 import unicodedata
 
 import numpy as np
 import xarray as xr
 
+from ._checks import flag
 from .errors import GridError, UnitsError, ValidationError
 
 __all__ = [
@@ -226,19 +228,47 @@ def physical_size(obj, dim: str = X) -> float:
 def is_periodic(obj) -> bool:
     """The ``periodic`` attribute as a bool (absent means nonperiodic).
 
+    Accepted: 0 or 1 as any integer, float or bool type (a one-element array too), and the
+    text ``"0"``, ``"1"``, ``"false"``, ``"true"`` (any case; NetCDF has no boolean attribute).
+    :func:`validate` accepts exactly what this accepts.
+
     Raises
     ------
     ValidationError
-        If the attribute is not 0 or 1 (or a bool).
+        If the attribute is anything else (``2``, ``0.5``, ``"yes"``, ...).
     """
     value = obj.attrs.get("periodic", 0)
-    try:
-        flag = int(value)
-    except (TypeError, ValueError, OverflowError):
-        flag = None
-    if flag not in (0, 1) or flag != value and not isinstance(value, str):
-        raise ValidationError(f"attr 'periodic' must be 0 or 1, got {value!r}")
-    return bool(flag)
+    periodic = _periodic_flag(value)
+    if periodic is None:
+        raise ValidationError(f"attr 'periodic' must be 0 or 1 (a bool, or the text '0', '1', 'false' or 'true'), "
+                              f"got {value!r}")
+    return periodic
+
+
+_PERIODIC_TEXT = {"0": False, "1": True, "false": False, "true": True}
+
+
+def _periodic_flag(value) -> bool | None:
+    """``value`` as a bool if it spells 0 or 1, else None.
+
+    Files store the flag in many ways: ints of any width, bools, a one-element array
+    (some HDF5 writers), or text ("1", "true"; NetCDF has no boolean attribute type).
+    Numbers other than 0 and 1 (2, 0.5) and any other text ("yes", "1.0") are refused.
+    """
+    if isinstance(value, np.ndarray) and value.size == 1:
+        value = value.reshape(()).item()
+    if isinstance(value, (bytes, np.bytes_)):
+        try:
+            value = value.decode("ascii")
+        except UnicodeDecodeError:
+            return None
+    if isinstance(value, str):
+        return _PERIODIC_TEXT.get(value.strip().lower())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, numbers.Real) and value in (0, 1):
+        return bool(value)
+    return None
 
 
 def length_attr(obj, key: str):
@@ -277,6 +307,8 @@ def height_of(obj) -> xr.DataArray:
     h = obj[HEIGHT]
     if MASK in obj:
         h = h.where(~obj[MASK].astype(bool))
+    else:  # a new variable: the attrs set below must not land on the Dataset's own height
+        h = h.copy(deep=False)
     attrs = dict(obj[HEIGHT].attrs)
     for key in MEASUREMENT_ATTRS:
         if key in obj.attrs and key not in attrs:
@@ -301,6 +333,9 @@ def append_history(obj, line: str):
     """Return ``obj`` with ``line`` appended to its ``history`` attribute (one line per step)."""
     obj = obj.copy(deep=False)
     hist = obj.attrs.get("history", "")
+    if isinstance(hist, np.ndarray):  # some readers give text attrs as arrays of lines
+        hist = "\n".join(str(v) for v in hist.ravel())
+    hist = str(hist).rstrip("\n") if hist is not None else ""
     obj.attrs["history"] = f"{hist}\n{line}" if hist else line
     return obj
 
@@ -395,7 +430,8 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
         h = np.where(missing, np.nan, h)
         data_vars[HEIGHT] = (dims, h, {"units": units, "long_name": "height"})
         data_vars[MASK] = (dims, missing, {"long_name": "missing data", "flag_meanings": "missing"})
-    ds_attrs = {"Conventions": CONVENTIONS, "periodic": int(bool(periodic)), **grid_attrs}
+    ds_attrs = {"Conventions": CONVENTIONS, "periodic": int(flag(periodic, "periodic", error=ValidationError)),
+                **grid_attrs}
     if name is not None:
         ds_attrs["title"] = str(name)
     if tip_radius is not None:

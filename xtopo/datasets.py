@@ -14,16 +14,72 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import numbers
 
 import numpy as np
 import xarray as xr
 
+from ._checks import flag, integer, option, positive_number
 from ._kernels import fft as _fft
 from ._kernels.derivatives import fourier_first, wavevectors
-from .conventions import HEIGHT, make_measurement, normalize_units, spacing, height_of, is_periodic, append_history
+from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
+                          normalize_units, spacing)
 from .errors import GridError, XtopoError
 
 __all__ = ["FractalPSD", "fractal_surface", "prescribed_psd", "sphere", "sinusoid", "measure", "example_twin"]
+
+
+def _shape(shape, name: str = "shape") -> tuple[int, ...]:
+    """``shape`` as ``(nx,)`` or ``(ny, nx)`` of positive ints (an int, a tuple, a list or an array of them)."""
+    if isinstance(shape, np.ndarray):
+        items = (shape.item(),) if shape.ndim == 0 else tuple(shape.ravel()) if shape.ndim == 1 else None
+    elif isinstance(shape, (tuple, list)):
+        items = tuple(shape)
+    else:
+        items = (shape,)
+    if items is None or len(items) not in (1, 2):
+        raise GridError(f"{name} must be nx, (nx,) or (ny, nx), got {shape!r}")
+    return tuple(integer(n, f"each entry of {name}", error=GridError) for n in items)
+
+
+def _per_axis(value, ndim: int, name: str, *, sign: str = "positive") -> np.ndarray:
+    """``value`` as ``ndim`` finite numbers, one per axis (``(y, x)`` or ``x``; one value is used for every axis).
+
+    ``sign``: ``"positive"`` (sizes), ``"non-negative"`` (offsets) or ``"any"`` (positions).
+    """
+    v = None
+    if not isinstance(value, (str, bytes, bool, np.bool_)):
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            v = None
+    ok = v is not None and v.ndim <= 1 and (v.ndim == 0 or v.size in (1, ndim)) and np.all(np.isfinite(v))
+    if ok and sign != "any":
+        ok = bool(np.all(v > 0) if sign == "positive" else np.all(v >= 0))
+    if not ok:
+        what = "" if sign == "any" else f"{sign} "
+        axes = "(y, x) or one for both" if ndim == 2 else "x"
+        raise GridError(f"{name} must be {what}finite number(s) in the length unit, {axes}, got {value!r}")
+    return np.broadcast_to(v, (ndim,)).copy()
+
+
+def _real(value, name: str, *, low: float = -np.inf, high: float = np.inf, closed: bool = True) -> float:
+    """``value`` as a finite float in ``[low, high]`` (``(low, high)`` unless ``closed``)."""
+    ok = (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)) and np.isfinite(value)
+          and (low <= value <= high if closed else low < value < high))
+    if not ok:
+        if (low, high) == (-np.inf, np.inf):
+            bounds = ""
+        elif high == np.inf:
+            bounds = f" {'>=' if closed else '>'} {low:g}"
+        else:
+            bounds = f" in [{low:g}, {high:g}]" if closed else f" in ({low:g}, {high:g})"
+        raise XtopoError(f"{name} must be a finite number{bounds}, got {value!r}")
+    return float(value)
+
+
+def _optional_length(value, name: str):
+    return None if value is None else positive_number(value, name)
 
 
 
@@ -197,14 +253,17 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
     xarray.Dataset
         A measurement with ``attrs`` holding the PSD parameters (see :func:`prescribed_psd`).
     """
-    shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(s) for s in shape)
-    size = np.broadcast_to(np.asarray(size, dtype=float), (len(shape),)).copy()
-    if len(shape) not in (1, 2) or min(shape) < 1:
-        raise GridError(f"shape must be (nx,) or (ny, nx) with positive sizes, got {shape}")
-    if not 0 < hurst < 1:
-        raise XtopoError(f"hurst must lie in (0, 1), got {hurst}")
+    shape = _shape(shape)
+    size = _per_axis(size, len(shape), "size")
+    hurst = _real(hurst, "hurst", low=0.0, high=1.0, closed=False)
     if sum(v is not None for v in (rms_height, rms_slope, prefactor)) > 1:
         raise XtopoError("give at most one of rms_height, rms_slope and prefactor")
+    rms_height, rms_slope, prefactor, short_cutoff, long_cutoff = (
+        _optional_length(v, n) for v, n in ((rms_height, "rms_height"), (rms_slope, "rms_slope"),
+                                            (prefactor, "prefactor"), (short_cutoff, "short_cutoff"),
+                                            (long_cutoff, "long_cutoff")))
+    periodic = flag(periodic, "periodic")
+    seed = integer(seed, "seed", minimum=0)
     if rms_height is None and rms_slope is None and prefactor is None:
         rms_height = 1.0
     units = normalize_units(units)
@@ -227,7 +286,9 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
         target = rms_height
     if prefactor is None:
         if expected <= 0:
-            raise XtopoError("the requested spectrum is empty on this grid (check the cutoffs)")
+            raise XtopoError(f"the requested spectrum has no power on a grid of {shape} points: it needs a nonzero "
+                             f"wavevector below the short cutoff ({short_cutoff}), i.e. more than one point along "
+                             "an axis and a short_cutoff longer than twice the spacing")
         prefactor = target**2 / expected
     psd = dataclasses.replace(psd, prefactor=float(prefactor))
     h = _synthesize(gshape, gsize, psd.c_native(qabs), np.random.default_rng(seed))
@@ -291,10 +352,13 @@ def sphere(shape, size, radius: float, *, center=None, kind: str = "sphere", per
     kind : {"sphere", "paraboloid"}
         Exact sphere ``sqrt(R²-r²) - R`` (``-R`` outside) or ``-r²/(2R)``.
     """
-    shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(s) for s in shape)
-    size = np.broadcast_to(np.asarray(size, dtype=float), (len(shape),))
+    shape = _shape(shape)
+    size = _per_axis(size, len(shape), "size")
+    radius = positive_number(radius, "radius")
+    kind = option(kind, ("sphere", "paraboloid"), "kind")
+    periodic = flag(periodic, "periodic")
     sp = size / np.asarray(shape)
-    center = size / 2 if center is None else np.broadcast_to(np.asarray(center, dtype=float), (len(shape),))
+    center = size / 2 if center is None else _per_axis(center, len(shape), "center", sign="any")
     axes = [np.arange(n) * d - c for n, d, c in zip(shape, sp, center)]
     r2 = sum(a**2 for a in np.meshgrid(*axes, indexing="ij"))
     if kind == "sphere":
@@ -315,10 +379,12 @@ def sinusoid(shape, size, *, amplitude: float = 1.0, wavelength: float | None = 
 
     With ``periodic=True`` and ``wavelength`` dividing the size the surface is exactly periodic.
     """
-    shape = (int(shape),) if np.ndim(shape) == 0 else tuple(int(s) for s in shape)
-    size = np.broadcast_to(np.asarray(size, dtype=float), (len(shape),))
+    shape = _shape(shape)
+    size = _per_axis(size, len(shape), "size")
+    amplitude = _real(amplitude, "amplitude")
+    periodic = flag(periodic, "periodic")
     sp = size / np.asarray(shape)
-    lam = float(size[-1]) if wavelength is None else float(wavelength)
+    lam = float(size[-1]) if wavelength is None else positive_number(wavelength, "wavelength")
     axes = np.meshgrid(*[np.arange(n) * d for n, d in zip(shape, sp)], indexing="ij")
     xx = axes[-1]
     yy = axes[0] if len(shape) == 2 else None
@@ -380,8 +446,12 @@ def _missing_patches(shape, fraction: float, rng, patch: int | None = None) -> n
     mask = np.zeros(shape, dtype=bool)
     if fraction <= 0:
         return mask
+    if fraction >= 1:
+        return ~mask
     target = int(round(fraction * np.prod(shape)))
-    patch = patch or max(1, int(0.05 * min(shape)))
+    # patches scale with the shorter axis; an axis of one pixel (a 1×N map) would make them single
+    # points, and covering a large fraction with those takes ~N log N draws of O(N) each
+    patch = patch or max(1, int(0.05 * min([n for n in shape if n > 1] or [1])))
     while mask.sum() < target:
         centre = [rng.integers(0, n) for n in shape]
         radius = rng.uniform(0.5, 1.0) * patch
@@ -432,16 +502,31 @@ def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_rad
         A nonperiodic measurement in the surface's unit.
     """
     h = height_of(surface)
-    units = h.coords["x"].attrs.get("units", "m")
-    area = h.ndim == 2
-    dims = ("y", "x") if area else ("x",)
+    dims = lateral_dims(h)
+    if h.ndim != len(dims):
+        raise GridError(f"measure needs one surface, got extra dims {tuple(d for d in h.dims if d not in dims)}; "
+                        "measure each with .isel")
+    h = h.transpose(*dims)
+    units = h.coords["x"].attrs.get("units", "m") if "x" in h.coords else "m"
+    area = len(dims) == 2
     sp = np.array([spacing(h, d) for d in dims])
     n = np.array([h.sizes[d] for d in dims])
     full = sp * n
-    size = full if size is None else np.broadcast_to(np.asarray(size, dtype=float), (len(dims),)).copy()
-    offset = np.zeros(len(dims)) if offset is None else np.broadcast_to(np.asarray(offset, float), (len(dims),))
-    if np.any(size <= 0) or np.any(offset < 0) or np.any(offset + size > full * (1 + 1e-12)):
-        raise GridError(f"window offset={tuple(offset)} size={tuple(size)} does not fit into the surface {tuple(full)}")
+    size = full if size is None else _per_axis(size, len(dims), "size")
+    offset = np.zeros(len(dims)) if offset is None else _per_axis(offset, len(dims), "offset", sign="non-negative")
+    if pixels is not None:
+        pixels = _shape(pixels, "pixels")
+        if len(pixels) not in (1, len(dims)):
+            raise GridError(f"pixels must be one number or one per axis {dims}, got {pixels!r}")
+    tip_radius = _optional_length(tip_radius, "tip_radius")
+    resolution = _optional_length(resolution, "resolution")
+    noise = _real(noise, "noise", low=0.0)
+    missing_fraction = _real(missing_fraction, "missing_fraction", low=0.0, high=1.0)
+    line = flag(line, "line")
+    seed = integer(seed, "seed", minimum=0)
+    if np.any(offset + size > full * (1 + 1e-12)):
+        raise GridError(f"window offset={tuple(offset.tolist())} size={tuple(size.tolist())} does not fit into the "
+                        f"surface {tuple(full.tolist())}")
     values = np.asarray(h.values, dtype=float)
     # crop with a margin of one tip reach so the dilation near the window edge sees its neighbours
     margin = np.zeros(len(dims), dtype=int)
@@ -451,8 +536,6 @@ def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_rad
     hi = np.minimum(np.ceil((offset + size) / sp).astype(int) + 1 + margin, n)
     crop = values[tuple(slice(a, b) for a, b in zip(lo, hi))]
     if tip_radius is not None:
-        if tip_radius <= 0:
-            raise XtopoError(f"tip_radius must be positive, got {tip_radius}")
         crop = _tip_dilate_area(crop, sp[0], sp[1], tip_radius) if area else _tip_dilate_line(crop, sp[0], tip_radius)
     if pixels is None:
         pixels = np.maximum(np.round(size / sp).astype(int), 1)
@@ -672,5 +755,5 @@ def example_twin(seed: int = 0) -> xr.DataTree:
     xarray.DataTree
         One child node per measurement, surface description on the root.
     """
-    root, nodes = _example_twin_cached(int(seed))
+    root, nodes = _example_twin_cached(integer(seed, "seed", minimum=0))
     return xr.DataTree.from_dict({"/": root.copy(), **{f"/{k}": v.copy(deep=True) for k, v in nodes.items()}})

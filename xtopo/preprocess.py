@@ -18,8 +18,9 @@ from ._apply import apply_lateral
 from ._checks import flag, option
 from ._kernels import laplace_fill as _fill
 from ._kernels import polyfit as _poly
-from .conventions import MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
-from .errors import GridError
+from .conventions import (MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims,
+                          length_factor, spacing)
+from .errors import GridError, UnitsError
 
 __all__ = ["detrend", "fill_missing"]
 
@@ -30,14 +31,21 @@ def _positions(h, dim):
     return np.asarray(h.coords[dim].values, dtype=float) if dim in h.coords else np.arange(h.sizes[dim], dtype=float)
 
 
-def _finish(obj, h_in, result, line: str):
-    """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``."""
+def _finish(obj, h_in, result, line: str, *, nonperiodic: bool = False):
+    """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``.
+
+    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0.
+    """
     # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
     result = h_in.copy(data=result.transpose(*h_in.dims).data)
     result.attrs = dict(obj[h_in.name].attrs if isinstance(obj, xr.Dataset) else obj.attrs)
+    if nonperiodic and "periodic" in result.attrs:
+        result.attrs["periodic"] = 0
     if isinstance(obj, xr.Dataset):
         out = obj.copy(deep=False)
         out[h_in.name] = result
+        if nonperiodic:
+            out.attrs["periodic"] = 0
         return append_history(out, line)
     return append_history(result, line)
 
@@ -58,13 +66,17 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
     Returns
     -------
     Same type as ``obj``
-        Detrended heights (same units); missing data stay missing and are ignored by the fit.
-        Nonuniform line scans are fitted at their positions.
+        Detrended heights (same units, float64); missing data stay missing and are ignored by
+        the fit. Nonuniform line scans are fitted at their positions. A periodic measurement
+        stays periodic with ``mode="mean"`` only: a tilt or curvature is no periodic function,
+        so its subtraction leaves a step where the surface wraps around, and the result has
+        ``periodic=0`` (analyses then window it instead of differentiating across the step).
     """
     degree = _poly.DEGREES[option(mode, _poly.DEGREES, "mode")]
     per_line = flag(per_line, "per_line")
     h = height_of(obj)
     dims = lateral_dims(h)
+    breaks_periodicity = degree > 0 and is_periodic(h)
     if dims == (Y, X):
         out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], what="detrend",
                             kwargs={"y": _positions(h, Y), "x": _positions(h, X), "degree": degree,
@@ -72,8 +84,11 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
     else:
         out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], what="detrend",
                             kwargs={"x": _positions(h, X), "degree": degree})
-    return _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
-                   f"detrend(mode={mode!r}, per_line={bool(per_line)})")
+    line = f"detrend(mode={mode!r}, per_line={bool(per_line)})"
+    if breaks_periodicity:
+        line += "; periodic set to 0"
+    return _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out, line,
+                   nonperiodic=breaks_periodicity)
 
 
 def fill_missing(obj):
@@ -105,7 +120,8 @@ def fill_missing(obj):
     dims = lateral_dims(h)
     periodic = is_periodic(obj)
     if dims == (Y, X):
-        kwargs = {"periodic": periodic, "dy": spacing(h, Y), "dx": spacing(h, X)}
+        dy, dx = _fill_spacings(h)
+        kwargs = {"periodic": periodic, "dy": dy, "dx": dx}
         out = apply_lateral(_checked(_fill.harmonic_fill_2d), h, output_core_dims=[dims], kwargs=kwargs,
                             what="fill_missing")
     else:
@@ -123,6 +139,26 @@ def fill_missing(obj):
         res = res.drop_vars(MASK, errors="ignore")
         res[_FILLED] = filled.assign_attrs(long_name="interpolated by fill_missing", flag_meanings="filled")
     return res
+
+
+def _fill_spacings(h) -> tuple[float, float]:
+    """``(dy, dx)`` of a map in one length unit, for the weights of the harmonic fill.
+
+    An axis of a single pixel has no neighbours along it, so its spacing does not enter the
+    fill (a 1×N map needs no y spacing); it is given as 1. A ``y`` in another unit than ``x``
+    (a Dataset that :func:`~xtopo.conventions.validate` would refuse) is converted: only the
+    ratio of the spacings matters.
+    """
+    dy = spacing(h, Y) if h.sizes[Y] > 1 else 1.0
+    dx = spacing(h, X) if h.sizes[X] > 1 else 1.0
+    if h.sizes[Y] > 1 and h.sizes[X] > 1:
+        uy, ux = (h.coords[d].attrs.get("units") for d in (Y, X))
+        if uy is not None and ux is not None:
+            try:
+                dy *= length_factor(uy, ux)
+            except UnitsError:
+                pass  # not length units: take the spacings as they are
+    return dy, dx
 
 
 def _checked(kernel):

@@ -56,11 +56,11 @@ def resolve(family: str, preset: str | None = None, **explicit) -> dict:
     dict
         Every knob of the family; keys the caller named but the family lacks are an error.
     """
-    if family not in PRESETS:
+    if not isinstance(family, str) or family not in PRESETS:  # (a list would raise TypeError: unhashable)
         raise XtopoError(f"no presets for {family!r}; families: {sorted(PRESETS)}")
     name = "default" if preset is None else preset
     table = PRESETS[family]
-    if name not in table:
+    if not isinstance(name, str) or name not in table:
         raise XtopoError(f"preset must be one of {NAMES} (or None for 'default'), got {preset!r}")
     values = dict(table[name])
     unknown = set(explicit) - set(values)

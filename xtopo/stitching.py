@@ -201,12 +201,19 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
     return out
 
 
-def _complete(ds: xr.Dataset) -> xr.Dataset:
+def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
     """Measurements with missing data (``mask``, or NaN heights without one) are filled harmonically
-    first (paper §3.2); lazy on dask, and a no-op for complete data."""
+    first (paper §3.2); lazy on dask, and a no-op for complete data.
+
+    A measurement without any valid height raises a GridError that names it (in-memory data;
+    on dask the fill's own error comes at ``.compute()``).
+    """
     from .preprocess import fill_missing
 
-    return fill_missing(ds)
+    try:
+        return fill_missing(ds)
+    except GridError as exc:
+        raise GridError(f"measurement {name!r}: {exc}") from None
 
 
 def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: str):
@@ -311,7 +318,7 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
     units = units or _common_units(ms)
     curves, errors, settings = {}, {}, {}
     for name, ds in ms.items():
-        ds = _complete(convert_length(ds, units))
+        ds = _complete(convert_length(ds, units), name)
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
         curve = func(ds, **extra, **kw, reliable=False)
         coord = _curve_coord(curve)
@@ -411,7 +418,7 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     grid = collocation_points(lo, hi, per_decade)
     curves, errors, settings = {}, {}, {}
     for name, ds in ms.items():
-        ds = _complete(convert_length(ds, units))
+        ds = _complete(convert_length(ds, units), name)
         settings[name] = _setting(ds)
         x = np.asarray(ds["x"].values, dtype=float)
         mine = grid[:0] if x.size < 2 else grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9))

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
+from collections.abc import Iterable, Mapping
+
 import numpy as np
 import xarray as xr
 
 from .analysis.scalars import scalars
-from .conventions import HEIGHT, convert_length, height_of, is_nonuniform, physical_size
+from .conventions import HEIGHT, MEASUREMENT_ATTRS, convert_length, height_of, is_nonuniform, lateral_dims, physical_size
+from .errors import GridError, ValidationError
 
 __all__ = ["summary_table", "format_table", "table_rows"]
 
@@ -23,6 +27,10 @@ _COLUMNS = (
 
 
 def _row(name: str, ds: xr.Dataset) -> dict:
+    extra = [d for d in ds[HEIGHT].dims if d not in lateral_dims(ds[HEIGHT])]
+    if extra:
+        raise GridError(f"measurement {name!r} has extra dims {tuple(extra)}: a summary row is one measurement; "
+                        "give each one separately (e.g. one .isel per item of the batch)")
     ds = convert_length(ds, "m")
     h = ds[HEIGHT]
     s = scalars(ds)
@@ -42,15 +50,64 @@ def _row(name: str, ds: xr.Dataset) -> dict:
     return row
 
 
-def summary_table(measurements: dict) -> xr.Dataset:
+def _as_measurement(key, m) -> xr.Dataset:
+    if isinstance(m, xr.DataArray):  # a height DataArray: the measurement attrs it carries go to the Dataset
+        ds = m.to_dataset(name=HEIGHT)
+        ds.attrs = {k: m.attrs[k] for k in MEASUREMENT_ATTRS if k in m.attrs}
+        return ds
+    if not isinstance(m, xr.Dataset) or HEIGHT not in m.data_vars:
+        got = type(m).__name__ if not isinstance(m, xr.Dataset) else f"a Dataset without {HEIGHT!r}"
+        raise ValidationError(f"measurement {key!r} must be a measurement (xarray.Dataset with a {HEIGHT!r} "
+                              f"variable, or its height DataArray), got {got}")
+    return m
+
+
+def _named(measurements) -> dict:
+    """Name → measurement Dataset from a mapping, a twin, one measurement or a sequence of them."""
+    from .twins import _name_of, measurements as tree_measurements
+
+    if isinstance(measurements, xr.DataTree):
+        return tree_measurements(measurements)
+    if isinstance(measurements, (xr.Dataset, xr.DataArray)):  # one measurement (a Dataset is a Mapping too)
+        items = [(None, measurements)]
+    elif isinstance(measurements, Mapping):
+        return {key: _as_measurement(key, m) for key, m in measurements.items()}
+    elif isinstance(measurements, Iterable) and not isinstance(measurements, (str, bytes, os.PathLike)):
+        items = [(None, m) for m in measurements]
+    else:
+        raise ValidationError("summary_table takes measurements as a mapping of name to Dataset, a list of "
+                              f"Datasets, one Dataset or a twin (DataTree), got {type(measurements).__name__}")
+    out: dict = {}
+    for i, (_, m) in enumerate(items):
+        ds = _as_measurement(i, m)
+        name = base = _name_of(ds, i)  # title, source file or instrument, else measurement_<i>
+        k = 1
+        while name in out:
+            k += 1
+            name = f"{base}_{k}"
+        out[name] = ds
+    return out
+
+
+def summary_table(measurements) -> xr.Dataset:
     """Scalars and grid facts of each measurement, along a ``measurement`` dim (lengths in m).
 
     Parameters
     ----------
-    measurements : dict of str to xarray.Dataset
-        Name → measurement.
+    measurements : dict of str to xarray.Dataset, list of xarray.Dataset, xarray.Dataset or xarray.DataTree
+        Name → measurement; or measurements named by their ``title`` (else ``source_file``,
+        ``instrument``, else ``measurement_<i>``, made unique with ``_2``, ``_3``, ...); or
+        one measurement; or a twin (its measurements). Height DataArrays are accepted in
+        place of Datasets.
+
+    Raises
+    ------
+    ValidationError
+        If ``measurements`` or one of them is none of these.
+    GridError
+        If a measurement has dims other than ``y``/``x`` (a batch).
     """
-    rows = [_row(name, ds) for name, ds in measurements.items()]
+    rows = [_row(name, ds) for name, ds in _named(measurements).items()]
     names = [r["measurement"] for r in rows]
     coords = {"measurement": ("measurement", names, {"long_name": "measurement"})}
     data = {
@@ -78,8 +135,9 @@ def summary_table(measurements: dict) -> xr.Dataset:
 def _fmt_len(v: float) -> str:
     if not np.isfinite(v):
         return "-"
-    for unit, f in (("mm", 1e-3), ("µm", 1e-6), ("nm", 1e-9)):
-        if abs(v) >= f:
+    shown = float(f"{abs(v):.3g}")  # the unit for the value as printed: 0.9999996 m is "1 m", not "1e+03 mm"
+    for unit, f in (("m", 1.0), ("mm", 1e-3), ("µm", 1e-6), ("nm", 1e-9)):
+        if shown >= f * (1 - 1e-12):
             return f"{v / f:.3g} {unit}"
     return f"{v / 1e-12:.3g} pm"
 

@@ -41,6 +41,8 @@ def interp_loglog(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
                 flat_o[i, np.isclose(xnew, x[j], rtol=1e-9)] = row[j]
             continue
         lx, ly = lx_all[ok], np.log(row[ok])
+        order = np.argsort(lx, kind="stable")  # np.interp needs increasing abscissae (a curve may run downwards)
+        lx, ly = lx[order], ly[order]
         inside = (lxn >= lx[0] - 1e-12) & (lxn <= lx[-1] + 1e-12)
         flat_o[i, inside] = np.exp(np.interp(lxn[inside], lx, ly))
     return out
