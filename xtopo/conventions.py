@@ -238,7 +238,7 @@ def is_periodic(obj) -> bool:
         If the attribute is anything else (``2``, ``0.5``, ``"yes"``, ...).
     """
     value = obj.attrs.get("periodic", 0)
-    periodic = _periodic_flag(value)
+    periodic = periodic_flag(value)
     if periodic is None:
         raise ValidationError(f"attr 'periodic' must be 0 or 1 (a bool, or the text '0', '1', 'false' or 'true'), "
                               f"got {value!r}")
@@ -248,7 +248,7 @@ def is_periodic(obj) -> bool:
 _PERIODIC_TEXT = {"0": False, "1": True, "false": False, "true": True}
 
 
-def _periodic_flag(value) -> bool | None:
+def periodic_flag(value) -> bool | None:
     """``value`` as a bool if it spells 0 or 1, else None.
 
     Files store the flag in many ways: ints of any width, bools, a one-element array

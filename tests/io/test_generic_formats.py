@@ -315,3 +315,20 @@ def test_open_options_set_the_attrs(tmp_path, heights):
     assert (ds.attrs["tip_radius"], ds.attrs["tip_radius_units"]) == (0.5, "um")
     assert (ds.attrs["resolution"], ds.attrs["resolution_units"]) == (2.0, "um")
     np.testing.assert_allclose(ds.height.values, heights * 1e-3)
+
+
+@pytest.mark.parametrize("stored, expected", [("true", True), ("FALSE", False), (np.int8(1), True), ("yes", None),
+                                              (2, None)])
+def test_surfacetopography_periodic_flag_spellings(tmp_path, heights, stored, expected):
+    """The reader did bool(int(attr)): the text 'true' raised a bare ValueError, and 2 read as periodic."""
+    import netCDF4
+
+    p = tmp_path / "st.nc"
+    xtopo.io.to_surfacetopography_netcdf(make_measurement(heights, size=(1.0, 1.4), units="um"), p)
+    with netCDF4.Dataset(p, "a") as nc:
+        nc["x"].setncattr("periodic", stored)
+    if expected is None:
+        with pytest.raises(xtopo.ReaderError, match="periodic="):
+            _open(p)
+    else:
+        assert bool(_open(p).attrs["periodic"]) is expected

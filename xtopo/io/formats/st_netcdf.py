@@ -22,7 +22,7 @@ import os
 import numpy as np
 import xarray as xr
 
-from ...conventions import height_of, is_nonuniform, is_periodic, lateral_dims, physical_size
+from ...conventions import height_of, is_nonuniform, is_periodic, lateral_dims, periodic_flag, physical_size
 from ...errors import ReaderError, UnsupportedFormatError, ValidationError
 from .._generic import check_array_bytes, generic_measurement
 from ..netcdf import atomic_write
@@ -78,7 +78,10 @@ def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, h
             raise ReaderError(path, f"cannot read the data: {exc}") from None
         unit = _attr(xv, "unit") or _attr(hv, "unit")
         hunit = _attr(hv, "unit")
-        periodic = bool(int(_attr(xv, "periodic", 0) or 0))
+        stored = _attr(xv, "periodic", 0)
+        periodic = periodic_flag(stored or 0)
+        if periodic is None:
+            raise ReaderError(path, f"'x' has periodic={stored!r}; expected 0 or 1 (or the text 'false'/'true')")
         info = nc.attrs.get("json")
     if mask is not None and mask.shape != h.shape:
         raise ReaderError(path, f"'mask' has shape {mask.shape}, 'heights' {h.shape}")
