@@ -346,6 +346,10 @@ def test_errors():
         Scene(ds, backend="cufft")
     with pytest.raises(ContactError, match="periodic must be"):
         Scene(ds, periodic="yes")
+    for units in (1, "", ["GPa"]):   # were accepted: results labelled "1 m2", " m2", "['GPa'] m2"
+        with pytest.raises(ContactError, match="modulus_units must be a units label"):
+            Scene(ds, modulus_units=units)
+    assert Scene(ds, modulus_units="GPa").solve(mean_pressure=0.01).pressure.attrs["units"] == "GPa"
     for dtype in ("float16", "foo", ["f8"]):   # "foo" raised numpy's TypeError
         with pytest.raises(ContactError, match="dtype must be 'float64' or 'float32'"):
             Scene(ds, dtype=dtype)

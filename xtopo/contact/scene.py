@@ -127,7 +127,9 @@ class Scene:
         self.dtype = np.dtype(dtype)
         self.modulus = modulus
         self.hardness = hardness
-        self.modulus_units = modulus_units or "E*"
+        if modulus_units is not None and not (isinstance(modulus_units, str) and modulus_units.strip()):
+            raise ContactError(f"modulus_units must be a units label such as 'GPa' or 'E*', got {modulus_units!r}")
+        self.modulus_units = modulus_units.strip() if modulus_units is not None else "E*"
         self.length_units = _length_units(h)
         self.dims = tuple(h.dims)
         self.shape = tuple(h.shape)
