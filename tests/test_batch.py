@@ -404,6 +404,70 @@ def test_contact_batch_checks_control_values_before_dispatch(kwargs, match, monk
         batch.contact(_surfaces(2, size=16), scheduler="sync", progress=False, **kwargs)
 
 
+def _line_and_area(tmp_path):
+    s = fractal_surface((32, 32), 1.0, hurst=0.8, units="um", seed=1)
+    line = fractal_surface((64,), 1.0, hurst=0.8, units="um", seed=2)
+    paths = {"area.nc": s, "line.nc": line}
+    for name, ds in paths.items():
+        xtopo.to_netcdf(ds, tmp_path / name)
+    return s, line, {k: str(tmp_path / k) for k in paths}
+
+
+def test_contact_batch_refuses_loads_for_a_mix_of_line_and_area_scans(tmp_path, monkeypatch):
+    """A load is E*·µm² on an area scan but E*·µm (per unit length) on a line scan: a mixed batch labelled the
+    `load` coordinate with the first item's units, wrong for the others, and dropped contact_area's units."""
+    _scene()
+    s, line, files = _line_and_area(tmp_path)
+    kw = dict(scheduler="sync", progress=False, read_options={"units": "um"})
+    run_chunk = batch._run_chunk
+
+    def no_task(*args, **k):
+        raise AssertionError("a task was dispatched")
+
+    monkeypatch.setattr(batch, "_run_chunk", no_task)
+    with pytest.raises(XtopoError, match=r"loads= for a mix of line and area scans: measurement 'area' is an area "
+                                         r"scan, 'line' a line scan: a load is a force on an area scan \(E\*·um²\)"):
+        batch.contact({"area": s, "line": line}, [0.01], **kw)
+    monkeypatch.setattr(batch, "_run_chunk", run_chunk)
+    # a file is known only once read: one of the other kind fails as an item, the others keep their labels
+    res = batch.contact({"area": s, "line": files["line.nc"]}, [0.01], **kw)
+    assert res.error.sel(measurement="area").item() == ""
+    assert "this measurement is a line scan, but the loads of this batch are for area scans" in \
+        res.error.sel(measurement="line").item()
+    assert res["load"].attrs == {"units": "E* um2", "long_name": "normal load"} and res.attrs["n_failed"] == 1
+    assert res.contact_area.attrs == {"units": "um2", "long_name": "contact area"}
+    assert np.isnan(res.contact_area.sel(measurement="line").item())
+    # files only: the first one solved sets the kind
+    res = batch.contact({"line": files["line.nc"], "area": files["area.nc"]}, [0.01], **kw)
+    assert res.error.sel(measurement="line").item() == "" and res.attrs["n_failed"] == 1
+    assert "this measurement is an area scan" in res.error.sel(measurement="area").item()
+    assert res["load"].attrs == {"units": "E* um", "long_name": "normal load per unit length"}
+    assert res.contact_area.attrs == {"units": "um", "long_name": "contact length"}
+    assert res.history.sel(measurement="area").item() == ""
+    assert np.isnan(res.area_fraction.sel(measurement="area").item())
+
+
+@pytest.mark.parametrize("control", ["mean_pressures", "penetrations"])
+def test_contact_batch_of_line_and_area_scans_leaves_out_load_and_contact_area(tmp_path, control):
+    """A mean pressure or a penetration means the same on a line and an area scan, but the results' load (force
+    per length / force) and contact_area (length / area) do not: they were kept with their units dropped."""
+    _scene()
+    s, line, files = _line_and_area(tmp_path)
+    kw = dict(scheduler="sync", progress=False, read_options={"units": "um"}, **{control: [0.01]})
+    for ms in ({"area": s, "line": line}, {"line": files["line.nc"], "area": files["area.nc"]}):
+        res = batch.contact(ms, **kw)
+        assert res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+        assert "load" not in res.data_vars and "contact_area" not in res.data_vars
+        assert "left out" in res.attrs["comment"]
+        for name in ("mean_pressure", "area_fraction", "penetration"):
+            assert res[name].attrs["units"] in ("E*", "1", "um"), name
+        direct = batch.contact({"line": line}, **kw)
+        xr.testing.assert_allclose(res.area_fraction.sel(measurement="line").reset_coords(drop=True),
+                                   direct.area_fraction.sel(measurement="line").reset_coords(drop=True))
+    alone = batch.contact({"area": s}, **kw)   # one kind: kept
+    assert alone.contact_area.attrs["units"] == "um2" and alone["load"].attrs["units"] == "E* um2"
+
+
 def _weighted_std(ds, *, weights):
     return xr.Dataset({"s": ((), float(ds["height"].std()) * float(np.sum(weights)), {"units": "m", "long_name": "s"})})
 

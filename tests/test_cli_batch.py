@@ -226,6 +226,33 @@ def test_contact_commands_take_mean_pressures(files, tmp_path, capsys):
             assert e.value.code == 2 and "--loads" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", [["contact"], ["batch", "contact"]])
+@pytest.mark.parametrize("given,message", [
+    (["--loads", "nan"], "--loads value must be a finite scalar, got nan"),
+    (["--loads", "1e-14", "-1"], "--loads value must be ≥ 0 (adhesion is not modelled), got -1.0"),
+    (["--mean-pressures", "-0.1"], "--mean-pressures value must be ≥ 0"),
+    (["--mean-pressures", "0.01", "2", "--hardness", "1"], "--mean-pressures value 2 reaches the hardness (1)"),
+])
+def test_contact_commands_name_the_option_in_control_errors(files, tmp_path, capsys, command, given, message):
+    """The messages spoke of Python: 'load must be a finite scalar, got nan (use Scene.curve for sequences)', and
+    `xtopo contact --mean-pressures 2 --hardness 1` said 'load 2e-12 exceeds hardness × nominal area'."""
+    _need_contact()
+    out = ["-o", str(tmp_path / ("c.nc" if command == ["contact"] else "store"))]
+    assert main([*command, files[0], *given, *out] + (["-q"] if len(command) == 2 else [])) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Scene.curve" not in err and "exceeds hardness" not in err, err
+    assert not (tmp_path / "c.nc").exists() and not (tmp_path / "store").exists()   # checked before any work
+
+
+def test_contact_command_says_which_mean_pressures_did_not_converge(files, tmp_path, capsys):
+    """'some loads did not converge' was printed for --mean-pressures too."""
+    _need_contact()
+    assert main(["contact", files[0], "--mean-pressures", "0.01", "0.02", "--maxiter", "1",
+                 "-o", str(tmp_path / "c.nc")]) == 1
+    err = capsys.readouterr().err
+    assert "the solves at --mean-pressures 0.01 0.02 did not converge" in err and "loads" not in err, err
+
+
 def test_batch_contact_against_separate_dask_scheduler(files, tmp_path, capsys, loopback_scheduler):
     _need_contact()
     store = tmp_path / "store"

@@ -106,6 +106,34 @@ def test_building_the_average_computes_nothing(tmp_path):
     xr.testing.assert_allclose(computed.average, eager.average)
 
 
+def test_twin_averages_carry_provenance_lazily():
+    """Analysis results of one measurement carry its source and history; an average over a twin recorded
+    nothing: not which measurements (files, checksums) entered, nor how it was computed."""
+    a = fractal_surface((64, 64), 1e-6, hurst=0.7, seed=1, periodic=False)
+    a.attrs.update(source_file="scan_a.sur", source_sha256="ab" * 32)
+    b = fractal_surface((256,), 1e-5, hurst=0.7, seed=2, periodic=False)   # read from no file
+    tree = xtopo.twin({"a": a.chunk(), "b": b.chunk()}, description="two scans")
+    tree.attrs["history"] = "assembled from the lab notebook"
+    calls = {"psd": dict(areal=False, window="auto"), "acf": {}, "vbm": {}, "sdrp": dict(order=2)}
+    with dask.config.set(scheduler=_raise):
+        lazy = {name: getattr(tree.topo, name)(**kw, per_decade=5) for name, kw in calls.items()}
+    for name, res in lazy.items():
+        assert isinstance(res.average.data, dsa.Array), name
+        params = "".join(f"{k}={v!r}, " for k, v in calls[name].items() if k != "order")
+        if name == "sdrp":
+            params = "order=2, "
+        assert res.attrs["history"] == (f"assembled from the lab notebook\nxtopo.stitching.twin_{name}({params}"
+                                        "per_decade=5, units='m', reliable=True, max_error=None) over 2 measurements")
+        for key, values in (("source_sha256", ["ab" * 32, ""]), ("source_file", ["scan_a.sur", ""])):
+            xr.testing.assert_identical(res[key].reset_coords(drop=True).drop_attrs(),
+                                        xr.DataArray(values, dims="measurement", coords={"measurement": ["a", "b"]},
+                                                     name=key))
+        assert "source_sha256" not in res.attrs   # the twin root has no file of its own
+    plain = xtopo.twin({"b": b}).topo.vbm()       # no files, no root history: only the average's own line
+    assert "source_sha256" not in plain.coords and plain.attrs["history"].startswith("xtopo.stitching.twin_vbm(")
+    assert plain.attrs["history"].endswith(" over 1 measurement")
+
+
 def test_areal_average_only_for_area_scans(tree):
     with pytest.raises(xtopo.XtopoError, match="area scans"):
         tree.topo.psd(areal=True)

@@ -32,6 +32,7 @@ import inspect
 import json
 import os
 import pkgutil
+import re
 import uuid
 
 import numpy as np
@@ -611,11 +612,13 @@ def open_store(directory) -> xr.Dataset:
 # --------------------------------------------------------------------------- contact
 
 
-def _contact_item(ds, values, *, control, scene, solve, maps, units=None):
+def _contact_item(ds, values, *, control, scene, solve, maps, units=None, scan=None):
     """Contact solutions of one measurement for each value of ``control`` (runs in the worker).
 
     ``units``: the length unit the measurement is converted to before solving (None: as it is;
     ``"1"``: a batch of unitless data, which a measurement with a length unit cannot join).
+    ``scan``: ``"line"`` or ``"area"``, the only kind of scan the batch's loads mean something for
+    (None: any); a measurement of the other kind fails.
     """
     from .contact import Scene
 
@@ -630,6 +633,10 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None):
     elif units is not None:
         ds = convert_length(ds, units)
     sc = Scene(ds, **scene)
+    kind = "line" if sc.line else "area"
+    if scan is not None and kind != scan:
+        raise XtopoError(_mixed_scans_message(control, f"this measurement is {_a(kind)}, but the loads of this batch "
+                                                       f"are for {scan} scans (its other measurements)", units))
     out = []
     for v in values:
         r = sc.solve(**{control: v}, **solve)
@@ -651,7 +658,8 @@ def _contact_line(sc, control, units, scene, solve) -> str:
     boundary = ("periodic" if sc.periodic else "free") + (" (as requested)" if "periodic" in scene else " (from the data)")
     counter = "compound topography h1 + h2" if scene.get("counter") is not None else "no counter surface (rigid rough surface)"
     settings = ", ".join(f"{k}={v:g}" for k, v in solve.items()) or "default tol and maxiter"
-    return (f"xtopo contact at each {control} of the {control!r} coordinate ({units}): Scene(E*={sc.modulus:g} "
+    scan = "a line scan (plane strain)" if sc.line else "an area scan"
+    return (f"xtopo contact of {scan} at each {control} of the {control!r} coordinate ({units}): Scene(E*={sc.modulus:g} "
             f"{sc.modulus_units}, hardness={'none' if sc.hardness is None else f'{sc.hardness:g}'}, boundary {boundary}, "
             f"{counter}, lengths in {sc.length_units}); Polonsky-Keer solve, {settings}")
 
@@ -687,6 +695,73 @@ def _contact_units(units, sources, read_options) -> str | None:
         return "1"
 
 
+_SCAN_IN_HISTORY = re.compile(r"^xtopo contact of an? (line|area) scan", re.MULTILINE)
+#: result variables whose units differ between line scans (force per unit length, contact length) and area
+#: scans (force, contact area): one variable cannot label both, so a batch that mixes the two drops them
+_SCAN_DEPENDENT = ("load", "contact_area")
+
+
+def _scan_of(ds) -> str | None:
+    """``"line"`` or ``"area"`` for a measurement Dataset (None where it has no height: its item fails)."""
+    h = ds.get("height")
+    return None if h is None else ("area" if "y" in h.dims else "line")
+
+
+def _load_units(scan, units) -> str:
+    return f"E* {units}" + ("2" if scan == "area" else "")
+
+
+def _a(scan) -> str:
+    return f"an {scan} scan" if scan == "area" else f"a {scan} scan"
+
+
+def _mixed_scans_message(control, found, units) -> str:
+    return (f"{found}: a load is a force on an area scan (E*·{units}²) but a force per unit length on a line scan "
+            f"(E*·{units}), so one {control!r} coordinate cannot label both; solve line and area scans in separate "
+            "batches, or give mean_pressures= or penetrations=, which mean the same on both")
+
+
+def _scans_of_items(ds, sources) -> dict:
+    """The kind of scan of each measurement that was solved: an in-memory Dataset's from its height, a file's
+    from the contact line of its history (the file was read in the worker)."""
+    kinds = {}
+    hist = ds[HISTORY].values if HISTORY in ds.coords else [""] * ds.sizes[MEASUREMENT]
+    for name, src, h in zip(ds[MEASUREMENT].values, sources, hist):
+        found = _SCAN_IN_HISTORY.findall(str(h))
+        kind = found[-1] if found else (_scan_of(src) if isinstance(src, xr.Dataset) else None)
+        if kind is not None and (ds[ERROR].sel({MEASUREMENT: name}) == "").any():
+            kinds[str(name)] = kind
+    return kinds
+
+
+def _refuse_mixed_scans(ds, control, kinds, units, dim):
+    """A load-controlled batch of files that turned out to mix line and area scans: the items of another kind
+    than the first solved one fail (NaN results and an error), as an item of the wrong kind does in a worker."""
+    scan = next(iter(kinds.values()))
+    wrong = [m for m, k in kinds.items() if k != scan]
+    if not wrong:
+        return ds
+    keep = ~ds[MEASUREMENT].isin(wrong)
+    for v in list(ds.data_vars):
+        if v != ERROR and MEASUREMENT in ds[v].dims:
+            ds[v] = ds[v].where(keep)
+    other = "line" if scan == "area" else "area"
+    msg = "XtopoError: " + _mixed_scans_message(control, f"this measurement is {_a(other)}, but the loads of this "
+                                                         f"batch are for {scan} scans (its first file solved)", units)
+    ds[ERROR] = xr.where(keep, ds[ERROR], msg, keep_attrs=True).astype(object)
+    if HISTORY in ds.coords:  # as for any failed item
+        ds = ds.assign_coords({HISTORY: ds[HISTORY].where(keep, "").astype(object)})
+    # the labels the items of the two kinds disagreed on (and lost when they were combined): the kept kind's
+    ds[control].attrs.update(units=_load_units(scan, units), long_name="normal load"
+                             + (" per unit length" if scan == "line" else ""))
+    if "contact_area" in ds.data_vars:
+        ds["contact_area"].attrs.update(units=units + ("2" if scan == "area" else ""),
+                                        long_name="contact " + ("area" if scan == "area" else "length"))
+    failed = _failed_items(ds, dim)
+    ds.attrs.update(n_failed=len(failed), failed_items=json.dumps(failed))
+    return ds
+
+
 def _require_contact():
     try:
         from .contact import Scene  # noqa: F401
@@ -719,6 +794,19 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         The controlled quantity: load in units of ``E*`` × ``units``² (``E*`` × ``units``
         for line scans: force per unit length), mean pressure in units of ``E*``,
         penetration in ``units``.
+
+        A load is a force on an area scan but a force per unit length on a line scan: the
+        two are different quantities, and one ``load`` coordinate (one units label) cannot
+        hold both. So ``loads=`` needs all measurements to be line scans or all area scans:
+        a mix of in-memory Datasets is refused before anything is solved (an
+        :class:`~xtopo.errors.XtopoError`); a file, whose kind is known only once it is
+        read, of the other kind than the in-memory measurements (or, in a batch of files
+        only, than the first file solved) fails as an item with an error saying so. A mean
+        pressure (in ``E*``) and a penetration (a length) mean the same on both kinds, so
+        ``mean_pressures=`` and ``penetrations=`` accept a mix; their results then leave out
+        ``load`` and ``contact_area`` (force per length and contact length for line scans,
+        force and contact area for area scans: one variable cannot label both) and keep
+        ``mean_pressure``, ``area_fraction`` and ``penetration``, which they share.
     modulus, hardness, periodic
         Passed to :class:`xtopo.contact.Scene` (``periodic=None``: from the measurement).
     tol, maxiter
@@ -759,18 +847,43 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     if periodic is not None:
         scene["periodic"] = periodic
     solve = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}
-    units = _contact_units(units, _names_and_sources(measurements)[1], _read_options(read_options))
-    func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units)
-    long_name = {"load": "normal load", "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
+    names, sources = _names_and_sources(measurements)
+    units = _contact_units(units, sources, _read_options(read_options))
+    # the in-memory measurements' kinds (line or area scan) are known now; files' only once read
+    scans = {n: k for n, s in zip(names, sources) if isinstance(s, xr.Dataset) and (k := _scan_of(s)) is not None}
+    scan = None
+    if control == "load" and scans:
+        first = next(iter(scans.items()))
+        other = next(((n, k) for n, k in scans.items() if k != first[1]), None)
+        if other is not None:
+            raise XtopoError(_mixed_scans_message(control, f"loads= for a mix of line and area scans: measurement "
+                                                           f"{first[0]!r} is {_a(first[1])}, {other[0]!r} "
+                                                           f"{_a(other[1])}", units))
+        scan = first[1]
+    func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units,
+                             scan=scan)
+    long_name = {"load": "normal load" + (" per unit length" if scan == "line" else ""),
+                 "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
     dim_attrs = {"long_name": f"{long_name} (imposed)"}
     # the coordinate's units when no item gives them (all failed); a load's depend on the scan (area or line)
-    dim_units = {"mean_pressure": "E*", "penetration": units}.get(control)
+    dim_units = {"mean_pressure": "E*", "penetration": units, "load": scan and _load_units(scan, units)}.get(control)
     if dim_units is not None:
         dim_attrs["units"] = dim_units
-    return run(func, measurements, values, dim=control, dim_attrs=dim_attrs,
-               chunks=chunks, client=client, scheduler=scheduler, workers=workers, store=store, progress=progress,
-               fft_threads=fft_threads, retries=retries,
-               read_options=read_options)
+    ds = run(func, measurements, values, dim=control, dim_attrs=dim_attrs,
+             chunks=chunks, client=client, scheduler=scheduler, workers=workers, store=store, progress=progress,
+             fft_threads=fft_threads, retries=retries,
+             read_options=read_options)
+    kinds = _scans_of_items(ds, sources)
+    if len(set(kinds.values())) > 1:
+        if control == "load":  # files only (in-memory mixes were refused): which kind they are was learnt now
+            ds = _refuse_mixed_scans(ds, control, kinds, units, control)
+        else:
+            ds = ds.drop_vars([v for v in _SCAN_DEPENDENT if v in ds.data_vars])
+            ds.attrs["comment"] = ("the batch mixes line and area scans: load and contact_area (force per unit "
+                                   "length and contact length for a line scan, force and contact area for an area "
+                                   "scan) are left out; mean_pressure, area_fraction and penetration mean the same "
+                                   "on both")
+    return ds
 
 
 # --------------------------------------------------------------------------- analyses

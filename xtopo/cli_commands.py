@@ -107,9 +107,19 @@ def _solve_kwargs(args) -> dict:
     return {k: v for k, v in (("tol", args.tol), ("maxiter", args.maxiter)) if v is not None}
 
 
+_OPTIONS = {"load": "--loads", "mean_pressure": "--mean-pressures"}
+
+
 def _control(args) -> tuple[str, list]:
-    """``("load", --loads)`` or ``("mean_pressure", --mean-pressures)``."""
-    return ("load", args.loads) if args.loads is not None else ("mean_pressure", args.mean_pressures)
+    """``("load", --loads)`` or ``("mean_pressure", --mean-pressures)``, the values checked before any file is
+    read, as the library checks them (:func:`xtopo.contact.solve.control_value`) but with messages that name
+    the option given."""
+    from .contact.scene import scene_parameters
+    from .contact.solve import control_value
+
+    control, values = ("load", args.loads) if args.loads is not None else ("mean_pressure", args.mean_pressures)
+    hardness = scene_parameters(args.modulus, args.hardness, None)[1]
+    return control, [control_value(control, v, hardness, label=f"{_OPTIONS[control]} value") for v in values]
 
 
 def _cmd_contact(args) -> int:
@@ -132,7 +142,9 @@ def _cmd_contact(args) -> int:
     to_netcdf(res, args.output)
     print(f"\nwrote {args.output}")
     if "converged" in res and not bool(res["converged"].all()):
-        _err("some loads did not converge (see 'converged'); raise --maxiter or loosen --tol")
+        failed = [f"{v:g}" for v, ok in zip(res[control].values, res["converged"].values) if not ok]
+        _err(f"the solves at {_OPTIONS[control]} {' '.join(failed)} did not converge (see 'converged'); raise "
+             "--maxiter or loosen --tol")
         return 1
     return 0
 
@@ -170,8 +182,9 @@ def _positive_int(value: str) -> int:
 
 
 def _cmd_batch_contact(args) -> int:
-    from .batch import contact
+    from .batch import _require_contact, contact
 
+    _require_contact()
     common = _batch_common(args)
     solve = _solve_kwargs(args)
     scene = _scene_kwargs(args)

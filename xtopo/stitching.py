@@ -329,6 +329,32 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
     return curves, _pool_errors(errors, settings)
 
 
+def _with_provenance(out: xr.Dataset, tree, analysis: str, **params) -> xr.Dataset:
+    """The twin average ``out`` with its provenance; the one place where twin averages get it.
+
+    As an analysis result of one measurement (:func:`xtopo.analysis._scale.provenance`): the
+    twin root's ``source_file``/``source_sha256`` where it has them, and its ``history`` plus one
+    line naming the average, its parameters (``units``: the length unit used, also where it
+    was the first measurement's) and how many measurements entered. Each
+    measurement's ``source_file`` and ``source_sha256`` become coordinates along ``measurement``
+    ('' for one without). Only attrs and coordinates built from attrs: a lazy average stays lazy.
+    """
+    from .analysis._scale import provenance
+
+    names = [str(n) for n in out["measurement"].values]
+    if "units" in params and params["units"] is None:
+        params["units"] = _common_units(_measurements(tree))
+    coords = {}
+    for key, long_name in (("source_file", "file the measurement was read from ('' where unknown)"),
+                           ("source_sha256", "SHA-256 checksum of that file ('' where unknown)")):
+        values = [str(tree.children[n].attrs.get(key) or "") for n in names]
+        if any(values):
+            coords[key] = ("measurement", values, {"long_name": long_name})
+    out = provenance(out.assign_coords(coords), tree, f"stitching.{analysis}", **params)
+    out.attrs["history"] += f" over {len(names)} measurement{'s' if len(names) != 1 else ''}"
+    return out
+
+
 _CRITERION = """With ``reliable``, a measurement may be used only above its short cutoff (tip radius or
     resolution, paper §4.9; spectra also 4 pixels above the pixel size,
     :func:`~xtopo.analysis.reliability.sampling_cutoff`). The statistical criterion applies
@@ -361,7 +387,9 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
     else:
         curves, errors = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
                                           window=window)
-    return average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
+    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
+    return _with_provenance(out, tree, "twin_psd", areal=areal, window=window, per_decade=per_decade, units=units,
+                            reliable=reliable, max_error=max_error)
 
 
 def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
@@ -376,7 +404,9 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     _settings(per_decade, max_error)
     curves, errors = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
                                       quantity="acf")
-    return average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
+    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
+    return _with_provenance(out, tree, "twin_acf", per_decade=per_decade, units=units, reliable=reliable,
+                            max_error=max_error)
 
 
 def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
@@ -389,7 +419,9 @@ def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
 
     _settings(per_decade, max_error)
     curves, errors = _per_measurement(tree, vbm, {}, {}, units, reliable, quantity="vbm")
-    return average_curves(curves, per_decade=per_decade, errors=errors, max_error=max_error)
+    out = average_curves(curves, per_decade=per_decade, errors=errors, max_error=max_error)
+    return _with_provenance(out, tree, "twin_vbm", per_decade=per_decade, units=units, reliable=reliable,
+                            max_error=max_error)
 
 
 def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str | None = None,
@@ -428,7 +460,9 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
         if reliable:
             curves[name], errors[name] = _predicted_error(curves[name], ds, "distance",
                                                           ("slope", "curvature")[order - 1])
-    return average_curves(curves, points=grid, errors=_pool_errors(errors, settings), max_error=max_error)
+    out = average_curves(curves, points=grid, errors=_pool_errors(errors, settings), max_error=max_error)
+    return _with_provenance(out, tree, "twin_sdrp", order=order, per_decade=per_decade, units=units,
+                            reliable=reliable, max_error=max_error)
 
 
 for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):

@@ -65,17 +65,23 @@ def result_units(scene) -> dict:
     return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2"}
 
 
-def control_value(name: str, v, hardness: float | None = None) -> float:
+def control_value(name: str, v, hardness: float | None = None, *, label: str | None = None) -> float:
     """One ``load``/``mean_pressure``/``penetration`` value checked without a scene (a finite real
-    scalar, ≥ 0 unless a penetration; a mean pressure below ``hardness``); returns it as a float."""
+    scalar, ≥ 0 unless a penetration; a mean pressure below ``hardness``); returns it as a float.
+
+    ``label``: what the messages call the value (default ``name``), e.g. the command-line option
+    that gave it (``"--loads value"``).
+    """
+    label = name if label is None else label
     real = (not isinstance(v, (str, bytes, bool, np.bool_)) and np.ndim(v) == 0
             and not np.iscomplexobj(v) and np.issubdtype(np.asarray(v).dtype, np.number))
     if not real or not np.isfinite(float(v)):
-        raise ContactError(f"{name} must be a finite scalar, got {v!r} (use Scene.curve for sequences)")
+        hint = " (use Scene.curve for sequences)" if isinstance(v, (list, tuple, np.ndarray)) else ""
+        raise ContactError(f"{label} must be a finite scalar, got {v!r}{hint}")
     if name != "penetration" and float(v) < 0:
-        raise ContactError(f"{name} must be ≥ 0 (adhesion is not modelled), got {v}")
+        raise ContactError(f"{label} must be ≥ 0 (adhesion is not modelled), got {v}")
     if name == "mean_pressure" and hardness is not None and float(v) >= hardness:
-        raise ContactError(f"mean_pressure {float(v):g} reaches the hardness ({hardness:g}): the whole surface "
+        raise ContactError(f"{label} {float(v):g} reaches the hardness ({hardness:g}): the whole surface "
                            "would flow; lower the mean pressure or raise the hardness")
     return float(v)
 
