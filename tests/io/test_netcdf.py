@@ -1,4 +1,5 @@
 import errno
+import hashlib
 import os
 import re
 
@@ -153,3 +154,17 @@ def test_unwritable_targets_raise_write_error(tmp_path):
     with pytest.raises(xtopo.WriteError, match="cannot write"):
         tree.topo.to_netcdf(target)
     assert not (tmp_path / "missing").exists()
+
+
+def test_an_archive_of_synthetic_data_is_its_own_source(tmp_path):
+    """Reading back an xtopo archive of data that came from no file gave no source_file/source_sha256, so
+    nothing computed from it said where it came from; an archive of a read file keeps that file's."""
+    synthetic = xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.8, seed=1)
+    path = xtopo.to_netcdf(synthetic, tmp_path / "synthetic.nc")
+    back = xtopo.open_topography(path)
+    assert back.attrs["source_file"] == "synthetic.nc" and back.attrs["source_format"] == "netcdf"
+    assert back.attrs["source_sha256"] == hashlib.sha256((tmp_path / "synthetic.nc").read_bytes()).hexdigest()
+    assert back.topo.psd().attrs["source_sha256"] == back.attrs["source_sha256"]
+    again = xtopo.open_topography(xtopo.to_netcdf(back, tmp_path / "copy.nc"))  # an archive of a read file
+    assert again.attrs["source_file"] == "synthetic.nc"
+    assert again.attrs["source_sha256"] == back.attrs["source_sha256"]

@@ -79,10 +79,11 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
                   f"heights; pick a height channel, or read the signal with "
                   f"xtopo.io.list_formats()[{fmt.name!r}].read(path, channel=...)")
     own = fmt.name == "netcdf" and "xtopo_version" in ds.attrs  # an archive written by xtopo: keep as is
-    if not own:
-        ds.attrs.setdefault("source_file", os.path.basename(path))
-        ds.attrs.setdefault("source_format", fmt.name)
-        ds.attrs.setdefault("source_sha256", sha256(path))
+    if not own or not ds.attrs.get("source_file"):  # an archive of data from no file (synthetic) is the source
+        for key, value in (("source_file", lambda: os.path.basename(path)), ("source_format", lambda: fmt.name),
+                           ("source_sha256", lambda: sha256(path))):
+            if not ds.attrs.get(key):
+                ds.attrs[key] = value()
     if to is not None:
         try:
             ds = convert_length(ds, to)
