@@ -92,9 +92,9 @@ def _control(scene, load, mean_pressure, penetration):
         raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
     for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
         if v is not None:
-            control_value(name, v)
+            control_value(name, v, scene.hardness)  # a mean pressure is compared with the hardness itself
     if penetration is not None and scene.periodic and scene.hardness is None:
-        limit = -float(np.mean(scene.w, dtype=np.float64))
+        limit = 0.0 - float(np.mean(scene.w, dtype=np.float64))  # 0.0 - : a flat surface's is 0, not -0
         if float(penetration) >= limit:
             raise ContactError(
                 f"penetration {float(penetration):g} reaches the mean plane of the periodic surface (its highest "
