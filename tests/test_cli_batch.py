@@ -275,3 +275,15 @@ def test_bad_worker_count_is_a_usage_error(files, tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["batch", "analyze", files[0], "--workers", "0", "-o", str(tmp_path / "s")])
     assert e.value.code == 2 and "at least 1" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", [["contact"], ["batch", "contact"]])
+@pytest.mark.parametrize("option,value", [("--hardness", "-1"), ("--modulus", "0"), ("--tol", "nan"),
+                                          ("--maxiter", "0"), ("--hardness", "x")])
+def test_contact_scene_options_are_checked_by_the_parser(files, capsys, command, option, value):
+    """--hardness -1 reached the library and came back as 'hardness (or None for elastic) must be ...';
+    --maxiter 0 and --tol nan likewise spoke Python. The parser names the option (exit code 2)."""
+    with pytest.raises(SystemExit) as e:
+        main(command + [files[0], "--mean-pressures", "0.01", option, value])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and f"argument {option}" in err and "None" not in err, err

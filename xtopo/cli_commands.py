@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 
@@ -181,6 +182,17 @@ def _positive_int(value: str) -> int:
     return n
 
 
+def _positive_float(value: str) -> float:
+    """A finite number above 0 (``--modulus``, ``--hardness``, ``--tol``)."""
+    try:
+        x = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {value!r}") from None
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number above 0, got {value}")
+    return x
+
+
 def _cmd_batch_contact(args) -> int:
     from .batch import _require_contact, contact
 
@@ -238,13 +250,15 @@ def _add_control_options(p) -> None:
 
 def _add_scene_options(p) -> None:
     g = p.add_argument_group("contact scene")
-    g.add_argument("--modulus", type=float, default=1.0,
+    g.add_argument("--modulus", type=_positive_float, default=1.0,
                    help="effective contact modulus E* (default %(default)s: pressures in units of E*)")
-    g.add_argument("--hardness", type=float, default=None, help="hardness (pressure cap), same units as --modulus")
+    g.add_argument("--hardness", type=_positive_float, default=None,
+                   help="hardness (pressure cap), same units as --modulus")
     g.add_argument("--periodic", choices=("yes", "no"), default=None,
                    help="override the periodicity stored with the measurement")
-    g.add_argument("--tol", type=float, default=None, help="solver tolerance (default: the solver's)")
-    g.add_argument("--maxiter", type=int, default=None, help="maximum solver iterations (default: the solver's)")
+    g.add_argument("--tol", type=_positive_float, default=None, help="solver tolerance (default: the solver's)")
+    g.add_argument("--maxiter", type=_positive_int, default=None,
+                   help="maximum solver iterations (default: the solver's)")
 
 
 def _add_batch_options(p) -> None:
