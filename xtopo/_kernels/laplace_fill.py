@@ -66,7 +66,7 @@ def _system(h, missing, periodic, wy, wx):
         is_unknown = nb_idx >= 0
         rows.append(src[is_unknown])
         cols.append(nb_idx[is_unknown])
-        np.add.at(rhs, src[~is_unknown], w * known[nb[~is_unknown]])
+        rhs += np.bincount(src[~is_unknown], weights=w * known[nb[~is_unknown]], minlength=n)
     # off-diagonal weights, in the order the directions were visited, then the diagonal
     weights = np.concatenate([np.full(rr.size, -w) for rr, w in zip(rows, (wy, wy, wx, wx))] + [diag])
     rows.append(np.arange(n))
@@ -91,10 +91,15 @@ def _fill_one(h, periodic, wy, wx, method):
         return h
     if missing.all():
         raise ValueError("all data are missing; there is nothing to fill from")
-    unknown, iy, ix, A, rhs = _system(h, missing, periodic, wy, wx)
     if method == "direct":
+        unknown, _, _, A, rhs = _system(h, missing, periodic, wy, wx)
         values = _direct(A, rhs)
     else:
+        # solve for the heights relative to the middle of their range: the CG tolerance (relative to the
+        # right-hand side) then means a fraction of the height range, whatever the heights' offset
+        known = h[~missing]
+        middle = 0.5 * (known.min() + known.max())
+        unknown, iy, ix, A, rhs = _system(h - middle, missing, periodic, wy, wx)
         ny, nx = h.shape
         anisotropy = wy / wx if ny > 1 and nx > 1 else 1.0
         if method == "iterative":
@@ -110,6 +115,7 @@ def _fill_one(h, periodic, wy, wx, method):
             values[small] = _direct(A[small][:, small], rhs[small])
             if big.any():  # islands decouple: the big ones form a system of their own
                 values[big] = _iterative(A[big][:, big], rhs[big], iy[big], ix[big], anisotropy)
+        values += middle
     out = np.array(h, dtype=float, copy=True)
     out.ravel()[unknown] = values
     return out
