@@ -40,7 +40,7 @@ import xarray as xr
 
 from ._batch_store import IO_LOCK, MANIFEST, Store, chunk_key, fingerprint, func_name
 from ._checks import flag, integer
-from .conventions import _length_units_of, append_history, convert_length, normalize_units
+from .conventions import length_units_of, append_history, convert_length, normalize_units
 from .errors import UnitsError, XtopoError
 
 __all__ = ["run", "contact", "analyze", "open_store"]
@@ -624,7 +624,7 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None, scan=N
 
     if units == "1":
         try:
-            found = _length_units_of(ds)
+            found = length_units_of(ds)
         except UnitsError:
             found = None
         if found is not None:
@@ -690,7 +690,7 @@ def _contact_units(units, sources, read_options) -> str | None:
     if not isinstance(first, xr.Dataset):
         return normalize_units(read_options.get("units") or "m")
     try:
-        return _length_units_of(first)
+        return length_units_of(first)
     except UnitsError:  # unitless data: solved as they are
         return "1"
 

@@ -34,7 +34,8 @@ __all__ = [
     "LENGTH_ATTRS", "MEASUREMENT_ATTRS",
     "normalize_units", "length_factor", "convert_length",
     "spacing", "physical_size", "is_uniform", "is_periodic", "length_attr", "is_nonuniform",
-    "lateral_dims", "height_of", "make_measurement", "validate", "append_history",
+    "lateral_dims", "height_of", "make_measurement", "validate", "append_history", "length_units_of",
+    "PROVENANCE_ATTRS", "provenance_of", "periodic_flag",
     "with_units",
 ]
 
@@ -128,7 +129,7 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
     """
     to = normalize_units(units)
     obj = ds.copy(deep=False)
-    current = _length_units_of(obj)
+    current = length_units_of(obj)
     if current == to:
         return obj
     f = length_factor(current, to)
@@ -157,7 +158,14 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
     return append_history(obj, f"convert_length(units={to!r}) from {current!r}")
 
 
-def _length_units_of(obj) -> str:
+def length_units_of(obj) -> str:
+    """The length unit of ``obj``: its lateral coordinates' ``units``, else its heights'.
+
+    Raises
+    ------
+    UnitsError
+        If neither carries one.
+    """
     for name in (X, Y):
         if name in obj.coords and "units" in obj.coords[name].attrs:
             return normalize_units(obj.coords[name].attrs["units"])

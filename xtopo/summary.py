@@ -64,7 +64,8 @@ def _as_measurement(key, m) -> xr.Dataset:
 
 def _named(measurements) -> dict:
     """Name → measurement Dataset from a mapping, a twin, one measurement or a sequence of them."""
-    from .twins import _name_of, measurements as tree_measurements
+    from .twins import _name_of, unique_name
+    from .twins import measurements as tree_measurements
 
     if isinstance(measurements, xr.DataTree):
         return tree_measurements(measurements)
@@ -80,12 +81,7 @@ def _named(measurements) -> dict:
     out: dict = {}
     for i, (_, m) in enumerate(items):
         ds = _as_measurement(i, m)
-        name = base = _name_of(ds, i)  # title, source file or instrument, else measurement_<i>
-        k = 1
-        while name in out:
-            k += 1
-            name = f"{base}_{k}"
-        out[name] = ds
+        out[unique_name(_name_of(ds, i), out)] = ds  # title, source file or instrument, else measurement_<i>
     return out
 
 

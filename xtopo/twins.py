@@ -35,6 +35,15 @@ def _open_lazily(path) -> xr.Dataset:
     return open_topography(path)
 
 
+def unique_name(name: str, taken) -> str:
+    """``name``, or ``name_2``, ``name_3``, ... : the first not in ``taken``."""
+    candidate, k = name, 1
+    while candidate in taken:
+        k += 1
+        candidate = f"{name}_{k}"
+    return candidate
+
+
 def _name_of(ds: xr.Dataset, index: int) -> str:
     for key in ("title", "source_file", "instrument"):
         if ds.attrs.get(key):
@@ -77,11 +86,7 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
                                   f"{type(m).__name__}")
         ds = m if isinstance(m, xr.Dataset) else _open_lazily(os.fspath(m))
         validate(ds)
-        node = safe_name(key) if isinstance(key, str) else _name_of(ds, key)
-        base, k = node, 1
-        while node in nodes:
-            k += 1
-            node = f"{base}_{k}"
+        node = unique_name(safe_name(key) if isinstance(key, str) else _name_of(ds, key), nodes)
         nodes[node] = freeze(ds)
     if not nodes:
         raise XtopoError("a twin needs at least one measurement")
