@@ -114,12 +114,15 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None, requir
 
 def _contact_line(sc, control, units, scene, solve) -> str:
     """The history line of a contact computation: what was modelled and how it was solved."""
-    boundary = ("periodic" if sc.periodic else "free") + (" (as requested)" if "periodic" in scene else " (from the data)")
+    boundary = "periodic" if sc.periodic else "free"
+    boundary += " (as requested)" if "periodic" in scene else " (from the data)"
+    hardness = "none" if sc.hardness is None else f"{sc.hardness:g}"
     settings = ", ".join(f"{k}={v:g}" for k, v in solve.items()) or "default tol and maxiter"
     scan = "a line scan (plane strain)" if sc.line else "an area scan"
-    return (f"xtopo contact of {scan} at each {control} of the {control!r} coordinate ({units}): Scene(E*={sc.modulus:g} "
-            f"{sc.modulus_units}, hardness={'none' if sc.hardness is None else f'{sc.hardness:g}'}, boundary {boundary}, "
-            f"no counter surface (rigid rough surface), lengths in {sc.length_units}); Polonsky-Keer solve, {settings}")
+    return (f"xtopo contact of {scan} at each {control} of the {control!r} coordinate ({units}): "
+            f"Scene(E*={sc.modulus:g} {sc.modulus_units}, hardness={hardness}, boundary {boundary}, "
+            f"no counter surface (rigid rough surface), lengths in {sc.length_units}); "
+            f"Polonsky-Keer solve, {settings}")
 
 
 def _snap_grid(ds):
@@ -179,8 +182,8 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         ``mean_pressure``, ``area_fraction`` and ``penetration``, which they share.
     modulus, hardness, periodic
         Passed to :class:`xtopo.contact.Scene` (``periodic=None``: from the measurement).
-        ``modulus`` (``E*``) and ``hardness`` are pressures in the units pressures are given
-        in (default 1: in units of ``E*``).
+        ``modulus`` is the contact modulus ``E*``; pressures, loads and ``hardness`` are in
+        its units (labelled ``E*``).
     tol, maxiter
         Passed to ``Scene.solve`` when given.
     maps : bool

@@ -4,7 +4,9 @@ A chunk file is written atomically (temp file + ``os.replace``) by whoever compu
 it, so a run that dies midway leaves only complete chunk files behind. Each file
 carries the key of its inputs (measurement fingerprints, parameters, function,
 xtopo version) in its attrs; a restarted run reuses a chunk only when the key
-matches and no item of it failed.
+matches and no item of it failed. The manifest (written by :mod:`xtopo.batch._engine`)
+says which chunk files make up the batch, how they are assembled into its result and
+which items of that result failed.
 """
 
 from __future__ import annotations
