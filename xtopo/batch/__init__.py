@@ -16,15 +16,15 @@ in the result's ``error`` variable; the other items go on.
 
 How it is built, one concern per module:
 
-``_inputs``    the arguments, checked on the client before any task is built
-``_task``      what runs in a worker: one :class:`~xtopo.batch._task.Chunk` of items
-``_dispatch``  where the tasks run: a distributed client or a local dask scheduler
-``_store``     the store: one NetCDF file per chunk, keyed by its inputs, and a manifest
-``_results``   the layout of the results: items → a chunk's Dataset → the batch's Dataset
-``_engine``    :func:`run` and :func:`open_store`: plan, reuse, run, assemble
-``_contact``   :func:`contact` and the contact solve of one measurement
-``_scans``     line and area scans in one contact batch
-``_analyze``   :func:`analyze`
+* ``_inputs``: the arguments, checked on the client before any task is built;
+* ``_task``: what runs in a worker, one :class:`~xtopo.batch._task.Chunk` of items;
+* ``_dispatch``: where the tasks run, a distributed client or a local dask scheduler;
+* ``_store``: one NetCDF file per chunk, keyed by its inputs, and a manifest;
+* ``_results``: the layout of the results, items → a chunk's Dataset → the batch's Dataset;
+* ``_engine``: :func:`run` and :func:`open_store` (plan, reuse, run, assemble);
+* ``_contact``: :func:`contact` and the contact solves of one measurement;
+* ``_scans``: line and area scans in one contact batch;
+* ``_analyze``: :func:`analyze`.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from ._contact import contact
 from ._engine import open_store, run
 
 # internal names that the CLI, the tests and the benchmarks reach through xtopo.batch
-from ._analyze import _analyze_item  # noqa: E402,F401  isort:skip
-from ._contact import _contact_item, _require_contact  # noqa: E402,F401  isort:skip
-from ._store import chunk_key  # noqa: E402,F401  isort:skip
+from ._analyze import _analyze_item  # noqa: F401
+from ._contact import _contact_item, _require_contact  # noqa: F401
+from ._store import chunk_key  # noqa: F401
 
 __all__ = ["run", "contact", "analyze", "open_store"]

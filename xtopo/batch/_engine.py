@@ -112,14 +112,14 @@ def _plan(func, dim, names, sources, params, chunks, read_options, store, fft_th
     home = os.getpid()
     grid = []
     for i in range(0, len(names), mchunk):
-        rows = (i, min(i + mchunk, len(names)))
+        m = slice(i, min(i + mchunk, len(names)))
         row = []
         for j in range(0, 1 if params is None else len(params), pchunk):
             p = None if params is None else params[j:j + pchunk]
-            row.append(Chunk(func=func, dim=dim, names=names[slice(*rows)], sources=sources[slice(*rows)], params=p,
-                             key=chunk_key(func, dim, names[slice(*rows)], prints[slice(*rows)], p),
+            row.append(Chunk(func=func, dim=dim, names=names[m], sources=sources[m], params=p,
+                             key=chunk_key(func, dim, names[m], prints[m], p),
                              store=None if store is None else store.directory, fft_threads=fft_threads,
-                             home_pid=home, read_options=read_options, rows=rows,
+                             home_pid=home, read_options=read_options, rows=(m.start, m.stop),
                              cols=None if p is None else (j, j + len(p))))
         grid.append(row)
     return grid
@@ -139,8 +139,17 @@ def _assemble(blocks, dim, has_params, dim_attrs, finish) -> xr.Dataset:
 
 def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, scheduler, workers, store, progress,
               fft_threads, retries, read_options, finish: dict | None = None) -> xr.Dataset:
-    """:func:`run`, with a ``finish`` step: ``{"name": <a step of _FINISH>, "kwargs": {...}}`` (JSON), applied
-    to the assembled result and recorded in the store's manifest."""
+    """:func:`run` with a last step of the assembly.
+
+    Parameters
+    ----------
+    finish : dict, optional
+        ``{"name": <a key of _FINISH>, "kwargs": {...}}`` (JSON-serialisable): a step applied to
+        the assembled result and recorded in the store's manifest, so that a rerun and
+        :func:`open_store` apply it too.
+
+    Other parameters and the result are those of :func:`run`.
+    """
     names, sources = names_and_sources(measurements)
     params = run_options(dim, workers, fft_threads, retries, progress, params)
     read_options = checked_read_options(read_options)

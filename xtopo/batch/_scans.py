@@ -137,6 +137,7 @@ def settle_scans(ds: xr.Dataset, *, control: str, units: str) -> xr.Dataset:
         With a ``scan`` variable along (``measurement``, ``control``): ``"line"``, ``"area"``,
         or '' for a failed item.
     """
+    ds = ds.copy()
     if SCAN not in ds.data_vars:
         ds[SCAN] = xr.full_like(ds[ERROR], "", dtype=object).assign_attrs(_SCAN_ATTRS)
     kinds = _solved_scans(ds)
