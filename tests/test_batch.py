@@ -474,6 +474,15 @@ def test_mixed_files_batch_records_its_refused_items_in_the_store(tmp_path):
     assert json.load(open(store / "manifest.json"))["failed"] == manifest["failed"]
 
 
+def test_open_store_names_the_store_whose_manifest_has_an_unknown_finishing_step(tmp_path):
+    store = tmp_path / "store"
+    batch.run(fft_work, _surfaces(1), LOADS, scheduler="sync", store=store, progress=False)
+    manifest = json.load(open(store / "manifest.json"))
+    (store / "manifest.json").write_text(json.dumps({**manifest, "finish": {"name": "rm -rf", "kwargs": {}}}))
+    with pytest.raises(XtopoError, match=r"batch store .*store \(manifest.json\): unknown finishing step .*rm -rf"):
+        batch.open_store(store)
+
+
 @pytest.mark.parametrize("control", ["loads", "mean_pressures"])
 def test_mixed_files_batch_does_not_read_the_history_wording(tmp_path, monkeypatch, control):
     """The kind of each file's scan was recovered from the wording of its contact history line: reworded, a

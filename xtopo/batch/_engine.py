@@ -125,14 +125,15 @@ def _plan(func, dim, names, sources, params, chunks, read_options, store, fft_th
     return grid
 
 
-def _assemble(blocks, dim, has_params, dim_attrs, finish) -> xr.Dataset:
-    """The chunks' Datasets combined into the batch's result, then ``finish`` (as the manifest records it)."""
+def _assemble(blocks, dim, has_params, dim_attrs, finish, where: str = "a batch") -> xr.Dataset:
+    """The chunks' Datasets combined into the batch's result, then ``finish`` (as the manifest records it);
+    ``where`` names the batch in an error."""
     ds = combine(blocks, dim, has_params, dim_attrs)
     if finish is None:
         return ds
-    step = _FINISH.get(finish.get("name"))
+    step = _FINISH.get(finish.get("name")) if isinstance(finish, dict) else None
     if step is None:
-        raise XtopoError(f"unknown finishing step {finish.get('name')!r} of a batch result (known: "
+        raise XtopoError(f"{where}: unknown finishing step {finish!r} of the batch result (known: "
                          f"{', '.join(_FINISH)}); was the store written by another xtopo version?")
     return step(ds, **finish.get("kwargs", {}))
 
@@ -225,4 +226,5 @@ def open_store(directory) -> xr.Dataset:
                                       "not computed")
             brow.append(block)
         blocks.append(brow)
-    return _assemble(blocks, dim, params is not None, manifest.get("dim_attrs"), manifest.get("finish"))
+    return _assemble(blocks, dim, params is not None, manifest.get("dim_attrs"), manifest.get("finish"),
+                     where=f"batch store {store.directory} ({MANIFEST})")
