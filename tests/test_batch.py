@@ -399,7 +399,7 @@ def test_contact_batch_checks_control_values_before_dispatch(kwargs, match, monk
     def no_task(*args, **kw):
         raise AssertionError("a task was dispatched")
 
-    monkeypatch.setattr(batch, "_run_chunk", no_task)
+    monkeypatch.setattr(batch._dispatch, "run_chunk", no_task)
     with pytest.raises(XtopoError, match=match):
         batch.contact(_surfaces(2, size=16), scheduler="sync", progress=False, **kwargs)
 
@@ -419,16 +419,16 @@ def test_contact_batch_refuses_loads_for_a_mix_of_line_and_area_scans(tmp_path, 
     _scene()
     s, line, files = _line_and_area(tmp_path)
     kw = dict(scheduler="sync", progress=False, read_options={"units": "um"})
-    run_chunk = batch._run_chunk
+    run_chunk = batch._dispatch.run_chunk
 
     def no_task(*args, **k):
         raise AssertionError("a task was dispatched")
 
-    monkeypatch.setattr(batch, "_run_chunk", no_task)
+    monkeypatch.setattr(batch._dispatch, "run_chunk", no_task)
     with pytest.raises(XtopoError, match=r"loads= for a mix of line and area scans: measurement 'area' is an area "
                                          r"scan, 'line' a line scan: a load is a force on an area scan \(E\*·um²\)"):
         batch.contact({"area": s, "line": line}, [0.01], **kw)
-    monkeypatch.setattr(batch, "_run_chunk", run_chunk)
+    monkeypatch.setattr(batch._dispatch, "run_chunk", run_chunk)
     # a file is known only once read: one of the other kind fails as an item, the others keep their labels
     res = batch.contact({"area": s, "line": files["line.nc"]}, [0.01], **kw)
     assert res.error.sel(measurement="area").item() == ""
@@ -445,6 +445,61 @@ def test_contact_batch_refuses_loads_for_a_mix_of_line_and_area_scans(tmp_path, 
     assert res.contact_area.attrs == {"units": "um", "long_name": "contact length"}
     assert res.history.sel(measurement="area").item() == ""
     assert np.isnan(res.area_fraction.sel(measurement="area").item())
+
+
+def test_mixed_files_batch_records_its_refused_items_in_the_store(tmp_path):
+    """In a loads= batch of files mixing line and area scans, the items of the other kind were marked failed only
+    in the returned result, after the run: the store's manifest said 'complete' with no failed item, and
+    open_store showed those items solved. Each item now carries its kind (``scan``) and the store records how the
+    result is settled: a rerun and open_store give the same result, and the manifest lists the refused items."""
+    _scene()
+    _, _, files = _line_and_area(tmp_path)
+    store = tmp_path / "store"
+    ms = {"line": files["line.nc"], "area": files["area.nc"]}
+    kw = dict(scheduler="sync", progress=False, read_options={"units": "um"}, store=store)
+    res = batch.contact(ms, [0.01, 0.02], **kw)
+    assert res.scan.dims == ("measurement", "load") and "long_name" in res.scan.attrs
+    assert list(res.scan.sel(measurement="line").values) == ["line", "line"]
+    assert list(res.scan.sel(measurement="area").values) == ["", ""]   # refused: no result, as any failed item
+    assert res.attrs["n_failed"] == 2
+    assert all("this measurement is an area scan" in e for e in res.error.sel(measurement="area").values)
+    manifest = json.load(open(store / "manifest.json"))
+    assert manifest["status"] == "partial" and manifest["failed"] == json.loads(res.attrs["failed_items"])
+    again = batch.contact(ms, [0.01, 0.02], **kw)
+    assert again.attrs["chunks_reused"] == 2 and again.attrs["chunks_computed"] == 0
+    xr.testing.assert_identical(again, res.assign_attrs(chunks_computed=0, chunks_reused=2))
+    xr.testing.assert_identical(batch.open_store(store), res.drop_attrs(deep=False).assign_attrs(
+        {k: v for k, v in res.attrs.items() if k not in ("title", "n_failed", "failed_items", "chunks_computed",
+                                                         "chunks_reused", "store")}))
+    assert json.load(open(store / "manifest.json"))["failed"] == manifest["failed"]
+
+
+def test_open_store_names_the_store_whose_manifest_has_an_unknown_finishing_step(tmp_path):
+    store = tmp_path / "store"
+    batch.run(fft_work, _surfaces(1), LOADS, scheduler="sync", store=store, progress=False)
+    manifest = json.load(open(store / "manifest.json"))
+    (store / "manifest.json").write_text(json.dumps({**manifest, "finish": {"name": "rm -rf", "kwargs": {}}}))
+    with pytest.raises(XtopoError, match=r"batch store .*store \(manifest.json\): unknown finishing step .*rm -rf"):
+        batch.open_store(store)
+
+
+@pytest.mark.parametrize("control", ["loads", "mean_pressures"])
+def test_mixed_files_batch_does_not_read_the_history_wording(tmp_path, monkeypatch, control):
+    """The kind of each file's scan was recovered from the wording of its contact history line: reworded, a
+    loads= batch let line and area scans share one load coordinate, and a mean_pressures= batch kept load and
+    contact_area, whose units differ between the two kinds."""
+    _scene()
+    _, _, files = _line_and_area(tmp_path)
+    monkeypatch.setattr(batch._contact, "_contact_line", lambda *args: "solved by xtopo")
+    res = batch.contact({"line": files["line.nc"], "area": files["area.nc"]}, **{control: [0.01]},
+                        scheduler="sync", progress=False, read_options={"units": "um"})
+    assert res.history.sel(measurement="line").item().endswith("\nsolved by xtopo")   # the wording changed
+    if control == "loads":
+        assert "this measurement is an area scan" in res.error.sel(measurement="area").item()
+        assert res["load"].attrs["units"] == "E* um" and res.contact_area.attrs["units"] == "um"
+    else:
+        assert "load" not in res.data_vars and "contact_area" not in res.data_vars
+        assert res.attrs["n_failed"] == 0 and list(res.scan.values[:, 0]) == ["line", "area"]
 
 
 @pytest.mark.parametrize("control", ["mean_pressures", "penetrations"])

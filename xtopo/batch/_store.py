@@ -4,7 +4,9 @@ A chunk file is written atomically (temp file + ``os.replace``) by whoever compu
 it, so a run that dies midway leaves only complete chunk files behind. Each file
 carries the key of its inputs (measurement fingerprints, parameters, function,
 xtopo version) in its attrs; a restarted run reuses a chunk only when the key
-matches and no item of it failed.
+matches and no item of it failed. The manifest (written by :mod:`xtopo.batch._engine`)
+says which chunk files make up the batch, how they are assembled into its result and
+which items of that result failed.
 """
 
 from __future__ import annotations
@@ -16,9 +18,9 @@ import threading
 
 import xarray as xr
 
-from ._tokens import callable_token
-from ._version import __version__
-from .io.netcdf import PROVENANCE_KEYS, atomic_write, read_netcdf, to_netcdf
+from .._tokens import callable_token
+from .._version import __version__
+from ..io.netcdf import PROVENANCE_KEYS, atomic_write, read_netcdf, to_netcdf
 
 __all__ = ["Store", "chunk_key", "fingerprint", "func_name", "IO_LOCK"]
 
@@ -48,7 +50,7 @@ def fingerprint(source) -> str:
     size or modification time, and with it the key of every chunk that uses it.
     """
     if isinstance(source, xr.Dataset):
-        from .cache import checksum
+        from ..cache import checksum
 
         return "dataset:" + checksum(source)
     path = os.path.abspath(os.fspath(source))
@@ -92,9 +94,9 @@ class Store:
     """
 
     def __init__(self, directory):
-        from ._checks import make_directory
-        from ._checks import path as checked_path
-        from .errors import XtopoError
+        from .._checks import make_directory
+        from .._checks import path as checked_path
+        from ..errors import XtopoError
 
         self.directory = os.path.abspath(checked_path(directory, "batch store", kind="directory path"))
         if os.path.exists(self.directory) and not os.path.isdir(self.directory):

@@ -1,0 +1,145 @@
+"""Where a batch's tasks run: a distributed client or one of dask's local schedulers.
+
+* on the ``client=`` given, else on the active :class:`distributed.Client`;
+* ``scheduler="tcp://host:port"``: a client to that scheduler (closed afterwards);
+* ``scheduler="local"``: a :class:`distributed.LocalCluster` of ``workers`` processes
+  with one thread each (fault tolerant: a worker that dies is replaced and its
+  tasks rerun);
+* otherwise dask's local ``"threads"`` (default), ``"processes"`` or ``"sync"`` scheduler.
+
+:func:`execute` runs the chunks there and returns, for each chunk key, the chunk's
+Dataset or the exception that ended its task.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import uuid
+
+from ..errors import XtopoError
+from ._task import run_chunk
+
+__all__ = ["fft_env", "execute"]
+
+_ADDRESS_PREFIXES = ("tcp://", "tls://", "inproc://", "ucx://", "ws://", "wss://")
+_LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
+
+
+@contextlib.contextmanager
+def fft_env(threads):
+    """Set ``XTOPO_FFT_THREADS`` in this process for tasks that run in it (threads scheduler)."""
+    old = os.environ.get("XTOPO_FFT_THREADS")
+    if threads:
+        os.environ["XTOPO_FFT_THREADS"] = str(int(threads))
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("XTOPO_FFT_THREADS", None)
+        else:
+            os.environ["XTOPO_FFT_THREADS"] = old
+
+
+def _active_client():
+    try:
+        from distributed import get_client
+    except ImportError:  # pragma: no cover - distributed is a dependency
+        return None
+    try:
+        return get_client()
+    except ValueError:
+        return None
+
+
+@contextlib.contextmanager
+def _client_for(client, scheduler, workers):
+    """The distributed client to use (None: a local dask scheduler), closing any we open."""
+    if client is not None:
+        yield client
+        return
+    if scheduler is None:
+        yield _active_client()
+        return
+    if not isinstance(scheduler, str):
+        raise XtopoError(f"scheduler must be a string, got {type(scheduler).__name__}; pass a "
+                         "distributed.Client as client= instead")
+    if scheduler in _LOCAL_SCHEDULERS:
+        yield None
+        return
+    from distributed import Client, LocalCluster
+
+    if scheduler == "local":
+        n = int(workers) if workers else (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                          else os.cpu_count() or 1)
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
+                Client(cluster) as c:
+            yield c
+        return
+    if not scheduler.startswith(_ADDRESS_PREFIXES):
+        raise XtopoError(f"unknown scheduler {scheduler!r}; use 'threads', 'processes', 'sync', 'local' "
+                         "or a scheduler address like 'tcp://host:8786'")
+    try:
+        c = Client(scheduler)  # connect timeout: dask config distributed.comm.timeouts.connect
+    except (OSError, TimeoutError) as exc:
+        raise XtopoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}. Is `dask scheduler` "
+                         "running there, and are workers attached (`dask worker {scheduler}`)?") from None
+    try:
+        yield c
+    finally:
+        c.close()
+
+
+def _execute_distributed(client, chunks, progress, retries) -> dict:
+    from distributed import as_completed
+
+    token = uuid.uuid4().hex[:8]
+    futures = {client.submit(run_chunk, chunk, key=f"xtopo-batch-{chunk.key[:16]}-{token}", pure=False,
+                             retries=retries): chunk.key for chunk in chunks}
+    if progress and futures:
+        from distributed import progress as _progress
+
+        _progress(list(futures))
+    out = {}
+    for fut in as_completed(list(futures)):
+        key = futures[fut]
+        if fut.status == "error":
+            exc = fut.exception()
+            out[key] = exc if isinstance(exc, BaseException) else XtopoError(str(exc))
+        elif fut.status == "cancelled":
+            out[key] = XtopoError("task was cancelled (the scheduler lost it)")
+        else:
+            out[key] = fut.result()
+        fut.release()
+    return out
+
+
+def _execute_local(chunks, scheduler, workers, progress) -> dict:
+    import dask
+
+    if not chunks:
+        return {}
+    tasks = [dask.delayed(run_chunk, pure=False)(chunk) for chunk in chunks]
+    bar = contextlib.nullcontext()
+    if progress:
+        from dask.diagnostics import ProgressBar
+
+        bar = ProgressBar()
+    with bar:
+        results = dask.compute(*tasks, scheduler=scheduler or "threads", num_workers=workers)
+    return {chunk.key: r for chunk, r in zip(chunks, results)}
+
+
+def execute(chunks, *, client, scheduler, workers, progress, retries) -> dict:
+    """Run ``chunks`` (a list of :class:`~xtopo.batch._task.Chunk`) where the options say.
+
+    Returns
+    -------
+    dict
+        Chunk key → the chunk's Dataset, or the exception its task ended with (distributed
+        only; on a local scheduler an exception that escapes a task ends the run).
+    """
+    with _client_for(client, scheduler, workers) as c:
+        if c is not None:
+            return _execute_distributed(c, chunks, progress, retries)
+        return _execute_local(chunks, scheduler, workers, progress)

@@ -1,0 +1,153 @@
+"""What runs in a worker: one chunk of items, from reading its measurements to its file in the store.
+
+A :class:`Chunk` is one Dask task's work (a block of measurements × a block of parameter
+values); :func:`run_chunk` does it. The measurements are opened inside the worker (paths
+travel, not arrays), ``func`` builds whatever it needs there (a contact Scene and its FFT
+plans never cross a process boundary), and the chunk's Dataset is written atomically into
+the store as soon as it is done. An item that raises (an unreadable file, a failed solve)
+becomes an ``error`` entry; the chunk's other items go on.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Callable, NamedTuple
+
+import xarray as xr
+
+from ..errors import XtopoError
+from ._results import chunk_dataset
+from ._store import IO_LOCK, Store, func_name
+
+__all__ = ["Chunk", "run_chunk", "error_message"]
+
+
+class Chunk(NamedTuple):
+    """One task's work: measurements ``rows`` × parameter values ``cols`` of the batch, and where it goes."""
+
+    func: Callable  #: ``func(ds)`` or ``func(ds, values)``; top-level (or a partial of one): it is pickled
+    dim: str  #: name of the parameter dimension
+    names: list  #: the measurements' names
+    sources: list  #: the measurements: Datasets or file paths (read in the worker)
+    params: list | None  #: the parameter values (None: a batch without parameters)
+    key: str  #: the store key of the chunk's inputs (:func:`xtopo.batch._store.chunk_key`)
+    store: str | None  #: the store directory (None: no store)
+    fft_threads: int | None  #: FFT threads in a worker process (None: its setting)
+    home_pid: int  #: the client's process id: elsewhere, the task runs in a dedicated worker process
+    read_options: dict  #: keywords of :func:`xtopo.open_topography` for the file paths
+    rows: tuple  #: (first, end) index of the measurements in the batch
+    cols: tuple | None  #: (first, end) index of the parameter values in the batch
+
+
+def error_message(exc: BaseException) -> str:
+    """``"<ExceptionType>: <message>"``, as an item's ``error`` entry."""
+    return f"{type(exc).__name__}: {exc}"
+
+
+def _load(source, read_options) -> xr.Dataset:
+    if isinstance(source, xr.Dataset):
+        return source
+    from ..io.open import open_topography
+
+    with IO_LOCK:  # see xtopo.batch._store.IO_LOCK
+        return open_topography(source, **read_options)
+
+
+def _call(func, ds, params, dim) -> xr.Dataset:
+    """``func`` on one measurement (and the parameter values ``params``), its result checked and loaded."""
+    out = func(ds) if params is None else func(ds, list(params))
+    if isinstance(out, xr.DataArray):
+        out = out.to_dataset(name=out.name or "result")
+    if not isinstance(out, xr.Dataset):
+        raise XtopoError(f"batch function {func_name(func)} returned a {type(out).__name__}; "
+                         "it must return an xarray Dataset or DataArray")
+    out = out.compute()
+    if params is not None:
+        if out.sizes.get(dim) != len(params):
+            raise XtopoError(f"batch function {func_name(func)} must return a Dataset with dim {dim!r} of "
+                             f"length {len(params)} (one entry per parameter value)")
+        attrs = out[dim].attrs if dim in out.coords else {}
+        out = out.assign_coords({dim: (dim, list(params), attrs)})
+    return out
+
+
+def _run_item(func, source, params, dim, read_options):
+    """(result or None, errors) of one measurement: errors is one message per parameter value ('' where it
+    worked), or one message for a batch without parameters."""
+    n = 1 if params is None else len(params)
+    try:
+        ds = _load(source, read_options)
+    except Exception as exc:
+        return None, [error_message(exc)] * n
+    try:
+        return _call(func, ds, params, dim), [""] * n
+    except Exception as exc:
+        if params is None or n == 1:
+            return None, [error_message(exc)]
+    # isolate the failing parameter values; the others keep their results
+    parts, errors = [], []
+    for p in params:
+        try:
+            parts.append(_call(func, ds, [p], dim))
+            errors.append("")
+        except Exception as exc:
+            errors.append(error_message(exc))
+    if not parts:
+        return None, errors
+    return xr.concat(parts, dim=dim, join="outer", combine_attrs="drop_conflicts", data_vars="minimal",
+                     coords="minimal", compat="override"), errors
+
+
+_MALLOC_TUNED = False
+
+
+def _tune_malloc() -> None:
+    """Undo the cost of distributed's ``MALLOC_TRIM_THRESHOLD_`` in a worker process (glibc only, once).
+
+    Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``; glibc then also
+    freezes the mmap threshold at 128 KiB, so every FFT-sized temporary is a fresh
+    ``mmap`` + page faults: FFT-bound work ran 2-4× slower in a worker than in a plain
+    process on the reference machine. Raising both thresholds (64 MiB mmap, 128 MiB trim)
+    restores plain-process speed. Set ``XTOPO_BATCH_MALLOC_TUNE=0`` to leave malloc alone.
+    """
+    global _MALLOC_TUNED
+    if _MALLOC_TUNED or os.environ.get("XTOPO_BATCH_MALLOC_TUNE", "1") == "0":
+        return
+    _MALLOC_TUNED = True
+    if "MALLOC_TRIM_THRESHOLD_" not in os.environ:
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-3, 64 << 20)  # M_MMAP_THRESHOLD
+        libc.mallopt(-1, 128 << 20)  # M_TRIM_THRESHOLD
+    except (OSError, AttributeError):  # not glibc: nothing to undo
+        pass
+
+
+def run_chunk(chunk: Chunk) -> xr.Dataset:
+    """Run one chunk (top-level, picklable): every measurement × every parameter value of it.
+
+    In a worker process FFT threads are set to ``chunk.fft_threads`` (``XTOPO_FFT_THREADS``)
+    and malloc is tuned (:func:`_tune_malloc`); the result is written to the store (when
+    there is one) before the task returns.
+
+    Returns
+    -------
+    xarray.Dataset
+        The chunk's results (see :mod:`xtopo.batch._results`).
+    """
+    if os.getpid() != chunk.home_pid:  # a dedicated worker process
+        _tune_malloc()
+        if chunk.fft_threads:
+            os.environ["XTOPO_FFT_THREADS"] = str(int(chunk.fft_threads))
+    results, errors = [], []
+    for source in chunk.sources:
+        res, err = _run_item(chunk.func, source, chunk.params, chunk.dim, chunk.read_options)
+        results.append(res)
+        errors.append(err)
+    ds = chunk_dataset(chunk.names, chunk.sources, results, errors, chunk.params, chunk.dim)
+    if chunk.store is not None:
+        Store(chunk.store).write(ds, chunk.key, sum(bool(e) for row in errors for e in row))
+    return ds
