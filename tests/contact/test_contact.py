@@ -250,6 +250,20 @@ def test_nonconvergence_is_flagged():
     assert not bool(r.converged)
 
 
+@pytest.mark.parametrize("maxiter", [1, 5, 20])
+def test_capped_load_control_keeps_to_maxiter(maxiter):
+    """With a hardness a prescribed load is found by solves at trial penetrations; each inner solve
+    used to get the whole maxiter, so a solve reported (and spent) several times maxiter iterations."""
+    surf = datasets.fractal_surface((64, 64), 1.0, hurst=0.8, rms_slope=0.1, seed=5, periodic=True, units="um")
+    scene = Scene(surf, hardness=0.05)
+    full = scene.solve(mean_pressure=0.01, tol=1e-8)
+    assert bool(full.converged) and int(full.iterations) > 20  # the budgets below are too small for it
+    with pytest.warns(ConvergenceWarning):
+        r = scene.solve(mean_pressure=0.01, tol=1e-8, maxiter=maxiter)
+    assert not bool(r.converged)
+    assert 0 < int(r.iterations) <= maxiter
+
+
 def test_penetration_control_matches_load_control(hertz):
     load, r = hertz
     r2 = Scene(_sphere()).solve(penetration=float(r.penetration))
