@@ -301,6 +301,18 @@ def test_curve_stiffness_does_not_depend_on_the_order_of_the_loads():
                                rtol=1e-12)
 
 
+def test_curve_stiffness_with_repeated_loads():
+    """A loading–unloading sequence repeats loads: the repeats were neighbours with Δδ = 0 on the sorted
+    curve, and the stiffness was NaN at every point but the last."""
+    scene = Scene(_sphere(32))
+    cycle = scene.curve(loads=[1e-3, 2e-3, 3e-3, 4e-3, 3e-3, 2e-3], gap_bins=0)
+    once = scene.curve(loads=[1e-3, 2e-3, 3e-3, 4e-3], gap_bins=0)
+    assert np.isfinite(cycle.stiffness.values).all()
+    expected = once.stiffness.sel(load=cycle["load"].values, method="nearest").values
+    np.testing.assert_allclose(cycle.stiffness.values, expected, rtol=1e-3)  # warm starts differ: δ to tol
+    np.testing.assert_allclose(cycle.stiffness.values[4], cycle.stiffness.values[2], rtol=1e-12)
+
+
 def test_curve_inputs_are_checked():
     scene = Scene(_sphere(16))
     c = scene.curve(loads=[1e-4, 2e-4])
