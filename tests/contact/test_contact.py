@@ -250,6 +250,20 @@ def test_nonconvergence_is_flagged():
     assert not bool(r.converged)
 
 
+@pytest.mark.parametrize("maxiter", [1, 5, 20])
+def test_capped_load_control_keeps_to_maxiter(maxiter):
+    """With a hardness a prescribed load is found by solves at trial penetrations; each inner solve
+    used to get the whole maxiter, so a solve reported (and spent) several times maxiter iterations."""
+    surf = datasets.fractal_surface((64, 64), 1.0, hurst=0.8, rms_slope=0.1, seed=5, periodic=True, units="um")
+    scene = Scene(surf, hardness=0.05)
+    full = scene.solve(mean_pressure=0.01, tol=1e-8)
+    assert bool(full.converged) and int(full.iterations) > 20  # the budgets below are too small for it
+    with pytest.warns(ConvergenceWarning):
+        r = scene.solve(mean_pressure=0.01, tol=1e-8, maxiter=maxiter)
+    assert not bool(r.converged)
+    assert 0 < int(r.iterations) <= maxiter
+
+
 def test_penetration_control_matches_load_control(hertz):
     load, r = hertz
     r2 = Scene(_sphere()).solve(penetration=float(r.penetration))
@@ -285,6 +299,18 @@ def test_curve_stiffness_does_not_depend_on_the_order_of_the_loads():
     pens = scene.curve(penetrations=[0.03, 0.01, 0.02], gap_bins=0).sortby("penetration")
     np.testing.assert_allclose(pens.stiffness.values, np.gradient(pens["load"].values, pens.penetration.values),
                                rtol=1e-12)
+
+
+def test_curve_stiffness_with_repeated_loads():
+    """A loading–unloading sequence repeats loads: the repeats were neighbours with Δδ = 0 on the sorted
+    curve, and the stiffness was NaN at every point but the last."""
+    scene = Scene(_sphere(32))
+    cycle = scene.curve(loads=[1e-3, 2e-3, 3e-3, 4e-3, 3e-3, 2e-3], gap_bins=0)
+    once = scene.curve(loads=[1e-3, 2e-3, 3e-3, 4e-3], gap_bins=0)
+    assert np.isfinite(cycle.stiffness.values).all()
+    expected = once.stiffness.sel(load=cycle["load"].values, method="nearest").values
+    np.testing.assert_allclose(cycle.stiffness.values, expected, rtol=1e-3)  # warm starts differ: δ to tol
+    np.testing.assert_allclose(cycle.stiffness.values[4], cycle.stiffness.values[2], rtol=1e-12)
 
 
 def test_curve_inputs_are_checked():

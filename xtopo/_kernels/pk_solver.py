@@ -282,7 +282,8 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     tol : float
         Tolerance of the relative residual defined in the module docstring.
     maxiter : int
-        Largest number of iterations.
+        Largest number of iterations (under load control with a hardness, of all the inner
+        solves at trial penetrations together).
     initial : numpy.ndarray, optional
         Starting pressures (a previous solution).
     callback : callable, optional
@@ -488,18 +489,26 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
     ``δ``: the inner tolerance is then tightened, and a bracket end whose load was computed
     at a looser tolerance is solved again before it is trusted (its load may be off by
     more than the target accuracy, and the bracket may not hold the root at all).
+
+    ``maxiter`` bounds the iterations of all inner solves together (each gets what the
+    previous ones left); when they are spent the best converged solve so far is returned,
+    flagged unconverged unless it carries the load to ``tol``.
     """
     state = {"p": initial, "solves": 0, "tol": tol, "best": None, **dict.fromkeys(COUNTERS, 0)}
+
+    def budget():
+        """Iterations left of ``maxiter``, which bounds the inner solves together."""
+        return maxiter - state["iterations"]
 
     def solve_at(delta):
         while True:
             cold = state["p"] is None
             res = polonsky_keer(conv, w, pixel_area=pixel_area, penetration=delta, hardness=hardness,
-                                tol=state["tol"], maxiter=maxiter, initial=state["p"])
+                                tol=state["tol"], maxiter=max(budget(), 0), initial=state["p"])
             for key in COUNTERS:
                 state[key] += res[key]
             state["solves"] += 1
-            if res.iterations > 0 or cold or state["tol"] <= 1e-13:
+            if res.iterations > 0 or cold or state["tol"] <= 1e-13 or budget() <= 0:
                 break
             # the warm start (the solution at another δ) already met the tolerance: its load
             # is not F(δ). Resolve finer — near the root F changes fast within a small δ step
@@ -525,7 +534,7 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
     side = 0
     for _ in range(400):
         best = state["best"]
-        if best is not None and abs(best[1]) <= f_tol:
+        if (best is not None and abs(best[1]) <= f_tol) or budget() <= 0:
             break
         # ends solved at a looser inner tolerance than the current one are solved again
         for end in (lo, hi):
@@ -556,9 +565,9 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
             if side == 1:
                 lo[1] *= 0.5
             side = 1
-    if state["best"] is None:  # no inner solve converged: report the last bracket end
+    if state["best"] is None:  # no inner solve converged: report the last bracket end (no iterations left)
         state["best"] = (polonsky_keer(conv, w, pixel_area=pixel_area, penetration=hi[0], hardness=hardness, tol=tol,
-                                       maxiter=maxiter, initial=state["p"]), hi[1])
+                                       maxiter=max(budget(), 0), initial=state["p"]), hi[1])
     res, f_best = state["best"]
     load_err = abs(f_best) / load
     for key in (*COUNTERS, "solves"):

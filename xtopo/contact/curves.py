@@ -109,10 +109,12 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
     -------
     xarray.DataArray
         ``dF/dδ`` between neighbours in the order of the ``dim`` coordinate (whatever order the
-        values were given in); one-sided at the ends, as :func:`numpy.gradient`; NaN where it is
+        values were given in); one-sided at the ends, as :func:`numpy.gradient`. A value of the
+        coordinate given more than once (a loading–unloading sequence) is one point of the
+        curve (the mean of its solves), and its repetitions get its stiffness. NaN where it is
         undefined: next to a step in which the penetration does not change (full contact of
         a periodic scene, where ``δ`` is fixed and the stiffness infinite) and for curves of
-        fewer than two points.
+        fewer than two distinct points.
     """
     _curve_variables(ds, ["load", "penetration"], "stiffness")
     if ds["load"].dims != (dim,) or ds["penetration"].dims != (dim,):
@@ -122,6 +124,15 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
     order = np.argsort(ds[dim].values, kind="stable") if dim in ds.coords else np.arange(ds.sizes[dim])
     f = np.asarray(ds["load"].values, dtype=float)[order]
     d = np.asarray(ds["penetration"].values, dtype=float)[order]
+    # repeated control values (equal to rounding: a load comes back as Σ p ΔA) are one point
+    point = np.zeros(order.size, np.intp)
+    if dim in ds.coords and order.size:
+        x = np.asarray(ds[dim].values, dtype=float)[order]
+        same = np.abs(np.diff(x)) <= 1e-9 * np.max(np.abs(x))
+        point[1:] = np.cumsum(~same)
+    count = np.bincount(point)
+    f = np.bincount(point, weights=f) / count
+    d = np.bincount(point, weights=d) / count
     k = np.full(f.shape, np.nan)
     if f.size >= 2:
         h = np.diff(d)
@@ -133,6 +144,7 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
         # np.gradient's second-order formula on a nonuniform grid, from the two step slopes
         both = ok[:-1] & ok[1:] & (h1 + h2 != 0)
         k[1:-1] = np.where(both, (h1 * s[1:] + h2 * s[:-1]) / np.where(both, h1 + h2, 1.0), np.nan)
+    k = k[point]                # back to every step, then to the given order
     k[order] = k.copy()
     units = _per_length(ds["load"].attrs.get("units", "1"), ds["penetration"].attrs.get("units", "1"))
     return xr.DataArray(k, dims=(dim,), coords={dim: ds[dim]} if dim in ds.coords else None,

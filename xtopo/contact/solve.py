@@ -187,7 +187,8 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
 
     With a hardness under load control the elastic problem is solved first: where its
     pressures stay below the hardness it is also the solution of the capped problem
-    (the cap is inactive), and the capped solver is not needed.
+    (the cap is inactive), and the capped solver is not needed; otherwise the capped solver
+    gets the iterations the elastic solve left of ``maxiter``.
     """
     kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=initial)
     elastic = None
@@ -195,6 +196,7 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
         elastic = polonsky_keer(scene.convolution, scene.w, load=load, callback=callback, **kw)
         if elastic.converged and float(np.max(elastic.pressure)) < scene.hardness:
             return elastic
+        kw["maxiter"] = max(int(maxiter) - elastic.iterations, 0)
     if scene.hardness is None or load is None:
         kw["callback"] = callback
     res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=scene.hardness, **kw)
