@@ -1,9 +1,12 @@
 """Averages of scale-dependent curves over a digital surface twin (paper §4.10).
 
 Each measurement's curve (PSD, ACF, VBM, SDRP) is computed in its 1D (profile)
-representation with its unreliable scales removed (§4.9), interpolated in
-log-log space onto common log-spaced collocation points, and averaged with
-equal weight per measurement wherever at least one measurement is reliable.
+representation (or ``Ciso`` with ``twin_psd(areal=True)``) with its unreliable scales
+removed (§4.9), brought onto common log-spaced collocation points (PSD, ACF: mean of
+each curve's points in log bins; VBM: log-log interpolation; SDRP: evaluated at the
+points) and averaged with equal weight per measurement. Which measurements enter a point,
+and whether the average is reliable there, follows from their predicted statistical
+errors (:func:`average_curves`; ``max_error``).
 Everything stays lazy on dask-backed twins: the graph is built from coordinates
 alone, data are read and computed only by ``.compute()`` (threaded scheduler,
 or the active ``distributed.Client``).

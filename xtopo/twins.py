@@ -2,7 +2,7 @@
 
 A twin has one child node per measurement (any mix of line and area scans,
 sizes, instruments and units) and the surface's description in the root's attrs.
-Scale-dependent averages over a twin are in :mod:`xtopo.twin_average`; this
+Scale-dependent averages over a twin are in :mod:`xtopo.stitching`; this
 module builds, stores and restores twins.
 """
 
