@@ -715,7 +715,7 @@ def _example_twin_cached(seed: int):
     root = xr.Dataset(attrs={"title": "example digital surface twin",
                              "summary": "A campaign of 24 simulated measurements (stylus profiles, optical, AFM, cross-sections) of "
                                         "one self-affine surface (H = 0.8, roll-off at 200 µm) spanning 5 mm down to "
-                                        "1 nm.",
+                                        "3 nm (the resolution of the cross-sections).",
                              "Conventions": "CF-1.12, ACDD-1.3", **truth.to_attrs()})
     return root, nodes
 
