@@ -218,3 +218,14 @@ def test_readme_file_counts_match_the_real_data(real_data):
     assert len(formats) == n_formats, sorted(formats)
     assert len(native) == n_native
     assert len({fmt for _, fmt in native}) == len(names), (sorted({fmt for _, fmt in native}), names)
+
+
+def test_every_command_has_help(capsys):
+    """"Every command has `--help`"."""
+    from xtopo.cli import build_parser, main
+
+    for name in _subparsers(build_parser()):
+        with pytest.raises(SystemExit) as exit_:
+            main([*name.split(), "--help"])
+        assert exit_.value.code == 0
+        assert capsys.readouterr().out.startswith(f"usage: xtopo {name}")
