@@ -65,7 +65,9 @@ def substitute(code: str, old: str, new: str) -> str:
 @pytest.fixture
 def nanoscope_or_netcdf(tmp_path):
     """A NanoScope file of the shared real data, or (without it) an xtopo NetCDF file."""
-    real = REPO.parent / "shared" / "data" / "real" / "di-1.di"
+    from .conftest import REAL_DATA
+
+    real = REAL_DATA / "di-1.di"
     if real.is_file():
         return str(real)
     import xtopo
@@ -229,3 +231,11 @@ def test_every_command_has_help(capsys):
             main([*name.split(), "--help"])
         assert exit_.value.code == 0
         assert capsys.readouterr().out.startswith(f"usage: xtopo {name}")
+
+
+def test_readme_preset_names_are_the_presets():
+    from xtopo.presets import NAMES
+
+    m = re.search(r"# presets ([\w /]+) \(docs/tradeoffs\.md\)", tour_block())
+    assert m, "the tour no longer names the presets; update tests/test_readme.py"
+    assert tuple(n.strip() for n in m[1].split("/")) == NAMES
