@@ -90,3 +90,26 @@ def test_generic_files_need_their_size_and_unit_on_the_command_line(tmp_path, ca
 def test_python_dash_m_runs_the_command_line():
     out = subprocess.run([sys.executable, "-m", "xtopo", "--version"], capture_output=True, text=True, check=True)
     assert out.stdout.startswith("xtopo ")
+
+
+def test_a_closed_stdout_does_not_stop_the_command(tmp_path):
+    """`xtopo contact FILE ... | head -1`: the reader leaving early used to abort the command before it wrote its
+    output file ("xtopo: error: [Errno 32] Broken pipe", exit code 2) when stdout is unbuffered."""
+    import os
+    import pathlib
+
+    src = xtopo.to_netcdf(xtopo.datasets.fractal_surface((32, 32), 1e-6, hurst=0.8, rms_height=1e-8),
+                          tmp_path / "small.nc")
+    repo = str(pathlib.Path(__file__).resolve().parents[1])
+    env = dict(os.environ, PYTHONUNBUFFERED="1",
+               PYTHONPATH=os.pathsep.join(p for p in (repo, os.environ.get("PYTHONPATH")) if p))
+    p = subprocess.Popen([sys.executable, "-m", "xtopo", "contact", src, "--mean-pressures", "0.01", "-o",
+                          str(tmp_path / "out.nc")], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    p.stdout.close()  # the reader is gone before the command prints anything
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 0, err
+    assert "Broken pipe" not in err and "BrokenPipeError" not in err
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "out.nc") as res:
+        assert res["mean_pressure"].values.ravel().tolist() == pytest.approx([0.01])

@@ -76,3 +76,24 @@ def test_notebook_executes(name, tmp_path, monkeypatch):
              any(k in o.get("data", {}) for k in ("text/html", "application/vnd.holoviews_load.v0+json",
                                                   "application/vnd.holoviews_exec.v0+json"))]
     assert shown, f"{name} displayed no figure"
+
+
+_COUNTS = {"two": 2, "three": 3, "four": 4, "five": 5, "six": 6}
+
+
+def test_twin_notebook_text_matches_the_example_twin():
+    """What 02-digital-twin says of the example twin: how many measurements, which have missing data."""
+    import re
+
+    from xtopo.datasets import example_twin
+
+    nb = nbformat.read(NOTEBOOKS / "02-digital-twin.ipynb", as_version=4)
+    text = " ".join(c.source for c in nb.cells if c.cell_type == "markdown")
+    tree = example_twin()
+    n = re.search(r"campaign of (\d+) simulated measurements", text)
+    assert n and int(n[1]) == len(tree.children)
+    m = re.search(r"(\w+) scans have missing points \(the optical map and the three 5 µm AFM maps\)", text)
+    assert m, "the notebook no longer says which scans have missing points; update this test"
+    masked = sorted(name for name, node in tree.children.items() if "mask" in node and bool(node["mask"].any()))
+    assert _COUNTS[m[1].lower()] == len(masked)
+    assert masked == sorted(["optical-1mm", "afm-5um", "afm-5um-2", "afm-5um-3"])

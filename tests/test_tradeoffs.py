@@ -63,3 +63,34 @@ def test_knee_is_where_the_error_stops_falling():
     flat = [mod.row("psd_bins", "s", "bins", v, 1.0, e, "err") for v, e in zip(range(3), (0.3, 0.1, 0.2))]
     mod.mark_knees(flat)
     assert [r["knee"] for r in flat] == [0, 1, 0]
+
+
+def _two_digits(x: float) -> float:
+    return float(f"{x:.2g}")
+
+
+def test_docs_presets_table_is_the_committed_csv():
+    """docs/tradeoffs.md's preset table quotes docs/tradeoffs.csv (times and errors to 2 digits) and
+    xtopo.presets (dtype, tol, maxiter)."""
+    import re
+
+    from xtopo.contact.solve import default_tol
+    from xtopo.presets import PRESETS
+
+    text = (REPO / "docs" / "tradeoffs.md").read_text(encoding="utf-8")
+    committed = [r for r in csv.DictReader(open(REPO / "docs" / "tradeoffs.csv")) if r["panel"] == "preset"]
+    series = ("Hertz", "fractal 256² periodic", "fractal 256² free")
+    rows = re.findall(r"^\| `(fast|default|accurate)` \| (\w+) \| ([^|]+) \| (\d+) \|(.*)\|\s*$", text, re.M)
+    assert [r[0] for r in rows] == ["fast", "default", "accurate"]
+    for name, dtype, tol, maxiter, cells in rows:
+        knobs = PRESETS["contact"][name]
+        assert dtype == knobs["dtype"] and int(maxiter) == knobs["maxiter"]
+        assert float(tol.split()[0]) == (knobs["tol"] if knobs["tol"] is not None else default_tol(dtype))
+        for cell, s in zip(cells.split("|"), series):
+            time_s, error = (c.strip() for c in cell.split("/"))
+            ref = next(r for r in committed if r["value"] == name and r["series"] == s)
+            assert float(time_s.removesuffix(" s")) == _two_digits(float(ref["time_s"])), (name, s, time_s)
+            if error.endswith("%"):
+                assert float(error.removesuffix(" %")) == _two_digits(100 * float(ref["error"])), (name, s, error)
+            else:
+                assert float(error) == _two_digits(float(ref["error"])), (name, s, error)

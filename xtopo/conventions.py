@@ -126,6 +126,14 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
 
     Works on a measurement Dataset or on a height DataArray whose coords carry
     ``units``. The original unit is recorded in ``history``.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset or xarray.DataArray
+        A measurement or a height DataArray (lengths in any unit pint knows).
+    units : str
+        Target length unit (UDUNITS spelling: ``"m"``, ``"um"``, ``"nm"``, ...); ``x``, ``y``,
+        ``height`` and the length attributes (``tip_radius``, ``resolution``) are converted together.
     """
     to = normalize_units(units)
     obj = ds.copy(deep=False)
@@ -454,6 +462,12 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
 
 def validate(ds: xr.Dataset) -> xr.Dataset:
     """Check that ``ds`` follows the measurement data model; return it unchanged.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A measurement (``height`` on ``("y", "x")`` or ``("x",)``, coordinates with length
+        ``units``, optional boolean ``mask``, attrs as in :mod:`xtopo.conventions`).
 
     Raises
     ------

@@ -351,6 +351,10 @@ def sphere(shape, size, radius: float, *, center=None, kind: str = "sphere", per
         Apex position ``(y, x)`` or ``x``; default the centre of the window.
     kind : {"sphere", "paraboloid"}
         Exact sphere ``sqrt(R²-r²) - R`` (``-R`` outside) or ``-r²/(2R)``.
+    periodic : bool
+        Value of the ``periodic`` attribute (the cap itself is not made periodic).
+    units : str
+        Length unit of ``size``, ``radius``, ``center`` and the result.
     """
     shape = _shape(shape)
     size = _per_axis(size, len(shape), "size")
@@ -495,6 +499,8 @@ def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_rad
         Measure a single profile along x (the first row) of an area surface.
     seed : int
         Seed for noise and missing patches.
+    instrument : str
+        Recorded in ``attrs["instrument"]``.
 
     Returns
     -------
@@ -709,7 +715,7 @@ def _example_twin_cached(seed: int):
     root = xr.Dataset(attrs={"title": "example digital surface twin",
                              "summary": "A campaign of 24 simulated measurements (stylus profiles, optical, AFM, cross-sections) of "
                                         "one self-affine surface (H = 0.8, roll-off at 200 µm) spanning 5 mm down to "
-                                        "1 nm.",
+                                        "3 nm (the resolution of the cross-sections).",
                              "Conventions": "CF-1.12, ACDD-1.3", **truth.to_attrs()})
     return root, nodes
 

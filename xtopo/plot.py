@@ -460,6 +460,8 @@ def contact_area(results, *, labels=None, title: str | None = None, x: str = "me
         sphere, rough sphere, nominally flat roughness).
     labels : dict, optional
         Legend text per key of ``results``.
+    title : str, optional
+        Figure title (default none).
     x, y : str
         Variables on the axes (default: ``mean_pressure`` in units of E*, ``area_fraction``).
 
@@ -577,7 +579,17 @@ def plot(obj, **kwargs):
     2D PSD on ``(q_y, q_x)``                                  :func:`spectrum_map`
     ========================================================  ==============================
 
-    Keyword arguments go to the chosen function.
+    Parameters
+    ----------
+    obj : xarray.DataTree, xarray.Dataset or xarray.DataArray
+        What to plot (see the table).
+    **kwargs
+        Keyword arguments of the chosen function.
+
+    Returns
+    -------
+    holoviews object
+        Displayed by Jupyter; ``holoviews.save`` writes it to HTML or PNG.
     """
     if isinstance(obj, xr.DataTree):
         return measurement_maps(obj, **kwargs)

@@ -1,7 +1,8 @@
 """Preprocessing of measurements (paper §3.2): detrending and filling missing data.
 
 Both functions take a measurement Dataset (or a height DataArray), never modify it, and
-return a new object whose ``history`` records the step. Extra (batch) dims broadcast and
+return a new object whose ``history`` records the step. ``detrend`` in mode ``"plane"`` or
+``"curvature"`` sets ``periodic`` to 0 (the removed tilt or curvature is no periodic function). Extra (batch) dims broadcast and
 dask-backed inputs stay lazy; the lateral dims must each be a single chunk.
 
 ``fill_missing`` replaces the ``mask`` variable by ``filled`` (``True`` where a value was

@@ -1,9 +1,12 @@
 """Averages of scale-dependent curves over a digital surface twin (paper §4.10).
 
 Each measurement's curve (PSD, ACF, VBM, SDRP) is computed in its 1D (profile)
-representation with its unreliable scales removed (§4.9), interpolated in
-log-log space onto common log-spaced collocation points, and averaged with
-equal weight per measurement wherever at least one measurement is reliable.
+representation (or ``Ciso`` with ``twin_psd(areal=True)``) with its unreliable scales
+removed (§4.9), brought onto common log-spaced collocation points (PSD, ACF: mean of
+each curve's points in log bins; VBM: log-log interpolation; SDRP: evaluated at the
+points) and averaged with equal weight per measurement. Which measurements enter a point,
+and whether the average is reliable there, follows from their predicted statistical
+errors (:func:`average_curves`; ``max_error``).
 Everything stays lazy on dask-backed twins: the graph is built from coordinates
 alone, data are read and computed only by ``.compute()`` (threaded scheduler,
 or the active ``distributed.Client``).
@@ -366,6 +369,36 @@ _CRITERION = """With ``reliable``, a measurement may be used only above its shor
     error is at most ``max_error`` (default :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`);
     ``count`` gives the measurements used."""
 
+_TWIN_PARAMETERS = """tree : xarray.DataTree
+        A twin (:func:`xtopo.twin`): one child node per measurement.{extra}
+    per_decade : int
+        Collocation points per decade of the length scale (default 10).
+    units : str, optional
+        Length unit of the average (default: the unit of the first measurement).
+    reliable : bool
+        Use each measurement only where it is reliable (default True; see above).
+    max_error : float, optional
+        Largest predicted relative standard error of a reliable average point (default
+        :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`)."""
+
+#: Parameters of one average beyond those all four share (after ``tree``).
+_EXTRA = {
+    "twin_psd": """
+    areal : bool
+        Average ``Ciso`` of area scans instead of ``C1D`` along x (default False).
+    window : {"auto", "hann", None}
+        Window of each spectrum, as in :func:`xtopo.analysis.psd.psd` (default ``"auto"``).""",
+    "twin_sdrp": """
+    order : {1, 2}
+        Slope (1, default) or curvature (2).""",
+}
+
+_TWIN_RETURNS = """Returns
+    -------
+    xarray.Dataset
+        ``average``, ``count`` and ``relative_error`` on the collocation coordinate and the
+        per-measurement ``curves`` (see :func:`average_curves`)."""
+
 
 def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_DECADE, units: str | None = None,
              reliable: bool = True, max_error: float | None = None) -> xr.Dataset:
@@ -374,6 +407,12 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
     ``areal=True`` needs every measurement to be an area scan. {criterion} A spectrum's
     predicted error in a collocation bin is ``1/√N`` with ``N`` the independent Fourier modes of
     its reliable wavevectors there (:func:`~xtopo.analysis.reliability.independent_samples`).
+
+    Parameters
+    ----------
+    {parameters}
+
+    {returns}
     """
     from .analysis.psd import psd
 
@@ -398,6 +437,12 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
 
     {criterion} A measurement's predicted error is that of
     :func:`~xtopo.analysis.reliability.stencil_error`.
+
+    Parameters
+    ----------
+    {parameters}
+
+    {returns}
     """
     from .analysis.acf import acf
 
@@ -414,6 +459,12 @@ def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     """Average variable-bandwidth RMS height of a twin.
 
     {criterion} A measurement's predicted error is ``1/(2√N)`` with ``N`` independent windows.
+
+    Parameters
+    ----------
+    {parameters}
+
+    {returns}
     """
     from .analysis.vbm import vbm
 
@@ -432,6 +483,12 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     (fractional scale factors by linear interpolation, §4.10). {criterion} A measurement's
     predicted error is that of :func:`~xtopo.analysis.reliability.stencil_error` of the
     slope or curvature.
+
+    Parameters
+    ----------
+    {parameters}
+
+    {returns}
     """
     from .analysis.sdrp import check_order, sdrp
 
@@ -466,7 +523,8 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
 
 
 for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):
-    _f.__doc__ = _f.__doc__.format(criterion=_CRITERION)
+    _f.__doc__ = _f.__doc__.format(criterion=_CRITERION, returns=_TWIN_RETURNS,
+                                   parameters=_TWIN_PARAMETERS.format(extra=_EXTRA.get(_f.__name__, "")))
 
 
 def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:

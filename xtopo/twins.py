@@ -2,7 +2,7 @@
 
 A twin has one child node per measurement (any mix of line and area scans,
 sizes, instruments and units) and the surface's description in the root's attrs.
-Scale-dependent averages over a twin are in :mod:`xtopo.twin_average`; this
+Scale-dependent averages over a twin are in :mod:`xtopo.stitching`; this
 module builds, stores and restores twins.
 """
 
@@ -99,6 +99,11 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
 def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
     """The measurement Datasets of a twin by node name (children holding a ``height``).
 
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A twin (:func:`twin`, :func:`open_twin`).
+
     Raises
     ------
     ValidationError
@@ -154,7 +159,15 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
 
 
 def open_twin(path, engine: str | None = None) -> xr.DataTree:
-    """Restore a twin archived with :func:`to_netcdf` (data loaded into read-only memory, as in :func:`twin`)."""
+    """Restore a twin archived with :func:`to_netcdf` (data loaded into read-only memory, as in :func:`twin`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The archive.
+    engine : {"netcdf4", "h5netcdf"}, optional
+        NetCDF library (default: xarray's choice).
+    """
     try:
         tree = xr.open_datatree(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:

@@ -1,7 +1,8 @@
-"""FFT backend: scipy.fft by default, pyFFTW for large grids where it is faster.
+"""FFT backend: scipy.fft or pyFFTW, chosen by :func:`choose_backend`.
 
-DESIGN.md §5: on 2 cores scipy.fft beats threaded pyFFTW up to about 1024²;
-pyFFTW wins from 2048². ``backend="auto"`` follows that rule; users may force one.
+One-shot transforms (the analyses) use scipy.fft below 2048² points and pyFFTW from there;
+transforms whose plans are built once and reused (the contact operator) use planned pyFFTW at
+any size (docs/tradeoffs.md, FFT backend). ``backend="auto"`` follows that rule; users may force one.
 """
 
 from __future__ import annotations

@@ -77,7 +77,9 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
     xarray.DataArray
         The cutoff length in the measurement's length unit (0-d, or over batch
         dims for a tip-radius criterion on a batch); NaN when the measurement
-        has neither attribute. Attr ``method`` says which criterion was used.
+        has neither attribute; 0 when the tip criterion holds at every scale the data
+        resolve (the tip does not limit the measurement). Attr ``method`` says which
+        criterion was used.
         Lazy on dask inputs.
 
     Raises

@@ -24,7 +24,6 @@ def check_order(order) -> int:
 
 
 def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = True) -> xr.DataArray:
-    given = distances
     """Scale-dependent RMS slope (``order=1``) or RMS curvature (``order=2``).
 
     ``D^(η) h = (h(x+ηΔx) - h(x))/(ηΔx)`` (eq. 9) and
@@ -54,6 +53,7 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
         ``sdrp`` (dimensionless slope or curvature in inverse length) on coord
         ``distance``; at ``ℓ = Δx`` (order 1) it equals RΔq, at ``ℓ = 2Δx`` (order 2) RΔ²q.
     """
+    given = distances
     order = check_order(order)
     prep = prepare(obj)
     h, u = prep.h, prep.units

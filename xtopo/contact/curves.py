@@ -189,9 +189,35 @@ def contact(topography, *, load=None, mean_pressure=None, penetration=None, modu
 
     A scalar ``load``/``mean_pressure``/``penetration`` gives one solution
     (:func:`~xtopo.contact.solve.solve`); a sequence gives a load curve
-    (:func:`curve`). Other parameters as in :class:`~xtopo.contact.Scene`; ``preset``
-    (``"fast"``, ``"default"``, ``"accurate"``, :mod:`xtopo.presets`) sets ``dtype``,
-    ``tol`` and ``maxiter`` where they are not given.
+    (:func:`curve`).
+
+    Parameters
+    ----------
+    topography : xarray.Dataset or xarray.DataArray
+        A measurement (uniform grid, no missing data), as in :class:`~xtopo.contact.Scene`.
+    load, mean_pressure, penetration : float or sequence of float
+        Exactly one: load in units of ``modulus`` × length² (area scans) or × length (line
+        scans: force per unit length), mean pressure in units of ``modulus``, penetration in the
+        measurement's length unit (see :func:`~xtopo.contact.solve.solve`).
+    modulus : float
+        Contact modulus ``E*`` (default 1: pressures and loads in units of ``E*``).
+    hardness : float, optional
+        Pressure cap, in units of ``modulus``; without it the contact is elastic.
+    periodic : bool, optional
+        Boundary condition (default: the measurement's ``periodic`` attribute).
+    counter : xarray.Dataset or xarray.DataArray, optional
+        A second rough surface on the same grid (compound topography ``h1 + h2``).
+    dtype : {"float64", "float32"}, optional
+        Floating point type of the solver (default from ``preset``: float64).
+    tol, maxiter : optional
+        Solver tolerance and iteration limit, as in :func:`~xtopo.contact.solve.solve`.
+    preset : {"fast", "default", "accurate"}, optional
+        Sets ``dtype``, ``tol`` and ``maxiter`` where they are not given (:mod:`xtopo.presets`).
+
+    Returns
+    -------
+    xarray.Dataset
+        As :func:`~xtopo.contact.solve.solve` (scalar control) or :func:`curve` (a sequence).
     """
     from .scene import Scene
 

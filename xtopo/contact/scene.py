@@ -83,8 +83,8 @@ class Scene:
         A measurement (``height`` on ``("y", "x")`` or ``("x",)``, uniform grid, no
         missing data). Heights point toward the elastic body: the highest point touches first.
     modulus : float
-        Contact modulus ``E*`` (``1/E* = (1-ν₁²)/E₁ + (1-ν₂²)/E₂``). Pressures, loads and the
-        hardness are in the units of ``modulus`` (``modulus_units``, default ``"E*"``).
+        Contact modulus ``E*`` (``1/E* = (1-ν₁²)/E₁ + (1-ν₂²)/E₂``), default 1. Pressures, loads
+        and the hardness are in the units of ``modulus``, named by ``modulus_units``.
     hardness : float, optional
         Indentation hardness ``p_y``: pressures are capped at this value (simple
         perfectly plastic model). Without it no cap is built.
@@ -99,7 +99,8 @@ class Scene:
     modulus_units : str, optional
         Units label of ``modulus`` (e.g. ``"GPa"``); default ``"E*"``.
     backend : {"auto", "scipy", "pyfftw"}
-        FFT library (``"auto"``: by the size of the FFT grid, see :mod:`xtopo._kernels.fft`).
+        FFT library (default ``"auto"``: planned pyFFTW where it is installed, else scipy; see
+        :func:`xtopo._kernels.fft.choose_backend`).
     preset : {"fast", "default", "accurate"}, optional
         Speed-versus-accuracy preset (:mod:`xtopo.presets`): sets ``dtype`` here and the
         ``tol``/``maxiter`` of :meth:`solve` and :meth:`curve` unless those are given.
