@@ -90,3 +90,22 @@ def test_generic_files_need_their_size_and_unit_on_the_command_line(tmp_path, ca
 def test_python_dash_m_runs_the_command_line():
     out = subprocess.run([sys.executable, "-m", "xtopo", "--version"], capture_output=True, text=True, check=True)
     assert out.stdout.startswith("xtopo ")
+
+
+def test_analyze_says_how_many_measurements_each_average_holds(tmp_path, capsys):
+    """The line under the table gave the largest per-point count ('psd average over 1 measurements')
+    for a twin whose measurements do not overlap in scale, as if the others had been dropped;
+    it now counts the measurements in the average and names those that add no reliable point."""
+    fine = tmp_path / "fine.nc"
+    coarse = tmp_path / "coarse.nc"
+    blurred = tmp_path / "blurred.nc"
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-6, hurst=0.8, seed=1), fine)
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-2, hurst=0.8, seed=2), coarse)
+    # a resolution as large as the scan: nothing of it is reliable
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-4, hurst=0.8, seed=3)
+                    .assign_attrs(resolution=1e-4, resolution_units="m"), blurred)
+    assert main(["analyze", str(fine), str(coarse), str(blurred), "-o", str(tmp_path / "out.nc")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    vbm = lines.index(next(ln for ln in lines if ln.startswith("vbm ")))
+    assert lines[vbm].startswith("vbm   average of 2 of 3 measurements at ")
+    assert "no reliable point from blurred.nc" in lines[vbm + 1]

@@ -39,6 +39,27 @@ def _read_inputs(args):
     return measurements, what, failed
 
 
+def _average_line(name: str, r) -> str:
+    """One line on a twin average: how many measurements it holds, where, and which added nothing.
+
+    ``count`` is the number of measurements at one collocation point; measurements of different
+    scales overlap little, so its maximum says nothing about how many entered the average.
+    """
+    coord = r.average.dims[0]
+    ok = r["count"] > 0
+    names = [str(m) for m in r["measurement"].values]
+    used = r["curves"].notnull().any(coord).values
+    line = f"{name:5s} average of {int(used.sum())} of {len(names)} measurements"
+    if ok.any():
+        lo, hi = float(r[coord].where(ok).min()), float(r[coord].where(ok).max())
+        line += f" at {int(ok.sum())} points, {coord} from {lo:.3g} to {hi:.3g} {r[coord].attrs.get('units', '')}"
+    if not used.all():
+        left = ", ".join(n for n, u in zip(names, used) if not u)
+        line += (f"\n      no reliable point from {left} (short scales: tip radius/resolution cutoff; long "
+                 "scales: predicted error above max_error, see xtopo.stitching)")
+    return line
+
+
 def _cmd_analyze(args) -> int:
     from .io.netcdf import tree_to_netcdf
     from .stitching import analyze_twin
@@ -52,12 +73,7 @@ def _cmd_analyze(args) -> int:
     print(f"xtopo analyze: {len(measurements)} measurements ({what})\n")
     print(format_table(results.to_dataset()))
     for name in ("psd", "acf", "vbm", "sdrp"):
-        r = results[name].to_dataset()
-        coord = r.average.dims[0]
-        ok = r["count"] > 0
-        lo, hi = float(r[coord].where(ok).min()), float(r[coord].where(ok).max())
-        print(f"{name:5s} average over {int(r['count'].max())} measurements at {int(ok.sum())} points, "
-              f"{coord} from {lo:.3g} to {hi:.3g} {r[coord].attrs.get('units', '')}")
+        print(_average_line(name, results[name].to_dataset()))
     tree_to_netcdf(results, args.output)
     print(f"\nwrote {args.output} (groups: summary at the root, psd, acf, vbm, sdrp)")
     if args.report:
