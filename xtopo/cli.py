@@ -13,17 +13,17 @@ __all__ = ["main"]
 
 
 def _load_measurements(files, args):
-    from .cli_commands import read_options
+    from .cli_commands import preprocess, read_options
     from .datasets import example_twin
     from .io import open_topography
 
     if not files:
         tree = example_twin()
-        return {name: node.to_dataset() for name, node in tree.children.items()}, "example twin", []
+        return {name: preprocess(node.to_dataset(), args) for name, node in tree.children.items()}, "example twin", []
     out, failed = {}, []
     for f in files:
         try:
-            out[os.path.basename(f)] = open_topography(f, **read_options(args))
+            out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args)), args)
         except Exception as exc:  # reported per file; the good ones go on
             failed.append((f, exc))
     return out, f"{len(files)} file(s)", failed
@@ -103,7 +103,7 @@ def _cmd_report(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
-    from .cli_commands import add_read_options
+    from .cli_commands import add_preprocess_options, add_read_options
 
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
@@ -114,6 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("files", nargs="*", help="measurement files (any supported format)")
     p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
+    add_preprocess_options(p)
     add_read_options(p)
     p.set_defaults(func=_cmd_analyze)
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
@@ -125,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--title", help="page title")
     r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
+    add_preprocess_options(r)
     add_read_options(r)
     r.set_defaults(func=_cmd_report)
     from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
