@@ -24,3 +24,21 @@ def test_fill_missing_fills_a_real_map_read_as_a_transposed_view(real_data):
     # the measured pixels are untouched
     keep = ~ds["mask"].values
     np.testing.assert_array_equal(filled.height.values[keep], ds.height.values[keep])
+
+
+@pytest.mark.parametrize("name", ["di-5.di", "dektak-1.csv", "opd-1.opd"])
+def test_surfacetopography_reads_the_export_of_a_real_file(real_data, tmp_path, name):
+    """Exports of real files (all have an ``instrument``) were refused by SurfaceTopography 1.27."""
+    st = pytest.importorskip("SurfaceTopography")
+    ds = xtopo.open_topography(real_data / name)
+    path = tmp_path / "st.nc"
+    ds.topo.to_surfacetopography_netcdf(path)
+    reader = st.open_topography(str(path))
+    topo = reader.topography()
+    heights = np.ma.filled(topo.heights().astype(float), np.nan)
+    np.testing.assert_array_equal(heights.T if heights.ndim == 2 else heights, ds.height.values)
+    assert topo.info["instrument"]["name"] == ds.attrs["instrument"]
+    if "tip_radius" in ds.attrs:  # the same tip criterion on both sides (ST: along x only, xtopo: x and y)
+        assert topo.info["instrument"]["parameters"]["tip_radius"]["value"] == ds.attrs["tip_radius"]
+        assert topo.short_reliability_cutoff() > 0
+    reader.close()
