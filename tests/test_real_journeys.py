@@ -42,3 +42,18 @@ def test_surfacetopography_reads_the_export_of_a_real_file(real_data, tmp_path, 
         assert topo.info["instrument"]["parameters"]["tip_radius"]["value"] == ds.attrs["tip_radius"]
         assert topo.short_reliability_cutoff() > 0
     reader.close()
+
+
+@pytest.mark.parametrize("name", ["di-1.di", "old_bruker.002", "mi-1.mi", "nid-1.nid", "spot_1-1000nm.ibw",
+                                  "example_ps.tiff", "sample_0.jpk-qi-image", "top-1.top", "stp-1.stp"])
+def test_afm_maps_have_one_orientation(real_data, name):
+    """The AFM readers keep the file's rows, the bottom line of the image first: their maps are those of
+    SurfaceTopography (whose ``heights().T`` is Gwyddion's view, top line first) upside down. The WSxM
+    reader was in addition mirrored in x (WSxM stores each row right to left)."""
+    st = pytest.importorskip("SurfaceTopography")
+    reader = st.open_topography(str(real_data / name))
+    topo = reader.topography()
+    gwyddion_view = np.asarray(topo.heights(), dtype=float).T
+    heights = xtopo.open_topography(real_data / name, units=topo.unit.replace("µ", "u")).height.values
+    np.testing.assert_allclose(heights, gwyddion_view[::-1], rtol=1e-12, atol=1e-12 * np.ptp(gwyddion_view))
+    reader.close()
