@@ -153,3 +153,21 @@ def test_contact_names_the_option_for_missing_data(tmp_path, capsys):
 
     with xr.open_dataset(out) as res:
         assert bool(res["converged"].all()) and "fill_missing" in res.attrs["history"]
+
+
+def test_a_few_missing_points_are_not_printed_as_none(tmp_path, capsys):
+    """`xtopo info` and the `analyze` table printed 'missing 0.0 %' for opd-1.opd (116 undefined pixels),
+    which `xtopo contact` then refused; info gives the count, the table '<0.1 %'."""
+    ds = xtopo.datasets.fractal_surface((64, 64), 1e-6, hurst=0.8, periodic=False)
+    ds["mask"] = (ds.height.dims, np.zeros(ds.height.shape, bool))
+    ds["mask"][3, 5] = True
+    path = tmp_path / "one_hole.nc"
+    xtopo.to_netcdf(ds, path)
+    assert main(["info", str(path)]) == 0
+    assert "missing 1 points (<0.1 %)" in capsys.readouterr().out
+    assert main(["analyze", str(path), "-o", str(tmp_path / "a.nc")]) == 0
+    row = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("one_hole.nc"))
+    assert "<0.1 %" in row
+    assert main(["analyze", str(path), "--fill-missing", "-o", str(tmp_path / "b.nc")]) == 0
+    row = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("one_hole.nc"))
+    assert " 0.0 % " in row

@@ -83,7 +83,8 @@ def _fmt_size(size, units) -> str:
 
 def _cmd_info(args) -> int:
     import xtopo.io as xio
-    from .conventions import HEIGHT, lateral_dims, physical_size
+    from .conventions import height_of, lateral_dims, physical_size
+    from .summary import format_percent
 
     path = args.file
     if not os.path.isfile(path):
@@ -99,7 +100,7 @@ def _cmd_info(args) -> int:
             print(f"  [{c.index}] {c.name}: {' × '.join(str(n) for n in c.shape)} points, "
                   f"size {_fmt_size(c.size, c.units)}, data in {c.height_units or '?'} ({kind})")
     ds = xio.open_topography(path, channel=args.channel, units=None, **read_options(args))
-    h = ds[HEIGHT]
+    h = height_of(ds)  # NaN where the mask says a point is missing
     dims = lateral_dims(h)
     u = h.attrs.get("units", "?")
     print(f"measurement: {'area' if len(dims) == 2 else 'line'} scan, "
@@ -108,8 +109,8 @@ def _cmd_info(args) -> int:
     hv = h.values
     finite = hv[~(hv != hv)]
     if finite.size:
-        print(f"heights: {float(finite.min()):.4g} … {float(finite.max()):.4g} {u}, "
-              f"missing {100 * (1 - finite.size / hv.size):.1f} %")
+        print(f"heights: {float(finite.min()):.4g} … {float(finite.max()):.4g} {u}, missing "
+              f"{hv.size - finite.size} points ({format_percent(100 * (1 - finite.size / hv.size))})")
     print("metadata:")
     for key in sorted(ds.attrs):
         if key == "history":
