@@ -57,3 +57,20 @@ def test_afm_maps_have_one_orientation(real_data, name):
     heights = xtopo.open_topography(real_data / name, units=topo.unit.replace("µ", "u")).height.values
     np.testing.assert_allclose(heights, gwyddion_view[::-1], rtol=1e-12, atol=1e-12 * np.ptp(gwyddion_view))
     reader.close()
+
+
+def test_twin_of_real_files_of_several_instruments(real_data, tmp_path):
+    """A twin from files of an AFM (nm), a stylus profiler (line scan, um) and an optical profiler (mm,
+    undefined pixels): nodes are named after the files (the OPD and OPDx readers title both 'Raw', so the
+    nodes were 'Raw' and 'Raw_2'), the archive round trip is identical, the averages carry provenance."""
+    files = ["di-3.di", "opdx-3.opdx", "opd-1.opd"]
+    tree = xtopo.twin([real_data / f for f in files], name="mixed")
+    assert set(tree.children) == {"di-3", "opdx-3", "opd-1"}
+    path = tmp_path / "twin.nc"
+    tree.topo.to_netcdf(path)
+    back = xtopo.open_twin(path)
+    for node in tree.children:
+        xr.testing.assert_identical(back[node].to_dataset().compute(), tree[node].to_dataset())
+    psd = back.topo.psd()
+    assert sorted(str(s) for s in psd["source_file"].values) == sorted(files)
+    assert psd["average"].attrs["units"] == "m3" and int(psd["count"].max()) >= 1
