@@ -74,3 +74,22 @@ def test_twin_of_real_files_of_several_instruments(real_data, tmp_path):
     psd = back.topo.psd()
     assert sorted(str(s) for s in psd["source_file"].values) == sorted(files)
     assert psd["average"].attrs["units"] == "m3" and int(psd["count"].max()) >= 1
+
+
+@pytest.mark.parametrize("name", ["di-5.di", "frt-2.frt", "dektak-1.csv", "KautschukInfiniteFocus.x3p"])
+def test_preprocess_analyse_archive_reopen(real_data, tmp_path, name):
+    """Detrend and fill a real file, archive it, reopen: the same data, attributes and history, and the
+    same analyses (with the same provenance)."""
+    from xtopo.io.netcdf import PROVENANCE_KEYS
+
+    raw = xtopo.open_topography(real_data / name)
+    prep = raw.topo.detrend("plane").topo.fill_missing()
+    path = tmp_path / "prep.nc"
+    xtopo.to_netcdf(prep, path)
+    back = xtopo.open_topography(path)
+    xr.testing.assert_identical(back.drop_attrs(deep=False).assign_attrs(
+        {k: v for k, v in back.attrs.items() if k not in PROVENANCE_KEYS or k == "Conventions"}), prep)
+    assert back.attrs["source_sha256"] == raw.attrs["source_sha256"]
+    for analysis in ("psd", "acf", "vbm", "sdrp"):
+        a, b = getattr(prep.topo, analysis)(), getattr(back.topo, analysis)()
+        xr.testing.assert_identical(a, b)
