@@ -93,3 +93,21 @@ def test_preprocess_analyse_archive_reopen(real_data, tmp_path, name):
     for analysis in ("psd", "acf", "vbm", "sdrp"):
         a, b = getattr(prep.topo, analysis)(), getattr(back.topo, analysis)()
         xr.testing.assert_identical(a, b)
+
+
+@pytest.mark.parametrize("name,crop", [("di-3.di", {"y": slice(0, 64), "x": slice(0, 64)}),
+                                       ("dektak-1.csv", {"x": slice(0, 1024)})])
+def test_contact_on_real_scans(real_data, name, crop):
+    """Free-boundary contact of a real area and line scan: the load is the sum of the pressures, and the
+    penetration found for a mean pressure gives that mean pressure back."""
+    from xtopo.contact.scene import Scene
+
+    ds = xtopo.open_topography(real_data / name).isel(crop).topo.detrend()
+    scene = Scene(ds, modulus=1.0, modulus_units="GPa")
+    res = scene.solve(mean_pressure=0.01)
+    assert bool(res.converged) and res.attrs["boundary"] == "free"
+    cell = np.prod([float(ds[d][1] - ds[d][0]) for d in ("y", "x") if d in ds.dims])
+    np.testing.assert_allclose(float(res["pressure"].sum()) * cell, float(res["load"]), rtol=1e-10)
+    again = scene.solve(penetration=float(res.penetration))
+    np.testing.assert_allclose(float(again.mean_pressure), 0.01, rtol=1e-3)
+    assert 0 < float(res.area_fraction) < 1
