@@ -113,3 +113,84 @@ def test_a_closed_stdout_does_not_stop_the_command(tmp_path):
 
     with xr.open_dataset(tmp_path / "out.nc") as res:
         assert res["mean_pressure"].values.ravel().tolist() == pytest.approx([0.01])
+
+
+def test_analyze_says_how_many_measurements_each_average_holds(tmp_path, capsys):
+    """The line under the table gave the largest per-point count ('psd average over 1 measurements')
+    for a twin whose measurements do not overlap in scale, as if the others had been dropped;
+    it now counts the measurements in the average and names those that add no reliable point."""
+    fine = tmp_path / "fine.nc"
+    coarse = tmp_path / "coarse.nc"
+    blurred = tmp_path / "blurred.nc"
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-6, hurst=0.8, seed=1), fine)
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-2, hurst=0.8, seed=2), coarse)
+    # a resolution as large as the scan: nothing of it is reliable
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-4, hurst=0.8, seed=3)
+                    .assign_attrs(resolution=1e-4, resolution_units="m"), blurred)
+    assert main(["analyze", str(fine), str(coarse), str(blurred), "-o", str(tmp_path / "out.nc")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    vbm = lines.index(next(ln for ln in lines if ln.startswith("vbm ")))
+    assert lines[vbm].startswith("vbm   average of 2 of 3 measurements at ")
+    assert "no reliable point from blurred.nc" in lines[vbm + 1]
+
+
+def _tilted_with_holes(tmp_path):
+    """A rough map on a strong tilt with a hole, written as an xtopo archive; returns (path, dataset)."""
+    ds = xtopo.datasets.fractal_surface((48, 64), 1e-5, hurst=0.8, rms_height=1e-8, periodic=False, seed=4)
+    ds = ds.assign(height=ds.height + 0.05 * ds.x)  # a tilt of 5 %: Sq of the file is that of the tilt
+    ds["mask"] = (ds.height.dims, np.zeros(ds.height.shape, bool))
+    ds["mask"][10:14, 20:30] = True
+    path = tmp_path / "tilted.nc"
+    xtopo.to_netcdf(ds, path)
+    return path, xtopo.open_topography(path)
+
+
+def test_analyze_and_convert_detrend_and_fill_on_request(tmp_path, capsys):
+    """The command line could not detrend or fill: real (tilted) files were analysed as read, and
+    their Sq was that of the sample tilt. --detrend/--fill-missing run the library's steps."""
+    path, ds = _tilted_with_holes(tmp_path)
+    want = xtopo.preprocess.fill_missing(xtopo.preprocess.detrend(ds, "plane"))
+    assert main(["analyze", str(path), "--detrend", "plane", "--fill-missing", "-o", str(tmp_path / "a.nc")]) == 0
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "a.nc") as table:
+        np.testing.assert_allclose(table.rms_height.values, [float(want.topo.scalars().Sq)], rtol=1e-12)
+        assert table.missing_percent.values[0] == 0
+    assert main(["convert", str(path), "--detrend", "plane", "--fill-missing", "-o", str(tmp_path / "c.nc")]) == 0
+    back = xtopo.open_topography(tmp_path / "c.nc")
+    xr.testing.assert_allclose(back.height, want.height)
+    assert "detrend(mode='plane'" in back.attrs["history"] and "fill_missing" in back.attrs["history"]
+
+
+def test_contact_names_the_option_for_missing_data(tmp_path, capsys):
+    """On a file with missing data `xtopo contact` said 'fill them first (e.g. xtopo.preprocess.fill_missing)',
+    a Python function the command line had no way to call; it names --fill-missing, which works."""
+    path, _ = _tilted_with_holes(tmp_path)
+    out = tmp_path / "c.nc"
+    assert main(["contact", str(path), "--mean-pressures", "0.01", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "40 points have no height" in err and "--fill-missing" in err and not out.exists()
+    assert main(["contact", str(path), "--mean-pressures", "0.01", "--detrend", "plane", "--fill-missing",
+                 "-o", str(out)]) == 0
+    import xarray as xr
+
+    with xr.open_dataset(out) as res:
+        assert bool(res["converged"].all()) and "fill_missing" in res.attrs["history"]
+
+
+def test_a_few_missing_points_are_not_printed_as_none(tmp_path, capsys):
+    """`xtopo info` and the `analyze` table printed 'missing 0.0 %' for opd-1.opd (116 undefined pixels),
+    which `xtopo contact` then refused; info gives the count, the table '<0.1 %'."""
+    ds = xtopo.datasets.fractal_surface((64, 64), 1e-6, hurst=0.8, periodic=False)
+    ds["mask"] = (ds.height.dims, np.zeros(ds.height.shape, bool))
+    ds["mask"][3, 5] = True
+    path = tmp_path / "one_hole.nc"
+    xtopo.to_netcdf(ds, path)
+    assert main(["info", str(path)]) == 0
+    assert "missing 1 points (<0.1 %)" in capsys.readouterr().out
+    assert main(["analyze", str(path), "-o", str(tmp_path / "a.nc")]) == 0
+    row = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("one_hole.nc"))
+    assert "<0.1 %" in row
+    assert main(["analyze", str(path), "--fill-missing", "-o", str(tmp_path / "b.nc")]) == 0
+    row = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("one_hole.nc"))
+    assert " 0.0 % " in row

@@ -70,3 +70,20 @@ def test_multigrid_cg_converges_on_strongly_anisotropic_grids(dy):
 def test_unknown_method_is_refused():
     with pytest.raises(ValueError, match="method"):
         harmonic_fill_2d(np.ones((3, 3)), method="cg")
+
+
+@pytest.mark.parametrize("method", ["direct", "iterative", "auto"])
+@pytest.mark.parametrize("view", ["transposed", "flipped"])
+def test_fill_of_a_non_contiguous_map(method, view):
+    """A map that is a transposed or flipped view (as readers return them) gets filled too.
+
+    The filled values used to be written through ``ravel()``, which copies for such a view:
+    the holes stayed NaN, silently.
+    """
+    h, missing = _holes("random", shape=(40, 30))
+    src = h.T if view == "transposed" else h[::-1]
+    assert not src.flags.c_contiguous
+    out = harmonic_fill_2d(src, False, 1.0, 1.0, method=method)
+    assert np.isfinite(out).all()
+    np.testing.assert_array_equal(out, harmonic_fill_2d(np.ascontiguousarray(src), False, 1.0, 1.0,
+                                                        method=method))

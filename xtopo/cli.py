@@ -13,17 +13,17 @@ __all__ = ["main"]
 
 
 def _load_measurements(files, args):
-    from .cli_commands import read_options
+    from .cli_commands import preprocess, read_options
     from .datasets import example_twin
     from .io import open_topography
 
     if not files:
         tree = example_twin()
-        return {name: node.to_dataset() for name, node in tree.children.items()}, "example twin", []
+        return {name: preprocess(node.to_dataset(), args) for name, node in tree.children.items()}, "example twin", []
     out, failed = {}, []
     for f in files:
         try:
-            out[os.path.basename(f)] = open_topography(f, **read_options(args))
+            out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args)), args)
         except Exception as exc:  # reported per file; the good ones go on
             failed.append((f, exc))
     return out, f"{len(files)} file(s)", failed
@@ -39,6 +39,27 @@ def _read_inputs(args):
     return measurements, what, failed
 
 
+def _average_line(name: str, r) -> str:
+    """One line on a twin average: how many measurements it holds, where, and which added nothing.
+
+    ``count`` is the number of measurements at one collocation point; measurements of different
+    scales overlap little, so its maximum says nothing about how many entered the average.
+    """
+    coord = r.average.dims[0]
+    ok = r["count"] > 0
+    names = [str(m) for m in r["measurement"].values]
+    used = r["curves"].notnull().any(coord).values
+    line = f"{name:5s} average of {int(used.sum())} of {len(names)} measurements"
+    if ok.any():
+        lo, hi = float(r[coord].where(ok).min()), float(r[coord].where(ok).max())
+        line += f" at {int(ok.sum())} points, {coord} from {lo:.3g} to {hi:.3g} {r[coord].attrs.get('units', '')}"
+    if not used.all():
+        left = ", ".join(n for n, u in zip(names, used) if not u)
+        line += (f"\n      no reliable point from {left} (short scales: tip radius/resolution cutoff; long "
+                 "scales: predicted error above max_error, see xtopo.stitching)")
+    return line
+
+
 def _cmd_analyze(args) -> int:
     from .io.netcdf import tree_to_netcdf
     from .stitching import analyze_twin
@@ -52,12 +73,7 @@ def _cmd_analyze(args) -> int:
     print(f"xtopo analyze: {len(measurements)} measurements ({what})\n")
     print(format_table(results.to_dataset()))
     for name in ("psd", "acf", "vbm", "sdrp"):
-        r = results[name].to_dataset()
-        coord = r.average.dims[0]
-        ok = r["count"] > 0
-        lo, hi = float(r[coord].where(ok).min()), float(r[coord].where(ok).max())
-        print(f"{name:5s} average over {int(r['count'].max())} measurements at {int(ok.sum())} points, "
-              f"{coord} from {lo:.3g} to {hi:.3g} {r[coord].attrs.get('units', '')}")
+        print(_average_line(name, results[name].to_dataset()))
     tree_to_netcdf(results, args.output)
     print(f"\nwrote {args.output} (groups: summary at the root, psd, acf, vbm, sdrp)")
     if args.report:
@@ -87,7 +103,7 @@ def _cmd_report(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
-    from .cli_commands import add_read_options
+    from .cli_commands import add_preprocess_options, add_read_options
 
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
@@ -98,6 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("files", nargs="*", help="measurement files (any supported format)")
     p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
+    add_preprocess_options(p)
     add_read_options(p)
     p.set_defaults(func=_cmd_analyze)
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
@@ -109,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--title", help="page title")
     r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
+    add_preprocess_options(r)
     add_read_options(r)
     r.set_defaults(func=_cmd_report)
     from .cli_commands import add_commands  # issue 7: info, contact, batch, convert

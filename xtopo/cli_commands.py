@@ -12,7 +12,7 @@ import math
 import os
 import sys
 
-__all__ = ["add_commands", "add_read_options", "parse_channel", "read_options"]
+__all__ = ["add_commands", "add_preprocess_options", "add_read_options", "parse_channel", "preprocess", "read_options"]
 
 
 def parse_channel(value):
@@ -41,6 +41,33 @@ def read_options(args) -> dict:
     return {k: v for k, v in options.items() if v is not None}
 
 
+def add_preprocess_options(p) -> None:
+    """``--detrend MODE`` and ``--fill-missing``: the preprocessing of paper §3.2 for commands that analyse."""
+    from ._kernels.polyfit import DEGREES
+
+    g = p.add_argument_group("preprocessing (paper §3.2; each step is recorded in the history attribute)")
+    g.add_argument("--detrend", choices=tuple(DEGREES), default=None,
+                   help="subtract the least-squares mean, plane (tilt) or quadratic (curvature) from the heights "
+                        "(default: none; instrument data are usually tilted)")
+    g.add_argument("--fill-missing", action="store_true",
+                   help="fill missing data (after --detrend): harmonic interpolation for maps, linear for line "
+                        "scans")
+
+
+def preprocess(ds, args):
+    """``ds`` after the steps :func:`add_preprocess_options` asked for: detrend, then fill missing data.
+
+    Detrending first fits the background to the measured heights only (the fill would otherwise enter it).
+    """
+    from .preprocess import detrend, fill_missing
+
+    if getattr(args, "detrend", None):
+        ds = detrend(ds, args.detrend)
+    if getattr(args, "fill_missing", False):
+        ds = fill_missing(ds)
+    return ds
+
+
 def _err(msg: str) -> None:
     print(f"xtopo: error: {msg}", file=sys.stderr)
 
@@ -56,7 +83,8 @@ def _fmt_size(size, units) -> str:
 
 def _cmd_info(args) -> int:
     import xtopo.io as xio
-    from .conventions import HEIGHT, lateral_dims, physical_size
+    from .conventions import height_of, lateral_dims, physical_size
+    from .summary import format_percent
 
     path = args.file
     if not os.path.isfile(path):
@@ -72,7 +100,7 @@ def _cmd_info(args) -> int:
             print(f"  [{c.index}] {c.name}: {' × '.join(str(n) for n in c.shape)} points, "
                   f"size {_fmt_size(c.size, c.units)}, data in {c.height_units or '?'} ({kind})")
     ds = xio.open_topography(path, channel=args.channel, units=None, **read_options(args))
-    h = ds[HEIGHT]
+    h = height_of(ds)  # NaN where the mask says a point is missing
     dims = lateral_dims(h)
     u = h.attrs.get("units", "?")
     print(f"measurement: {'area' if len(dims) == 2 else 'line'} scan, "
@@ -81,8 +109,8 @@ def _cmd_info(args) -> int:
     hv = h.values
     finite = hv[~(hv != hv)]
     if finite.size:
-        print(f"heights: {float(finite.min()):.4g} … {float(finite.max()):.4g} {u}, "
-              f"missing {100 * (1 - finite.size / hv.size):.1f} %")
+        print(f"heights: {float(finite.min()):.4g} … {float(finite.max()):.4g} {u}, missing "
+              f"{hv.size - finite.size} points ({format_percent(100 * (1 - finite.size / hv.size))})")
     print("metadata:")
     for key in sorted(ds.attrs):
         if key == "history":
@@ -123,13 +151,20 @@ def _control(args) -> tuple[str, list]:
 
 
 def _cmd_contact(args) -> int:
+    import numpy as np
+
     from .batch import _contact_item, _require_contact
+    from .conventions import height_of
     from .io import open_topography
     from .io.netcdf import to_netcdf
 
     _require_contact()
     control, values = _control(args)
-    ds = open_topography(args.file, channel=args.channel, **read_options(args))
+    ds = preprocess(open_topography(args.file, channel=args.channel, **read_options(args)), args)
+    if bool((~np.isfinite(height_of(ds))).any()):
+        _err(f"{args.file}: {int((~np.isfinite(height_of(ds))).sum())} points have no height; a contact calculation "
+             "needs a height at every pixel: pass --fill-missing")
+        return 2
     res = _contact_item(ds, values, control=control, scene=_scene_kwargs(args), solve=_solve_kwargs(args),
                         maps=not args.scalars_only)
     print(f"xtopo contact: {args.file}, {len(values)} {control.replace('_', ' ')}(s)\n")
@@ -219,7 +254,8 @@ def _cmd_batch_analyze(args) -> int:
 def _cmd_convert(args) -> int:
     import xtopo.io as xio
 
-    ds = xio.open_topography(args.file, channel=args.channel, units=args.units, **read_options(args))
+    ds = preprocess(xio.open_topography(args.file, channel=args.channel, units=args.units, **read_options(args)),
+                    args)
     if args.layout == "surfacetopography":
         writer = getattr(xio, "to_surfacetopography_netcdf", None)
         if writer is None:
@@ -293,6 +329,7 @@ def add_commands(sub) -> None:
     p.add_argument("--scalars-only", action="store_true", help="leave the pressure/gap maps out of the output")
     p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
     _add_scene_options(p)
+    add_preprocess_options(p)
     add_read_options(p)
     p.set_defaults(func=_cmd_contact)
 
@@ -327,5 +364,6 @@ def add_commands(sub) -> None:
                    help="file layout (default: %(default)s)")
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
     p.add_argument("--units", default="m", help="length unit of the output (default: %(default)s)")
+    add_preprocess_options(p)
     add_read_options(p)
     p.set_defaults(func=_cmd_convert)

@@ -12,7 +12,7 @@ from .analysis.scalars import scalars
 from .conventions import HEIGHT, MEASUREMENT_ATTRS, convert_length, height_of, is_nonuniform, lateral_dims, physical_size
 from .errors import GridError, ValidationError
 
-__all__ = ["summary_table", "format_table", "table_rows"]
+__all__ = ["summary_table", "format_table", "format_percent", "table_rows"]
 
 _COLUMNS = (
     ("kind", "kind", None),
@@ -138,6 +138,12 @@ def _fmt_len(v: float) -> str:
     return f"{v / 1e-12:.3g} pm"
 
 
+def format_percent(p: float) -> str:
+    """A share in percent with one decimal; a share above 0 that would print as ``0.0 %`` prints ``<0.1 %``
+    (116 undefined pixels of 480 × 640 are not "0.0 %" missing: a contact calculation refuses them)."""
+    return "<0.1 %" if 0 < p < 0.05 else f"{p:.1f} %"
+
+
 def table_rows(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
     """Header and formatted cells of :func:`summary_table` (lengths in readable units)."""
     header = ["measurement", "kind", "size", "grid", "tip radius", "missing", "Sq/Rq", "SΔq/RΔq", "SΔ²q/RΔ²q"]
@@ -150,7 +156,7 @@ def table_rows(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
         else:
             size, grid = _fmt_len(float(t.size_x)), f"{int(t.nx)}"
         lines.append([str(t.measurement.item()), str(t.kind.item()), size, grid, _fmt_len(float(t.tip_radius)),
-                      f"{float(t.missing_percent):.1f} %", _fmt_len(float(t.rms_height)),
+                      format_percent(float(t.missing_percent)), _fmt_len(float(t.rms_height)),
                       f"{float(t.rms_slope):.3g}", f"{float(t.rms_curvature):.3g} m⁻¹"])
     return header, lines
 

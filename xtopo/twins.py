@@ -59,7 +59,8 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
     measurements : mapping of str to Dataset/path, or iterable of Dataset/path
         The measurements of one surface. Paths are opened with
         :func:`xtopo.open_topography` (xtopo NetCDF files lazily, as dask arrays).
-        Node names come from the mapping keys, else from ``title``/``source_file``.
+        Node names come from the mapping keys, else from the file name (paths), else from
+        ``title``/``source_file`` (a reader's ``title`` is often only a channel name: "Raw").
         A twin is an archive: in-memory data are stored as read-only copies
         (:func:`xtopo.cache.freeze`), so the cache checksums each array once and
         nothing can change a measurement behind the twin's back (write into a
@@ -86,7 +87,13 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
                                   f"{type(m).__name__}")
         ds = m if isinstance(m, xr.Dataset) else _open_lazily(os.fspath(m))
         validate(ds)
-        node = unique_name(safe_name(key) if isinstance(key, str) else _name_of(ds, key), nodes)
+        if isinstance(key, str):
+            node = safe_name(key)
+        elif isinstance(m, xr.Dataset):
+            node = _name_of(ds, key)
+        else:
+            node = safe_name(os.path.splitext(os.path.basename(os.fspath(m)))[0])
+        node = unique_name(node, nodes)
         nodes[node] = freeze(ds)
     if not nodes:
         raise XtopoError("a twin needs at least one measurement")

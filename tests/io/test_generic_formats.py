@@ -190,6 +190,43 @@ def test_surfacetopography_reads_our_export(tmp_path, heights):
     reader.close()
 
 
+def test_surfacetopography_reads_our_export_of_instrument_metadata(tmp_path, heights):
+    """The export put xtopo's attrs into ``info`` as they were: SurfaceTopography refused every file with
+    an ``instrument`` attr (ValidationError: its InfoModel wants a dict there), i.e. every real file, and a
+    tip radius was not where contact.engineering looks for it. Both sides now use ST's structure."""
+    st = pytest.importorskip("SurfaceTopography")
+    ds = make_measurement(heights[0], size=3.0, units="um", tip_radius=0.5, instrument="Dektak", vendor="Bruker",
+                          acquisition_time="2021-02-11T23:39:13", channel="Height")
+    p = tmp_path / "st.nc"
+    xtopo.io.to_surfacetopography_netcdf(ds, p)
+    reader = st.open_topography(str(p))
+    topo = reader.topography()
+    info = topo.info
+    assert info["instrument"]["name"] == "Dektak" and info["instrument"]["vendor"] == "Bruker"
+    assert info["instrument"]["parameters"]["tip_radius"] == {"value": 0.5, "unit": "um"}
+    assert info["channel_name"] == "Height" and info["acquisition_time"].year == 2021
+    # SurfaceTopography's own reliability analysis finds the tip radius
+    assert topo.short_reliability_cutoff() == topo.scanning_probe_reliability_cutoff(0.5)
+    reader.close()
+    back = _open(p)
+    for key in ("tip_radius", "tip_radius_units", "instrument", "vendor", "acquisition_time", "channel"):
+        assert back.attrs[key] == ds.attrs[key], key
+    xr.testing.assert_allclose(back.topo.reliability_cutoff(), ds.topo.reliability_cutoff())
+
+
+def test_surfacetopography_written_tip_radius_is_read(tmp_path):
+    """A tip radius in a file from SurfaceTopography/contact.engineering was left in the attr ``st_info``
+    (JSON text): the reliability analysis did not see it."""
+    st = pytest.importorskip("SurfaceTopography")
+    h = np.random.default_rng(2).standard_normal(64)
+    info = {"instrument": {"name": "stylus", "parameters": {"tip_radius": {"value": 2.5, "unit": "µm"}}}}
+    st.UniformLineScan(h, 100.0, unit="µm", info=info).to_netcdf(str(tmp_path / "w.nc"))
+    ds = _open(tmp_path / "w.nc")
+    assert ds.attrs["tip_radius"] == 2.5 and ds.attrs["tip_radius_units"] == "um"
+    assert ds.attrs["instrument"] == "stylus"
+    assert ds.topo.reliability_cutoff().attrs["method"] == "tip_radius"
+
+
 def test_read_surfacetopography_written_file(tmp_path):
     st = pytest.importorskip("SurfaceTopography")
     h = np.random.default_rng(2).standard_normal((8, 5))  # ST: first index is x

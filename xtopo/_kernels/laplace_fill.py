@@ -116,7 +116,9 @@ def _fill_one(h, periodic, wy, wx, method):
             if big.any():  # islands decouple: the big ones form a system of their own
                 values[big] = _iterative(A[big][:, big], rhs[big], iy[big], ix[big], anisotropy)
         values += middle
-    out = np.array(h, dtype=float, copy=True)
+    # C order: ravel() must be a view to write through (a transposed or flipped map, as some
+    # readers return, is not C-contiguous, and ravel() would silently write into a copy)
+    out = np.array(h, dtype=float, order="C", copy=True)
     out.ravel()[unknown] = values
     return out
 

@@ -10,20 +10,31 @@ Layout (as documented by SurfaceTopography's NetCDF reader):
 * an optional variable ``mask`` (same dims as ``heights``, nonzero = undefined);
 * an optional global attribute ``json`` holding the ``info`` dictionary as JSON.
 
+SurfaceTopography validates ``info`` (``SurfaceTopography.Metadata.InfoModel``): ``instrument``
+is a dictionary ``{name, vendor, serial, parameters: {tip_radius, resolution: {value, unit}}}``,
+where contact.engineering looks up the tip radius and the resolution for its reliability
+analysis, ``acquisition_time`` a date and ``channel_name`` the channel. The writer and the
+reader translate between these fields and the attributes of an xtopo measurement
+(``instrument``, ``vendor``, ``instrument_serial``, ``tip_radius``/``resolution`` with their
+``*_units``, ``acquisition_time``, ``channel``); the other attributes travel as they are.
+
 :func:`to_surfacetopography_netcdf` writes this layout (NetCDF-3 64-bit offset, as
 SurfaceTopography does), so files can be uploaded to contact.engineering.
 """
 
 from __future__ import annotations
 
+import datetime
 import json
+import math
 import os
 
 import numpy as np
 import xarray as xr
 
-from ...conventions import height_of, is_nonuniform, is_periodic, lateral_dims, periodic_flag, physical_size
-from ...errors import ReaderError, UnsupportedFormatError, ValidationError
+from ...conventions import (height_of, is_nonuniform, is_periodic, lateral_dims, normalize_units, periodic_flag,
+                            physical_size)
+from ...errors import ReaderError, UnitsError, UnsupportedFormatError, ValidationError
 from .._generic import check_array_bytes, generic_measurement
 from ..netcdf import atomic_write
 from ..registry import Format, register
@@ -52,6 +63,64 @@ def _attr(var, key, default=None):
     if isinstance(val, np.ndarray) and val.size == 1:
         val = val.item()
     return val
+
+
+#: xtopo attribute <-> key of ``info["instrument"]`` (SurfaceTopography's InstrumentModel)
+_INSTRUMENT = (("instrument", "name"), ("vendor", "vendor"), ("instrument_serial", "serial"))
+#: xtopo attributes (each with ``*_units``) <-> keys of ``info["instrument"]["parameters"]``
+_PARAMETERS = ("tip_radius", "resolution")
+#: xtopo attribute <-> top-level key of ``info`` validated by SurfaceTopography
+_TOP = (("acquisition_time", "acquisition_time"), ("channel", "channel_name"))
+
+
+def _is_time(value) -> bool:
+    try:
+        datetime.datetime.fromisoformat(str(value))
+    except ValueError:
+        return False
+    return True
+
+
+def _info_from_attrs(attrs: dict) -> dict:
+    """SurfaceTopography's ``info`` from the plain (text/number) attributes of an xtopo measurement."""
+    info = {k: v for k, v in attrs.items()
+            if k not in {a for a, _ in _INSTRUMENT + _TOP} | {f"{p}{u}" for p in _PARAMETERS for u in ("", "_units")}}
+    instrument = {key: str(attrs[a]) for a, key in _INSTRUMENT if attrs.get(a) not in (None, "")}
+    parameters = {p: {"value": float(attrs[p]), "unit": str(attrs.get(f"{p}_units") or attrs.get("units", ""))
+                      or None} for p in _PARAMETERS if p in attrs}
+    if parameters:
+        instrument["parameters"] = parameters
+    if instrument:
+        info["instrument"] = instrument
+    for a, key in _TOP:
+        if a in attrs:
+            # SurfaceTopography refuses an acquisition_time that is no date: keep such text under its own key
+            info[key if a != "acquisition_time" or _is_time(attrs[a]) else "acquisition_time_text"] = attrs[a]
+    return info
+
+
+def _attrs_from_info(info: dict) -> dict:
+    """The xtopo attributes that the fields SurfaceTopography knows in ``info`` stand for (others are left out)."""
+    out = {}
+    instrument = info.get("instrument")
+    if isinstance(instrument, dict):
+        out.update({a: instrument[key] for a, key in _INSTRUMENT if isinstance(instrument.get(key), str)
+                    and instrument[key]})
+        parameters = instrument.get("parameters")
+        for p in _PARAMETERS:
+            entry = parameters.get(p) if isinstance(parameters, dict) else None
+            if not isinstance(entry, dict) or not isinstance(entry.get("unit"), str):
+                continue
+            try:
+                value, units = float(entry.get("value")), normalize_units(entry["unit"])
+            except (TypeError, ValueError, UnitsError):
+                continue  # not a length: the JSON (attr st_info) still holds it
+            if math.isfinite(value) and value > 0:
+                out.update({p: value, f"{p}_units": units})
+    for a, key in _TOP:
+        if isinstance(info.get(key), str) and info[key]:
+            out[a] = info[key]
+    return out
 
 
 def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
@@ -88,10 +157,12 @@ def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, h
     attrs = {"periodic": periodic}
     if isinstance(info, str):
         try:
-            json.loads(info)
+            parsed = json.loads(info)
             attrs["st_info"] = info
         except ValueError:
-            pass
+            parsed = None
+        if isinstance(parsed, dict):
+            attrs.update(_attrs_from_info(parsed))
     common = dict(physical_size=physical_size, file_units=file_units, height_units=height_units,
                   found_units=unit, found_height_units=hunit if hunit and hunit != unit else None, mask=None, **attrs)
     if dims == ("n",):
@@ -119,7 +190,8 @@ def to_surfacetopography_netcdf(ds, path, *, info: dict | None = None) -> str:
     path : str or os.PathLike
         Target file (NetCDF-3 64-bit offset), written atomically.
     info : dict, optional
-        Stored as the global ``json`` attribute (default: the dataset's string/number attrs).
+        Stored as the global ``json`` attribute (default: the dataset's string/number attrs, those
+        SurfaceTopography validates in its own structure: see the module docstring).
 
     Returns
     -------
@@ -136,8 +208,8 @@ def to_surfacetopography_netcdf(ds, path, *, info: dict | None = None) -> str:
     missing = ~np.isfinite(values)
     periodic = int(is_periodic(ds))
     if info is None:
-        info = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in ds.attrs.items()
-                if isinstance(v, (str, int, float, np.integer, np.floating))}
+        info = _info_from_attrs({k: (v.item() if isinstance(v, np.generic) else v) for k, v in ds.attrs.items()
+                                 if isinstance(v, (str, int, float, np.integer, np.floating))})
     variables = {}
     if is_nonuniform(ds):
         if missing.any():

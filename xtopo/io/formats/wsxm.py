@@ -14,7 +14,9 @@ blocks of indented ``Key: value`` lines, ending with ``[Header end]``.  Fields u
 Stored values are little-endian.  Floating-point data are heights in the unit of
 ``Z Amplitude``; integer data are scaled so that the stored range maps to the
 height range: ``height = raw · Z Amplitude / (Maximum − Minimum)``.
-Rows are kept in file order.
+Rows are kept in file order (the first is the bottom of the image, as in the NanoScope, MI, NID,
+IBW, Park and JPK readers); within a row the values are stored right to left, so ``x`` is
+reversed here (Gwyddion's ``wsxmfile.c`` and SurfaceTopography rotate the stored image by 180°).
 """
 
 from __future__ import annotations
@@ -108,6 +110,7 @@ def _read(path, *, channel=None):
     pick_channel(path, [info], channel)
     ny, nx = info.shape
     raw = BinaryReader(data, path).array(dtype, nx * ny, what="WSxM image data", at=start).reshape(ny, nx)
+    raw = raw[:, ::-1]  # rows are stored right to left
     attrs = dict(
         instrument=fields.get("General Info/Head type") or fields.get("Head Settings/Head Name"),
         vendor="Nanotec Electronica (WSxM)",
