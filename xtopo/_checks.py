@@ -7,6 +7,7 @@ what it expects (instead of a TypeError or a silent truncation deep inside).
 
 from __future__ import annotations
 
+import math
 import numbers
 import os
 
@@ -51,10 +52,15 @@ def positive_number(value, name: str, *, infinite: bool = False, error: type[Xto
     """
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
-    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not value > 0
-            or not (infinite or np.isfinite(value))):
+    number = None
+    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+        try:  # float(), not np.isfinite: an int beyond float64 (10**400) must be refused, not raise
+            number = float(value)
+        except OverflowError:
+            number = None
+    if number is None or not number > 0 or not (infinite or math.isfinite(number)):
         raise error(f"{name} must be a positive {'' if infinite else 'finite '}number, got {value!r}")
-    return float(value)
+    return number
 
 
 def lengths(values, name: str, units: str, longest: float | None = None) -> np.ndarray:
@@ -62,10 +68,14 @@ def lengths(values, name: str, units: str, longest: float | None = None) -> np.n
 
     Without ``longest`` any positive finite value is accepted (e.g. wavevectors in ``m-1``).
     """
-    try:
-        v = np.atleast_1d(np.asarray(values, dtype=float)) if not isinstance(values, (str, bytes)) else None
-    except (TypeError, ValueError):
-        v = None
+    v = None
+    if not isinstance(values, (str, bytes)):
+        try:
+            raw = np.asarray(values)
+            if raw.dtype.kind not in "bcSU":  # True is not the length 1, nor "1" a number
+                v = np.atleast_1d(np.asarray(raw, dtype=float))
+        except (TypeError, ValueError, OverflowError):
+            v = None
     if v is None or v.ndim != 1:
         raise XtopoError(f"{name} must be a number or a 1D sequence of numbers (lengths in {units}), got {values!r}")
     bad = v[~(np.isfinite(v) & (v > 0) & (longest is None or v <= longest))]
