@@ -15,7 +15,11 @@ import numpy as np
 
 from .errors import XtopoError
 
-__all__ = ["option", "flag", "integer", "positive_number", "lengths", "path", "make_directory"]
+__all__ = ["option", "flag", "integer", "positive_number", "lengths", "path", "make_directory", "bin_count",
+           "MAX_SPARSE_BINS"]
+
+#: a number of bins may exceed the number of values binned (most bins then stay empty) up to this many bins.
+MAX_SPARSE_BINS = 10_000
 
 
 def option(value, options, name: str):
@@ -43,6 +47,20 @@ def integer(value, name: str, minimum: int = 1, *, error: type[XtopoError] = Xto
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < minimum:
         raise error(f"{name} must be an integer >= {minimum}, got {value!r}")
     return int(value)
+
+
+def bin_count(value, name: str, samples: int, minimum: int = 1, *, error: type[XtopoError] = XtopoError) -> int:
+    """``value`` (an integer >= ``minimum``) as a number of bins for ``samples`` values.
+
+    More than both ``samples`` and :data:`MAX_SPARSE_BINS` is refused: such bins are nearly all
+    empty, and a request like ``10**9`` would allocate gigabytes of edges and counts.
+    """
+    value = integer(value, name, minimum, error=error)
+    limit = max(MAX_SPARSE_BINS, int(samples))
+    if value > limit:
+        raise error(f"{name} must be at most {limit} here ({int(samples)} values to bin; more bins "
+                    f"than values stay empty), got {value!r}")
+    return value
 
 
 def positive_number(value, name: str, *, infinite: bool = False, error: type[XtopoError] = XtopoError) -> float:

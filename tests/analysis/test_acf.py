@@ -99,7 +99,7 @@ def test_bad_nb_points_refused(kind, nb_points):
 def test_nb_points_far_beyond_the_data_refused(analysis, kind):
     """nb_points=10**9 allocated gigabytes of empty bins (MemoryError or the OOM killer); sparse bins are fine up
     to MAX_SPARSE_BINS."""
-    from xtopo.analysis._scale import MAX_SPARSE_BINS
+    from xtopo._checks import MAX_SPARSE_BINS
 
     ds = fractal_surface((16, 16), 1.0, hurst=0.6, seed=3)
     run = getattr(ds.topo, analysis)

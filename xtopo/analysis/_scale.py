@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._checks import integer
+from .._checks import bin_count
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is_nonuniform, is_periodic,
                            lateral_dims, provenance_of, shared_length_unit, spacing)
 from ..errors import GridError, XtopoError
 
-__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "bin_count", "length_coord", "finish", "provenance"]
+__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance"]
 
 #: default density of logarithmic bins/collocation points
 POINTS_PER_DECADE = 10
@@ -77,32 +77,14 @@ def prepare(obj) -> Prepared:
     return Prepared(h, units, is_periodic(h) or is_periodic(obj), lat, resampled)
 
 
-#: ``nb_points`` may exceed the number of values binned (most bins then stay empty) up to this many bins.
-MAX_SPARSE_BINS = 10_000
-
-
 def per_decade(lo: float, hi: float, nb_points=None, *, samples: int) -> int:
     """Number of log bins: ``nb_points`` or ``POINTS_PER_DECADE`` per decade of ``[lo, hi]``.
 
-    ``samples``: how many values are binned (see :func:`bin_count` for the limit on ``nb_points``).
+    ``samples``: how many values are binned (see :func:`xtopo._checks.bin_count` for the limit on ``nb_points``).
     """
     if nb_points is not None:
         return max(1, bin_count(nb_points, "nb_points", samples))
     return max(1, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))))
-
-
-def bin_count(value, name: str, samples: int) -> int:
-    """``value`` (an integer >= 1) as a number of bins for ``samples`` values.
-
-    More than both ``samples`` and :data:`MAX_SPARSE_BINS` is refused: such bins are nearly all
-    empty, and a request like ``10**9`` would allocate gigabytes of edges and counts.
-    """
-    value = integer(value, name)
-    limit = max(MAX_SPARSE_BINS, int(samples))
-    if value > limit:
-        raise XtopoError(f"{name} must be at most {limit} here ({int(samples)} values to bin; more bins "
-                         f"than values stay empty), got {value!r}")
-    return value
 
 
 def length_coord(name: str, values, units: str, long_name: str, **attrs) -> xr.Variable:

@@ -6,11 +6,11 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import option
+from .._checks import bin_count, option
 from .._kernels.derivatives import forward_difference, second_difference
 from ..conventions import X, Y, height_of, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import XtopoError
-from ._scale import bin_count, provenance
+from ._scale import provenance
 
 __all__ = ["distribution"]
 
