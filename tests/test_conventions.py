@@ -170,3 +170,48 @@ def test_spacing_and_size_refuse_bad_dims(helper, dim):
     assert helper(ds, "x") == pytest.approx({spacing: 0.5, physical_size: 4.0}[helper])
     with pytest.raises(GridError, match="dim must be the name|has no coordinate"):
         helper(ds, dim)
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    (dict(size="abc"), "size must be positive finite"),            # numpy's ValueError
+    (dict(size=[]), "size must be positive finite"),               # numpy's broadcast ValueError
+    (dict(size=[1.0, "a"]), "size must be positive finite"),
+    (dict(size=np.zeros((2, 2, 2))), "size must be positive finite"),
+    (dict(size=True), "size must be positive finite"),             # was the size 1
+    (dict(spacing=-1.0), "spacing must be positive finite"),
+    (dict(size=1.0, tip_radius=-1.0), "tip_radius must be a positive"),  # negative/NaN/inf/True were stored
+    (dict(size=1.0, tip_radius=np.nan), "tip_radius must be a positive"),
+    (dict(size=1.0, tip_radius=True), "tip_radius must be a positive"),
+    (dict(size=1.0, tip_radius="abc"), "tip_radius must be a positive"),  # numpy's ValueError
+    (dict(size=1.0, tip_radius=np.zeros(3)), "tip_radius must be a positive"),
+    (dict(size=1.0, resolution=0), "resolution must be a positive"),
+    (dict(size=1.0, resolution=np.inf), "resolution must be a positive"),
+    (dict(size=1.0, height_scale=np.nan), "height_scale must be a finite number"),  # NaN heights, no word
+    (dict(size=1.0, height_scale=np.inf), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=1 + 2j), "height_scale must be a finite number"),  # complex heights
+    (dict(size=1.0, height_scale=None), "height_scale must be a finite number"),  # bare TypeError
+    (dict(size=1.0, height_scale="2"), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=np.zeros(3)), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=True), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=0), "height_scale must be a finite number other than 0"),
+])
+def test_make_measurement_refuses_bad_arguments(kwargs, match):
+    h = np.random.default_rng(0).random((4, 4))
+    with pytest.raises(XtopoError, match=match):
+        make_measurement(h, **kwargs)
+
+
+def test_make_measurement_size_spacing_and_scale_still_work():
+    h = np.arange(8.0).reshape(2, 4)
+    ds = make_measurement(h, size=(1.0, 2.0), height_scale=-2, tip_radius=np.float32(0.5), units="um")
+    np.testing.assert_allclose(ds.height.values, -2 * h)
+    assert spacing(ds, "x") == spacing(ds, "y") == pytest.approx(0.5) and ds.attrs["tip_radius"] == 0.5
+    by_spacing, by_size = make_measurement(h, spacing=0.5, units="um"), make_measurement(h, size=(1, 2), units="um")
+    xr.testing.assert_identical(by_spacing.x, by_size.x)
+
+
+@pytest.mark.parametrize("obj", [None, "abc", 3])
+def test_append_history_refuses_non_xarray_objects(obj):
+    # a bare AttributeError ('NoneType' object has no attribute 'copy')
+    with pytest.raises(ValidationError, match="expected a topography"):
+        xtopo.conventions.append_history(obj, "step")

@@ -13,10 +13,10 @@ import os
 
 import numpy as np
 
-from .errors import XtopoError
+from .errors import GridError, XtopoError
 
-__all__ = ["option", "flag", "integer", "positive_number", "lengths", "path", "make_directory", "bin_count",
-           "MAX_SPARSE_BINS"]
+__all__ = ["option", "flag", "integer", "positive_number", "real_number", "per_axis", "lengths", "path",
+           "make_directory", "bin_count", "MAX_SPARSE_BINS"]
 
 #: a number of bins may exceed the number of values binned (most bins then stay empty) up to this many bins.
 MAX_SPARSE_BINS = 10_000
@@ -49,6 +49,21 @@ def integer(value, name: str, minimum: int = 1, *, error: type[XtopoError] = Xto
     return int(value)
 
 
+def _real(value) -> float | None:
+    """``value`` as a float if it is a real number (not a bool; a 0-d array counts), else None.
+
+    ``float()``, not ``np.isfinite``, decides: an int beyond float64 (``10**400``) is None, not a TypeError.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
+        return None
+    try:
+        return float(value)
+    except OverflowError:
+        return None
+
+
 def bin_count(value, name: str, samples: int, minimum: int = 1, *, error: type[XtopoError] = XtopoError) -> int:
     """``value`` (an integer >= ``minimum``) as a number of bins for ``samples`` values.
 
@@ -68,16 +83,46 @@ def positive_number(value, name: str, *, infinite: bool = False, error: type[Xto
 
     ``error``: the :class:`~xtopo.errors.XtopoError` subclass raised otherwise.
     """
-    if isinstance(value, np.ndarray) and value.ndim == 0:
-        value = value.item()
-    number = None
-    if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
-        try:  # float(), not np.isfinite: an int beyond float64 (10**400) must be refused, not raise
-            number = float(value)
-        except OverflowError:
-            number = None
+    number = _real(value)
     if number is None or not number > 0 or not (infinite or math.isfinite(number)):
         raise error(f"{name} must be a positive {'' if infinite else 'finite '}number, got {value!r}")
+    return number
+
+
+def per_axis(value, ndim: int, name: str, *, sign: str = "positive") -> np.ndarray:
+    """``value`` as ``ndim`` finite numbers, one per axis (``(y, x)`` or ``x``; one value is used for every axis).
+
+    ``sign``: ``"positive"`` (sizes), ``"non-negative"`` (offsets) or ``"any"`` (positions).
+    """
+    v = None
+    if not isinstance(value, (str, bytes, bool, np.bool_)):
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            v = None
+    ok = v is not None and v.ndim <= 1 and (v.ndim == 0 or v.size in (1, ndim)) and np.all(np.isfinite(v))
+    if ok and sign != "any":
+        ok = bool(np.all(v > 0) if sign == "positive" else np.all(v >= 0))
+    if not ok:
+        what = "" if sign == "any" else f"{sign} "
+        axes = "(y, x) or one for both" if ndim == 2 else "x"
+        raise GridError(f"{name} must be {what}finite number(s) in the length unit, {axes}, got {value!r}")
+    return np.broadcast_to(v, (ndim,)).copy()
+
+
+def real_number(value, name: str, *, low: float = -np.inf, high: float = np.inf, closed: bool = True) -> float:
+    """``value`` as a finite float in ``[low, high]`` (``(low, high)`` unless ``closed``)."""
+    number = _real(value)
+    ok = (number is not None and math.isfinite(number)
+          and (low <= number <= high if closed else low < number < high))
+    if not ok:
+        if (low, high) == (-np.inf, np.inf):
+            bounds = ""
+        elif high == np.inf:
+            bounds = f" {'>=' if closed else '>'} {low:g}"
+        else:
+            bounds = f" in [{low:g}, {high:g}]" if closed else f" in ({low:g}, {high:g})"
+        raise XtopoError(f"{name} must be a finite number{bounds}, got {value!r}")
     return number
 
 

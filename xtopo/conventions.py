@@ -26,7 +26,7 @@ import unicodedata
 import numpy as np
 import xarray as xr
 
-from ._checks import flag
+from ._checks import flag, per_axis, positive_number, real_number
 from .errors import GridError, UnitsError, ValidationError
 
 __all__ = [
@@ -411,7 +411,7 @@ def provenance_of(obj) -> dict:
 
 def append_history(obj, line: str):
     """Return ``obj`` with ``line`` appended to its ``history`` attribute (one line per step)."""
-    obj = obj.copy(deep=False)
+    obj = _xarray(obj).copy(deep=False)
     hist = obj.attrs.get("history", "")
     if isinstance(hist, np.ndarray):  # some readers give text attrs as arrays of lines
         hist = "\n".join(str(v) for v in hist.ravel())
@@ -468,6 +468,9 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
     if h.size == 0:
         raise GridError(f"height has no points (shape {h.shape})")
     h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
+    height_scale = real_number(height_scale, "height_scale")
+    if height_scale == 0:
+        raise ValidationError("height_scale must be a finite number other than 0 (it multiplies the heights), got 0")
     if height_scale != 1.0:
         h = h * height_scale
     dims = (Y, X) if h.ndim == 2 else (X,)
@@ -489,12 +492,9 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
             raise GridError("give exactly one of size= or spacing= (or x= for a line scan)")
         n = h.shape
         if spacing is not None:
-            sp = np.broadcast_to(np.asarray(spacing, dtype=float), (h.ndim,))
+            sp = per_axis(spacing, h.ndim, "spacing")
         else:
-            sz = np.broadcast_to(np.asarray(size, dtype=float), (h.ndim,))
-            sp = sz / np.asarray(n, dtype=float)
-        if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
-            raise GridError(f"physical size/spacing must be positive and finite, got spacing {tuple(sp)}")
+            sp = per_axis(size, h.ndim, "size") / np.asarray(n, dtype=float)
         for dim, ni, d in zip(dims, n, sp):
             c = _coord(np.arange(ni) * d, dim, units)
             c.attrs["spacing"] = float(d)
@@ -515,10 +515,10 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
     if name is not None:
         ds_attrs["title"] = str(name)
     if tip_radius is not None:
-        ds_attrs["tip_radius"] = float(tip_radius)
+        ds_attrs["tip_radius"] = positive_number(tip_radius, "tip_radius", error=ValidationError)
         ds_attrs["tip_radius_units"] = units
     if resolution is not None:
-        ds_attrs["resolution"] = float(resolution)
+        ds_attrs["resolution"] = positive_number(resolution, "resolution", error=ValidationError)
         ds_attrs["resolution_units"] = units
     ds_attrs.update({k: v for k, v in attrs.items() if v is not None})
     return xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
