@@ -149,9 +149,9 @@ def lengths(values, name: str, units: str, longest: float | None = None) -> np.n
 
 
 def path(value, name: str, *, kind: str = "path") -> str:
-    """``value`` as a str path if it is one (str or os.PathLike); ``kind`` says which (e.g. "file path")."""
+    """``value`` as a str path if it is one (str, bytes or os.PathLike); ``kind`` says which (e.g. "file path")."""
     try:
-        return os.fspath(value)
+        return os.fsdecode(os.fspath(value))  # bytes too: a str, as the callers join it with str
     except TypeError:
         raise XtopoError(f"{name} must be a {kind} (str or os.PathLike), got {type(value).__name__}") from None
 

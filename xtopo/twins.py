@@ -14,6 +14,7 @@ from collections.abc import Iterable, Mapping
 import xarray as xr
 
 from ._checks import flag
+from ._checks import path as checked_path
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import ValidationError, XtopoError
@@ -155,6 +156,7 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
 
 def open_twin(path, engine: str | None = None) -> xr.DataTree:
     """Restore a twin archived with :func:`to_netcdf` (data loaded into read-only memory, as in :func:`twin`)."""
+    path = checked_path(path, "path", kind="file path")
     try:
         tree = xr.open_datatree(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:
