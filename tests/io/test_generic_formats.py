@@ -365,7 +365,7 @@ def test_bad_physical_size_refused_before_reading(tmp_path, physical_size, read)
     # open_topography raised numpy's ValueError/TypeError after reading; channels ignored it
     path = tmp_path / "a.nc"
     xtopo.to_netcdf(xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um"), path)
-    with pytest.raises(xtopo.GridError, match="physical_size must be positive finite"):
+    with pytest.raises(xtopo.XtopoError, match="physical_size must be"):
         getattr(xtopo.io, read)(path, physical_size=physical_size)
 
 

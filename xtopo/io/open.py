@@ -7,10 +7,10 @@ import os
 
 import numpy as np
 
-from .._checks import flag, per_axis, positive_number
+from .._checks import flag, lengths, per_axis, positive_number
 from ..conventions import append_history, convert_length, lateral_dims, normalize_units, validate
 from ..conventions import physical_size as _physical_size
-from ..errors import ReaderError, UnitsError, UnsupportedFormatError, XtopoError
+from ..errors import GridError, ReaderError, UnitsError, UnsupportedFormatError, XtopoError
 from .registry import READ_OPTIONS, ChannelInfo, detect
 
 __all__ = ["open_topography", "channels", "sha256"]
@@ -105,12 +105,13 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
 
 
 def _size_option(path, physical_size):
-    """``physical_size`` checked before the file is read: one or two (``(Ly, Lx)``) positive finite lengths.
+    """``physical_size`` checked before the file is read: positive finite lengths (how many the data
+    need, the reader or :func:`_override_size` checks).
 
     Formats that store their size ignored it in :func:`channels` whatever it was ("abc", -1).
     """
-    if physical_size is not None:
-        per_axis(physical_size, 2, f"{path}: physical_size")
+    if physical_size is not None and lengths(physical_size, f"{path}: physical_size", "the length unit").size == 0:
+        raise GridError(f"{path}: physical_size must be one or two lengths, got {physical_size!r}")
     return physical_size
 
 
