@@ -7,8 +7,9 @@ import pytest
 import xarray as xr
 
 from xtopo.analysis.scalars import scalars
-from xtopo.cache import Cache, checksum
+from xtopo.cache import Cache, checksum, freeze
 from xtopo.datasets import fractal_surface
+from xtopo.errors import XtopoError
 
 
 _CALLS = []
@@ -239,3 +240,22 @@ def test_every_kind_of_callable_has_a_stable_key(tmp_path, func):
 
     assert callable_token(func) == callable_token(func)
     assert callable_token(func) != callable_token(functools.partial(func, 1))
+
+
+@pytest.mark.parametrize("func", [None, "scalars", 3, [len]])
+def test_cache_needs_a_function(tmp_path, func):
+    # a bare TypeError ('NoneType' object is not callable) after the look-up
+    ds = fractal_surface((8, 8), 1.0, hurst=0.7, units="um")
+    with pytest.raises(XtopoError, match="Cache needs a function to call"):
+        Cache(str(tmp_path))(func, ds)
+
+
+@pytest.mark.parametrize("obj", [None, "a.nc", np.zeros(3), {"height": 1}])
+def test_checksum_and_freeze_need_xarray(obj):
+    # a bare AttributeError ('NoneType' object has no attribute 'name' / 'copy')
+    with pytest.raises(XtopoError, match="checksum needs an xarray Dataset or DataArray"):
+        checksum(obj)
+    with pytest.raises(XtopoError, match="freeze needs an xarray Dataset, got"):
+        freeze(obj)
+    with pytest.raises(XtopoError, match="freeze needs an xarray Dataset, got DataArray"):
+        freeze(xr.DataArray(np.zeros(3)))  # was AttributeError: no 'variables'

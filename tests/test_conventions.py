@@ -3,8 +3,9 @@ import pytest
 import xarray as xr
 
 import xtopo
-from xtopo.conventions import (convert_length, height_of, length_factor, make_measurement, normalize_units, spacing,
-                               validate)
+from xtopo.conventions import (convert_length, height_of, is_periodic, lateral_dims, length_factor, length_units_of,
+                               make_measurement, normalize_units, physical_size, spacing, validate)
+from xtopo.datasets import fractal_surface
 from xtopo.errors import GridError, UnitsError, ValidationError, XtopoError
 
 
@@ -103,3 +104,114 @@ def test_make_measurement_periodic_must_be_a_bool(value):
     # periodic="false" was stored as periodic=1 (bool of a non-empty string)
     with pytest.raises(ValidationError, match="periodic must be True or False"):
         make_measurement(np.ones(3), spacing=1.0, periodic=value)
+
+
+_ANALYSES = {
+    "scalars": lambda d: d.topo.scalars(),
+    "psd": lambda d: d.topo.psd(),
+    "acf": lambda d: d.topo.acf(),
+    "vbm": lambda d: d.topo.vbm(),
+    "sdrp": lambda d: d.topo.sdrp(),
+    "distribution": lambda d: d.topo.distribution(),
+}
+
+
+@pytest.mark.parametrize("analysis", sorted(_ANALYSES))
+def test_analyses_refuse_heights_in_another_unit_than_positions(analysis):
+    # heights in nm on a µm grid were analysed as µm: Sq 1000x, slopes 1000x, labelled 'um', silently
+    ds = fractal_surface((16, 16), 1.0, hurst=0.8, rms_height=0.01, seed=1, units="um")
+    _ANALYSES[analysis](ds)
+    nm = ds.assign(height=(ds.height * 1000).assign_attrs(units="nm"))
+    with pytest.raises(UnitsError, match="height in 'nm', coordinate 'y' in 'um'"):
+        _ANALYSES[analysis](nm)
+    with pytest.raises(UnitsError, match="height in 'nm', coordinate 'y' in 'um'"):
+        _ANALYSES[analysis](nm.height)
+
+
+@pytest.mark.parametrize("analysis", sorted(_ANALYSES))
+@pytest.mark.parametrize("units", ["furlongz", "s", "kg"])
+def test_analyses_refuse_units_that_are_not_lengths(analysis, units):
+    # a coordinate in 's' gave a PSD in 's3' on q in 's-1'; heights in 'kg' were analysed as metres
+    ds = fractal_surface((16, 16), 1.0, hurst=0.8, seed=1)
+    for bad in (ds.assign_coords(x=ds.x.assign_attrs(units=units)),
+                ds.assign(height=ds.height.assign_attrs(units=units))):
+        with pytest.raises(UnitsError, match=f"units {units!r}, which is not a length unit"):
+            _ANALYSES[analysis](bad)
+
+
+@pytest.mark.parametrize("analysis", sorted(_ANALYSES) + ["detrend", "fill_missing"])
+@pytest.mark.parametrize("values", [np.arange(16) + 1j, np.array(["a"] * 16), np.ones(16, bool), np.array([])])
+def test_heights_that_are_not_real_numbers_refused(analysis, values):
+    # complex heights: vbm, sdrp and scalars dropped the imaginary part silently, psd/acf raised scipy's
+    # TypeError; no heights at all: detrend raised numpy's 'zero-size array to reduction'
+    call = {**_ANALYSES, "detrend": xtopo.preprocess.detrend, "fill_missing": xtopo.preprocess.fill_missing}[analysis]
+    x = np.arange(values.size) * 0.1
+    ds = xr.Dataset({"height": ("x", values, {"units": "um"})}, coords={"x": ("x", x, {"units": "um"})})
+    with pytest.raises(ValidationError, match="'height' (must hold real numbers|has no points)"):
+        call(ds)
+    with pytest.raises(ValidationError, match="'height' (must hold real numbers|has no points)"):
+        height_of(ds.height)
+
+
+@pytest.mark.parametrize("helper", [spacing, physical_size, lateral_dims, is_periodic, length_units_of,
+                                    lambda o: convert_length(o, "nm"), height_of])
+@pytest.mark.parametrize("obj", [None, "abc", np.zeros((4, 4)), {"height": [1.0]}])
+def test_conventions_helpers_refuse_non_xarray_objects(helper, obj):
+    # were a bare AttributeError ('NoneType' object has no attribute 'coords'/'attrs'/'dims'/'copy')
+    with pytest.raises(ValidationError, match="expected a topography"):
+        helper(obj)
+
+
+@pytest.mark.parametrize("dim", [None, 0, True, ["x"], np.array(["x"]), "z"])
+@pytest.mark.parametrize("helper", [spacing, physical_size])
+def test_spacing_and_size_refuse_bad_dims(helper, dim):
+    # physical_size raised a bare KeyError for any dim but 'x'/'y', spacing a TypeError for unhashable ones
+    ds = make_measurement(np.zeros((4, 8)), size=(2.0, 4.0), units="um")
+    assert helper(ds, "x") == pytest.approx({spacing: 0.5, physical_size: 4.0}[helper])
+    with pytest.raises(GridError, match="dim must be the name|has no coordinate"):
+        helper(ds, dim)
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    (dict(size="abc"), "size must be positive finite"),            # numpy's ValueError
+    (dict(size=[]), "size must be positive finite"),               # numpy's broadcast ValueError
+    (dict(size=[1.0, "a"]), "size must be positive finite"),
+    (dict(size=np.zeros((2, 2, 2))), "size must be positive finite"),
+    (dict(size=True), "size must be positive finite"),             # was the size 1
+    (dict(spacing=-1.0), "spacing must be positive finite"),
+    (dict(size=1.0, tip_radius=-1.0), "tip_radius must be a positive"),  # negative/NaN/inf/True were stored
+    (dict(size=1.0, tip_radius=np.nan), "tip_radius must be a positive"),
+    (dict(size=1.0, tip_radius=True), "tip_radius must be a positive"),
+    (dict(size=1.0, tip_radius="abc"), "tip_radius must be a positive"),  # numpy's ValueError
+    (dict(size=1.0, tip_radius=np.zeros(3)), "tip_radius must be a positive"),
+    (dict(size=1.0, resolution=0), "resolution must be a positive"),
+    (dict(size=1.0, resolution=np.inf), "resolution must be a positive"),
+    (dict(size=1.0, height_scale=np.nan), "height_scale must be a finite number"),  # NaN heights, no word
+    (dict(size=1.0, height_scale=np.inf), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=1 + 2j), "height_scale must be a finite number"),  # complex heights
+    (dict(size=1.0, height_scale=None), "height_scale must be a finite number"),  # bare TypeError
+    (dict(size=1.0, height_scale="2"), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=np.zeros(3)), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=True), "height_scale must be a finite number"),
+    (dict(size=1.0, height_scale=0), "height_scale must be a finite number other than 0"),
+])
+def test_make_measurement_refuses_bad_arguments(kwargs, match):
+    h = np.random.default_rng(0).random((4, 4))
+    with pytest.raises(XtopoError, match=match):
+        make_measurement(h, **kwargs)
+
+
+def test_make_measurement_size_spacing_and_scale_still_work():
+    h = np.arange(8.0).reshape(2, 4)
+    ds = make_measurement(h, size=(1.0, 2.0), height_scale=-2, tip_radius=np.float32(0.5), units="um")
+    np.testing.assert_allclose(ds.height.values, -2 * h)
+    assert spacing(ds, "x") == spacing(ds, "y") == pytest.approx(0.5) and ds.attrs["tip_radius"] == 0.5
+    by_spacing, by_size = make_measurement(h, spacing=0.5, units="um"), make_measurement(h, size=(1, 2), units="um")
+    xr.testing.assert_identical(by_spacing.x, by_size.x)
+
+
+@pytest.mark.parametrize("obj", [None, "abc", 3])
+def test_append_history_refuses_non_xarray_objects(obj):
+    # a bare AttributeError ('NoneType' object has no attribute 'copy')
+    with pytest.raises(ValidationError, match="expected a topography"):
+        xtopo.conventions.append_history(obj, "step")

@@ -153,7 +153,8 @@ def test_long_modes_carry_the_band_power_of_the_truth():
     dict(hurst=0), dict(hurst=1), dict(hurst="0.5"), dict(hurst=None), dict(hurst=[0.5]), dict(hurst=0.5j),
     dict(rms_height=-1.0), dict(rms_height=0.0), dict(rms_height=np.nan), dict(rms_slope=-1.0), dict(prefactor=0.0),
     dict(short_cutoff=0.0), dict(short_cutoff=-1.0), dict(long_cutoff=0.0), dict(long_cutoff=np.nan),
-    dict(seed=-1), dict(seed=1.5), dict(seed=None), dict(periodic="false"), dict(periodic=None)])
+    dict(seed=-1), dict(seed=1.5), dict(seed=None), dict(periodic="false"), dict(periodic=None),
+    dict(hurst=10**400), dict(size=10**400)])  # beyond float64: numpy's TypeError/OverflowError
 def test_fractal_surface_refuses_bad_arguments(kwargs):
     # were: silent truncation (4.5 -> 4, "8"), silent NaN or negated surfaces (rms_height<=0, prefactor<0),
     # ZeroDivisionError (size or cutoff 0), TypeError/ValueError from numpy (seed, hurst text), periodic="false" -> 1
@@ -180,7 +181,10 @@ def test_sphere_refuses_bad_arguments(kwargs):
 
 
 @pytest.mark.parametrize("kwargs", [dict(wavelength=0.0), dict(wavelength=-1.0), dict(amplitude=np.nan),
-                                    dict(shape=4.7), dict(shape=-4), dict(periodic="false")])
+                                    dict(shape=4.7), dict(shape=-4), dict(periodic="false"),
+                                    dict(amplitude=10**400),  # was numpy's TypeError from np.isfinite
+                                    dict(direction=np.array(["x", "y"])),  # numpy's 'truth value ambiguous'
+                                    dict(direction=["x"])])
 def test_sinusoid_refuses_bad_arguments(kwargs):
     args = dict(shape=4, size=1.0)
     args.update(kwargs)
@@ -222,3 +226,19 @@ def test_example_twin_refuses_bad_seed(seed):
     # 1.5 was silently truncated to 1, -1 raised numpy's ValueError
     with pytest.raises(xtopo.XtopoError, match="seed"):
         example_twin(seed)
+
+
+@pytest.mark.parametrize("kind", [None, "2d", ["iso"], np.array(["1d"]), 1])
+def test_prescribed_psd_refuses_unknown_kinds(kind):
+    # a bare KeyError (or TypeError: unhashable) from the lookup of the kind
+    truth = prescribed_psd(fractal_surface(32, 1.0, hurst=0.7))
+    assert truth(np.array([10.0]), "1d").shape == (1,)
+    with pytest.raises(xtopo.XtopoError, match="kind must be one of"):
+        truth(np.array([10.0]), kind)
+
+
+@pytest.mark.parametrize("ds", [None, "surface.nc", np.zeros(4)])
+def test_prescribed_psd_of_what_is_no_dataset(ds):
+    # a bare AttributeError ('NoneType' object has no attribute 'attrs')
+    with pytest.raises(xtopo.XtopoError, match="carries no prescribed PSD"):
+        prescribed_psd(ds)

@@ -319,3 +319,13 @@ def test_fill_reproduces_a_harmonic_function_on_an_anisotropic_grid(dask):
     ds = make_measurement(np.where(hole, np.nan, h), spacing=(0.3, 0.7), units="nm")
     out = fill_missing(ds.chunk() if dask else ds)
     np.testing.assert_allclose(out.height.values, h, atol=1e-9)
+
+
+@pytest.mark.parametrize("mode", ["plane", "curvature"])
+def test_detrend_refuses_nan_positions(mode):
+    # a NaN coordinate raised numpy's LinAlgError ('SVD did not converge in Linear Least Squares')
+    x = np.r_[np.arange(15.0), np.nan]
+    ds = xr.Dataset({"height": ("x", np.random.default_rng(0).random(16), {"units": "um"})},
+                    coords={"x": ("x", x, {"units": "um"})}, attrs={"grid": "nonuniform"})
+    with pytest.raises(GridError, match="coordinate 'x' has 1 NaN or infinite positions"):
+        detrend(ds, mode=mode)

@@ -245,3 +245,12 @@ def test_summary_table_refuses_a_batch_and_prints_metres():
         summary_table({"batch": xr.concat([a, a], dim="sample")})
     line = fractal_surface(16, 1.0, hurst=0.8, seed=2, rms_height=1.0, units="m")
     assert "1e+03 mm" not in format_table(summary_table({"l": line}))  # 1 m (and Rq 0.99999...) print as 1 m
+
+
+@pytest.mark.parametrize("table", [None, "table", xr.Dataset(), np.zeros(3)])
+def test_format_table_needs_a_summary_table(table):
+    # a bare AttributeError ('NoneType' object has no attribute 'sizes') or KeyError 'measurement'
+    from xtopo.summary import format_table
+
+    with pytest.raises(xtopo.ValidationError, match="expected a table made by summary_table"):
+        format_table(table)

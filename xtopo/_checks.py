@@ -7,14 +7,19 @@ what it expects (instead of a TypeError or a silent truncation deep inside).
 
 from __future__ import annotations
 
+import math
 import numbers
 import os
 
 import numpy as np
 
-from .errors import XtopoError
+from .errors import GridError, XtopoError
 
-__all__ = ["option", "flag", "integer", "positive_number", "lengths", "path", "make_directory"]
+__all__ = ["option", "flag", "integer", "positive_number", "real_number", "per_axis", "lengths", "path",
+           "make_directory", "bin_count", "MAX_SPARSE_BINS"]
+
+#: a number of bins may exceed the number of values binned (most bins then stay empty) up to this many bins.
+MAX_SPARSE_BINS = 10_000
 
 
 def option(value, options, name: str):
@@ -44,17 +49,81 @@ def integer(value, name: str, minimum: int = 1, *, error: type[XtopoError] = Xto
     return int(value)
 
 
+def _real(value) -> float | None:
+    """``value`` as a float if it is a real number (not a bool; a 0-d array counts), else None.
+
+    ``float()``, not ``np.isfinite``, decides: an int beyond float64 (``10**400``) is None, not a TypeError.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
+        return None
+    try:
+        return float(value)
+    except OverflowError:
+        return None
+
+
+def bin_count(value, name: str, samples: int, minimum: int = 1, *, error: type[XtopoError] = XtopoError) -> int:
+    """``value`` (an integer >= ``minimum``) as a number of bins for ``samples`` values.
+
+    More than both ``samples`` and :data:`MAX_SPARSE_BINS` is refused: such bins are nearly all
+    empty, and a request like ``10**9`` would allocate gigabytes of edges and counts.
+    """
+    value = integer(value, name, minimum, error=error)
+    limit = max(MAX_SPARSE_BINS, int(samples))
+    if value > limit:
+        raise error(f"{name} must be at most {limit} here ({int(samples)} values to bin; more bins "
+                    f"than values stay empty), got {value!r}")
+    return value
+
+
 def positive_number(value, name: str, *, infinite: bool = False, error: type[XtopoError] = XtopoError) -> float:
     """``value`` as a float if it is a real number above 0 (finite unless ``infinite``; a 0-d array counts).
 
     ``error``: the :class:`~xtopo.errors.XtopoError` subclass raised otherwise.
     """
-    if isinstance(value, np.ndarray) and value.ndim == 0:
-        value = value.item()
-    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real) or not value > 0
-            or not (infinite or np.isfinite(value))):
+    number = _real(value)
+    if number is None or not number > 0 or not (infinite or math.isfinite(number)):
         raise error(f"{name} must be a positive {'' if infinite else 'finite '}number, got {value!r}")
-    return float(value)
+    return number
+
+
+def per_axis(value, ndim: int, name: str, *, sign: str = "positive") -> np.ndarray:
+    """``value`` as ``ndim`` finite numbers, one per axis (``(y, x)`` or ``x``; one value is used for every axis).
+
+    ``sign``: ``"positive"`` (sizes), ``"non-negative"`` (offsets) or ``"any"`` (positions).
+    """
+    v = None
+    if not isinstance(value, (str, bytes, bool, np.bool_)):
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            v = None
+    ok = v is not None and v.ndim <= 1 and (v.ndim == 0 or v.size in (1, ndim)) and np.all(np.isfinite(v))
+    if ok and sign != "any":
+        ok = bool(np.all(v > 0) if sign == "positive" else np.all(v >= 0))
+    if not ok:
+        what = "" if sign == "any" else f"{sign} "
+        axes = "(y, x) or one for both" if ndim == 2 else "x"
+        raise GridError(f"{name} must be {what}finite number(s) in the length unit, {axes}, got {value!r}")
+    return np.broadcast_to(v, (ndim,)).copy()
+
+
+def real_number(value, name: str, *, low: float = -np.inf, high: float = np.inf, closed: bool = True) -> float:
+    """``value`` as a finite float in ``[low, high]`` (``(low, high)`` unless ``closed``)."""
+    number = _real(value)
+    ok = (number is not None and math.isfinite(number)
+          and (low <= number <= high if closed else low < number < high))
+    if not ok:
+        if (low, high) == (-np.inf, np.inf):
+            bounds = ""
+        elif high == np.inf:
+            bounds = f" {'>=' if closed else '>'} {low:g}"
+        else:
+            bounds = f" in [{low:g}, {high:g}]" if closed else f" in ({low:g}, {high:g})"
+        raise XtopoError(f"{name} must be a finite number{bounds}, got {value!r}")
+    return number
 
 
 def lengths(values, name: str, units: str, longest: float | None = None) -> np.ndarray:
@@ -62,10 +131,14 @@ def lengths(values, name: str, units: str, longest: float | None = None) -> np.n
 
     Without ``longest`` any positive finite value is accepted (e.g. wavevectors in ``m-1``).
     """
-    try:
-        v = np.atleast_1d(np.asarray(values, dtype=float)) if not isinstance(values, (str, bytes)) else None
-    except (TypeError, ValueError):
-        v = None
+    v = None
+    if not isinstance(values, (str, bytes)):
+        try:
+            raw = np.asarray(values)
+            if raw.dtype.kind not in "bcSU":  # True is not the length 1, nor "1" a number
+                v = np.atleast_1d(np.asarray(raw, dtype=float))
+        except (TypeError, ValueError, OverflowError):
+            v = None
     if v is None or v.ndim != 1:
         raise XtopoError(f"{name} must be a number or a 1D sequence of numbers (lengths in {units}), got {values!r}")
     bad = v[~(np.isfinite(v) & (v > 0) & (longest is None or v <= longest))]
@@ -76,9 +149,9 @@ def lengths(values, name: str, units: str, longest: float | None = None) -> np.n
 
 
 def path(value, name: str, *, kind: str = "path") -> str:
-    """``value`` as a str path if it is one (str or os.PathLike); ``kind`` says which (e.g. "file path")."""
+    """``value`` as a str path if it is one (str, bytes or os.PathLike); ``kind`` says which (e.g. "file path")."""
     try:
-        return os.fspath(value)
+        return os.fsdecode(os.fspath(value))  # bytes too: a str, as the callers join it with str
     except TypeError:
         raise XtopoError(f"{name} must be a {kind} (str or os.PathLike), got {type(value).__name__}") from None
 

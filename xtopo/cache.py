@@ -104,7 +104,7 @@ def freeze(ds: xr.Dataset) -> xr.Dataset:
     Writing into the arrays raises ``ValueError`` (numpy refuses to make them writeable).
     Dask-backed variables are left as they are.
     """
-    out = ds.copy(deep=False)
+    out = _xarray(ds, "freeze", (xr.Dataset,)).copy(deep=False)
     for name, var in ds.variables.items():
         if name in ds.indexes or not isinstance(var.data, np.ndarray) or var.dtype.hasobject:
             continue
@@ -113,11 +113,20 @@ def freeze(ds: xr.Dataset) -> xr.Dataset:
     return out
 
 
+def _xarray(ds, what: str, types: tuple = (xr.Dataset, xr.DataArray)):
+    """``ds`` if it is one of ``types`` (what the cache keys and stores), else an XtopoError."""
+    if not isinstance(ds, types):
+        names = " or ".join(t.__name__ for t in types)
+        raise XtopoError(f"{what} needs an xarray {names}, got {type(ds).__name__}")
+    return ds
+
+
 def checksum(ds) -> str:
     """SHA-256 of what an analysis of ``ds`` depends on: data, coordinates and measurement attrs.
 
     Computing it loads dask-backed data.
     """
+    _xarray(ds, "checksum")
     h = hashlib.sha256()
     items = ds.variables.items() if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable)] + [
         (k, v.variable) for k, v in ds.coords.items()]
@@ -235,8 +244,8 @@ class Cache:
 
     def path(self, func, ds, **params) -> str:
         """The file that holds (or will hold) ``func(ds, **params)``."""
-        if not isinstance(ds, (xr.Dataset, xr.DataArray)):
-            raise XtopoError(f"Cache needs an xarray Dataset or DataArray to key the result, got {type(ds).__name__}")
+        if not callable(func):  # was a bare TypeError ('NoneType' object is not callable) after the look-up
+            raise XtopoError(f"Cache needs a function to call, got {type(func).__name__}")
         return os.path.join(os.path.abspath(self.directory), _key(func, checksum(ds), params) + ".nc")
 
     def _load(self, path: str):

@@ -26,7 +26,7 @@ import unicodedata
 import numpy as np
 import xarray as xr
 
-from ._checks import flag
+from ._checks import flag, per_axis, positive_number, real_number
 from .errors import GridError, UnitsError, ValidationError
 
 __all__ = [
@@ -35,6 +35,7 @@ __all__ = [
     "normalize_units", "length_factor", "convert_length",
     "spacing", "physical_size", "is_uniform", "is_periodic", "length_attr", "is_nonuniform",
     "lateral_dims", "height_of", "make_measurement", "validate", "append_history", "length_units_of",
+    "shared_length_unit",
     "PROVENANCE_ATTRS", "provenance_of", "periodic_flag",
     "with_units",
 ]
@@ -136,7 +137,7 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
         ``height`` and the length attributes (``tip_radius``, ``resolution``) are converted together.
     """
     to = normalize_units(units)
-    obj = ds.copy(deep=False)
+    obj = _xarray(ds).copy(deep=False)
     current = length_units_of(obj)
     if current == to:
         return obj
@@ -166,6 +167,14 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
     return append_history(obj, f"convert_length(units={to!r}) from {current!r}")
 
 
+def _xarray(obj):
+    """``obj`` if it is an xarray object (Dataset, DataArray or DataTree), else a :class:`ValidationError`."""
+    if not isinstance(obj, (xr.Dataset, xr.DataArray, xr.DataTree)):
+        raise ValidationError(f"expected a topography (xarray Dataset with a {HEIGHT!r} variable, or its DataArray), "
+                              f"got {type(obj).__name__}")
+    return obj
+
+
 def length_units_of(obj) -> str:
     """The length unit of ``obj``: its lateral coordinates' ``units``, else its heights'.
 
@@ -174,6 +183,7 @@ def length_units_of(obj) -> str:
     UnitsError
         If neither carries one.
     """
+    _xarray(obj)
     for name in (X, Y):
         if name in obj.coords and "units" in obj.coords[name].attrs:
             return normalize_units(obj.coords[name].attrs["units"])
@@ -183,9 +193,47 @@ def length_units_of(obj) -> str:
     raise UnitsError("the data carry no length unit (coordinate attr 'units')")
 
 
+def shared_length_unit(h: xr.DataArray, what: str = "topography") -> str:
+    """The one length unit of the heights ``h`` and their lateral coordinates (``"1"`` when none is labelled).
+
+    Heights and positions in different units would be mixed by any analysis (a height in nm
+    read as µm: Sq 1000x, slopes 1000x), so they must agree where both are labelled.
+
+    Parameters
+    ----------
+    h : xarray.DataArray
+        Heights (e.g. from :func:`height_of`).
+    what : str
+        Names the data in the error (``"topography"``, ``"counter"``, the analysis).
+
+    Returns
+    -------
+    str
+        The normalised unit (UDUNITS ASCII, e.g. ``"um"``).
+
+    Raises
+    ------
+    UnitsError
+        If a label is not a length unit, or the labels disagree.
+    """
+    labelled = {}
+    for name, var in [("height", h)] + [(f"coordinate {d!r}", h.coords[d]) for d in LATERAL_DIMS if d in h.coords]:
+        if var.attrs.get("units"):
+            try:
+                labelled[name] = normalize_units(var.attrs["units"])
+            except UnitsError as exc:
+                raise UnitsError(f"{what}: the {name} has units {var.attrs['units']!r}, which is not a length unit "
+                                 f"({exc})") from None
+    if len(set(labelled.values())) > 1:
+        found = ", ".join(f"{name} in {u!r}" for name, u in labelled.items())
+        raise UnitsError(f"{what}: {found}; heights and positions need one length unit "
+                         "(rescale the heights or the coordinates so that they agree, e.g. with .topo.to_units)")
+    return next(iter(labelled.values()), "1")
+
+
 def lateral_dims(obj) -> tuple[str, ...]:
     """The lateral dims present, in canonical order: ``("y", "x")`` or ``("x",)``."""
-    dims = obj.dims
+    dims = _xarray(obj).dims
     present = tuple(d for d in LATERAL_DIMS if d in dims)
     if X not in present:
         raise GridError(f"no 'x' dimension (dims are {tuple(dims)}); rename your lateral dims to 'x'/'y'")
@@ -194,7 +242,7 @@ def lateral_dims(obj) -> tuple[str, ...]:
 
 def is_nonuniform(obj) -> bool:
     """True for a nonuniform line scan (``grid="nonuniform"``)."""
-    return obj.attrs.get("grid") == "nonuniform"
+    return _xarray(obj).attrs.get("grid") == "nonuniform"
 
 
 def is_uniform(coord, rtol: float = 1e-6) -> bool:
@@ -216,7 +264,9 @@ def spacing(obj, dim: str = X) -> float:
     GridError
         If the coordinate is missing, nonuniform, or not increasing.
     """
-    if dim not in obj.coords:
+    if not isinstance(dim, str):
+        raise GridError(f"dim must be the name of a lateral dimension ('x' or 'y'), got {dim!r}")
+    if dim not in _xarray(obj).coords:
         raise GridError(f"dimension {dim!r} has no coordinate; assign physical positions first")
     c = obj.coords[dim]
     v = np.asarray(c.values, dtype=float)
@@ -235,10 +285,11 @@ def spacing(obj, dim: str = X) -> float:
 
 def physical_size(obj, dim: str = X) -> float:
     """Physical size ``L = N Δ`` along ``dim`` (for nonuniform scans: last minus first position)."""
-    if is_nonuniform(obj):
+    if is_nonuniform(obj) and isinstance(dim, str) and dim in obj.coords:
         v = np.asarray(obj.coords[dim].values, dtype=float)
         return float(v[-1] - v[0])
-    return obj.sizes[dim] * spacing(obj, dim)
+    d = spacing(obj, dim)  # checks obj and dim first
+    return obj.sizes[dim] * d
 
 
 def is_periodic(obj) -> bool:
@@ -253,7 +304,7 @@ def is_periodic(obj) -> bool:
     ValidationError
         If the attribute is anything else (``2``, ``0.5``, ``"yes"``, ...).
     """
-    value = obj.attrs.get("periodic", 0)
+    value = _xarray(obj).attrs.get("periodic", 0)
     periodic = periodic_flag(value)
     if periodic is None:
         raise ValidationError(f"attr 'periodic' must be 0 or 1 (a bool, or the text '0', '1', 'false' or 'true'), "
@@ -307,20 +358,41 @@ def length_attr(obj, key: str):
     return val
 
 
+def _check_height_values(h: xr.DataArray) -> xr.DataArray:
+    """``h`` if it holds at least one real number per point (integers or floats; not complex, text or bool).
+
+    Raises
+    ------
+    ValidationError
+        Otherwise (complex heights would lose their imaginary part in the analyses, text fails deep inside).
+    """
+    if h.dtype.kind not in "iuf":
+        raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
+    if h.size == 0:
+        raise ValidationError(f"{HEIGHT!r} has no points (shape {h.shape})")
+    return h
+
+
 def height_of(obj) -> xr.DataArray:
     """The height DataArray of a measurement, with missing data as NaN.
 
     For a Dataset, the measurement attributes (``periodic``, ``tip_radius``, ...)
     are copied onto the returned DataArray so that functions on DataArrays see them.
+
+    Raises
+    ------
+    ValidationError
+        If ``obj`` is not a Dataset with a ``height`` variable or a DataArray, or its heights
+        are not real numbers (complex, text, bool) or have no points.
     """
     if isinstance(obj, xr.DataArray):
-        return obj
-    if not isinstance(obj, xr.Dataset):
+        return _check_height_values(obj)
+    if not isinstance(_xarray(obj), xr.Dataset):
         raise ValidationError(f"expected a topography (xarray Dataset with a {HEIGHT!r} variable, or its DataArray), "
-                              f"got {type(obj).__name__}")
+                              f"got a {type(obj).__name__}")
     if HEIGHT not in obj:
         raise ValidationError(f"the Dataset has no {HEIGHT!r} variable (variables: {list(obj.data_vars)})")
-    h = obj[HEIGHT]
+    h = _check_height_values(obj[HEIGHT])
     if MASK in obj:
         h = h.where(~obj[MASK].astype(bool))
     else:  # a new variable: the attrs set below must not land on the Dataset's own height
@@ -347,7 +419,7 @@ def provenance_of(obj) -> dict:
 
 def append_history(obj, line: str):
     """Return ``obj`` with ``line`` appended to its ``history`` attribute (one line per step)."""
-    obj = obj.copy(deep=False)
+    obj = _xarray(obj).copy(deep=False)
     hist = obj.attrs.get("history", "")
     if isinstance(hist, np.ndarray):  # some readers give text attrs as arrays of lines
         hist = "\n".join(str(v) for v in hist.ravel())
@@ -404,6 +476,9 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
     if h.size == 0:
         raise GridError(f"height has no points (shape {h.shape})")
     h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
+    height_scale = real_number(height_scale, "height_scale")
+    if height_scale == 0:
+        raise ValidationError("height_scale must be a finite number other than 0 (it multiplies the heights), got 0")
     if height_scale != 1.0:
         h = h * height_scale
     dims = (Y, X) if h.ndim == 2 else (X,)
@@ -425,12 +500,9 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
             raise GridError("give exactly one of size= or spacing= (or x= for a line scan)")
         n = h.shape
         if spacing is not None:
-            sp = np.broadcast_to(np.asarray(spacing, dtype=float), (h.ndim,))
+            sp = per_axis(spacing, h.ndim, "spacing")
         else:
-            sz = np.broadcast_to(np.asarray(size, dtype=float), (h.ndim,))
-            sp = sz / np.asarray(n, dtype=float)
-        if not np.all(np.isfinite(sp)) or np.any(sp <= 0):
-            raise GridError(f"physical size/spacing must be positive and finite, got spacing {tuple(sp)}")
+            sp = per_axis(size, h.ndim, "size") / np.asarray(n, dtype=float)
         for dim, ni, d in zip(dims, n, sp):
             c = _coord(np.arange(ni) * d, dim, units)
             c.attrs["spacing"] = float(d)
@@ -451,10 +523,10 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
     if name is not None:
         ds_attrs["title"] = str(name)
     if tip_radius is not None:
-        ds_attrs["tip_radius"] = float(tip_radius)
+        ds_attrs["tip_radius"] = positive_number(tip_radius, "tip_radius", error=ValidationError)
         ds_attrs["tip_radius_units"] = units
     if resolution is not None:
-        ds_attrs["resolution"] = float(resolution)
+        ds_attrs["resolution"] = positive_number(resolution, "resolution", error=ValidationError)
         ds_attrs["resolution_units"] = units
     ds_attrs.update({k: v for k, v in attrs.items() if v is not None})
     return xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
@@ -482,10 +554,7 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
     lat = tuple(d for d in h.dims if d in LATERAL_DIMS)
     if lat not in ((Y, X), (X,)):
         raise ValidationError(f"{HEIGHT!r} must have lateral dims ('y', 'x') or ('x',) in that order, got {h.dims}")
-    if h.dtype.kind not in "iuf":
-        raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
-    if h.size == 0:
-        raise ValidationError(f"{HEIGHT!r} has no points (shape {h.shape})")
+    _check_height_values(h)
     try:
         units = normalize_units(h.attrs.get("units"))
     except UnitsError as exc:

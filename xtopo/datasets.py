@@ -13,13 +13,11 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
-import numbers
 
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, integer, option, positive_number
+from ._checks import flag, integer, option, per_axis, positive_number, real_number
 from ._kernels import fft as _fft
 from ._kernels.derivatives import fourier_first, wavevectors
 from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
@@ -40,42 +38,6 @@ def _shape(shape, name: str = "shape") -> tuple[int, ...]:
     if items is None or len(items) not in (1, 2):
         raise GridError(f"{name} must be nx, (nx,) or (ny, nx), got {shape!r}")
     return tuple(integer(n, f"each entry of {name}", error=GridError) for n in items)
-
-
-def _per_axis(value, ndim: int, name: str, *, sign: str = "positive") -> np.ndarray:
-    """``value`` as ``ndim`` finite numbers, one per axis (``(y, x)`` or ``x``; one value is used for every axis).
-
-    ``sign``: ``"positive"`` (sizes), ``"non-negative"`` (offsets) or ``"any"`` (positions).
-    """
-    v = None
-    if not isinstance(value, (str, bytes, bool, np.bool_)):
-        try:
-            v = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            v = None
-    ok = v is not None and v.ndim <= 1 and (v.ndim == 0 or v.size in (1, ndim)) and np.all(np.isfinite(v))
-    if ok and sign != "any":
-        ok = bool(np.all(v > 0) if sign == "positive" else np.all(v >= 0))
-    if not ok:
-        what = "" if sign == "any" else f"{sign} "
-        axes = "(y, x) or one for both" if ndim == 2 else "x"
-        raise GridError(f"{name} must be {what}finite number(s) in the length unit, {axes}, got {value!r}")
-    return np.broadcast_to(v, (ndim,)).copy()
-
-
-def _real(value, name: str, *, low: float = -np.inf, high: float = np.inf, closed: bool = True) -> float:
-    """``value`` as a finite float in ``[low, high]`` (``(low, high)`` unless ``closed``)."""
-    ok = (isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)) and np.isfinite(value)
-          and (low <= value <= high if closed else low < value < high))
-    if not ok:
-        if (low, high) == (-np.inf, np.inf):
-            bounds = ""
-        elif high == np.inf:
-            bounds = f" {'>=' if closed else '>'} {low:g}"
-        else:
-            bounds = f" in [{low:g}, {high:g}]" if closed else f" in ({low:g}, {high:g})"
-        raise XtopoError(f"{name} must be a finite number{bounds}, got {value!r}")
-    return float(value)
 
 
 def _optional_length(value, name: str):
@@ -180,6 +142,7 @@ class FractalPSD:
         return np.sqrt(2 * self.acf(ell, **kw)) / ell
 
     def __call__(self, q, kind: str = "native"):
+        kind = option(kind, ("native", "iso", "1d"), "kind")
         return {"native": self.c_native, "iso": self.c_iso, "1d": self.c1d}[kind](q)
 
     def to_attrs(self) -> dict:
@@ -191,7 +154,7 @@ class FractalPSD:
 
 def prescribed_psd(ds) -> FractalPSD:
     """Rebuild the ground-truth :class:`FractalPSD` from a synthetic surface's attrs."""
-    a = ds.attrs
+    a = getattr(ds, "attrs", {})
     if "psd_prefactor" not in a:
         raise XtopoError("this dataset carries no prescribed PSD (it was not made by fractal_surface)")
     lc, sc = float(a["psd_long_cutoff"]), float(a["psd_short_cutoff"])
@@ -254,8 +217,8 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
         A measurement with ``attrs`` holding the PSD parameters (see :func:`prescribed_psd`).
     """
     shape = _shape(shape)
-    size = _per_axis(size, len(shape), "size")
-    hurst = _real(hurst, "hurst", low=0.0, high=1.0, closed=False)
+    size = per_axis(size, len(shape), "size")
+    hurst = real_number(hurst, "hurst", low=0.0, high=1.0, closed=False)
     if sum(v is not None for v in (rms_height, rms_slope, prefactor)) > 1:
         raise XtopoError("give at most one of rms_height, rms_slope and prefactor")
     rms_height, rms_slope, prefactor, short_cutoff, long_cutoff = (
@@ -317,11 +280,11 @@ def _synthesize(shape, size, c, rng) -> np.ndarray:
     area = float(np.prod(size))
     amp = np.sqrt(c * area) / np.sqrt(2.0)
     ht = amp * (rng.standard_normal(c.shape) + 1j * rng.standard_normal(c.shape))
-    _make_self_conjugate_real(ht, shape, amp, rng)
+    _make_self_conjugatereal_number(ht, shape, amp, rng)
     return _fft.irfftn(ht, s=shape, axes=tuple(range(-len(shape), 0))) * (int(np.prod(shape)) / area)
 
 
-def _make_self_conjugate_real(ht, shape, amp, rng):
+def _make_self_conjugatereal_number(ht, shape, amp, rng):
     idx_last = [0] + ([shape[-1] // 2] if shape[-1] % 2 == 0 else [])
     idx_first = [0] + ([shape[0] // 2] if len(shape) == 2 and shape[0] % 2 == 0 else []) if len(shape) == 2 else [None]
     for j in idx_last:
@@ -357,12 +320,12 @@ def sphere(shape, size, radius: float, *, center=None, kind: str = "sphere", per
         Length unit of ``size``, ``radius``, ``center`` and the result.
     """
     shape = _shape(shape)
-    size = _per_axis(size, len(shape), "size")
+    size = per_axis(size, len(shape), "size")
     radius = positive_number(radius, "radius")
     kind = option(kind, ("sphere", "paraboloid"), "kind")
     periodic = flag(periodic, "periodic")
     sp = size / np.asarray(shape)
-    center = size / 2 if center is None else _per_axis(center, len(shape), "center", sign="any")
+    center = size / 2 if center is None else per_axis(center, len(shape), "center", sign="any")
     axes = [np.arange(n) * d - c for n, d, c in zip(shape, sp, center)]
     r2 = sum(a**2 for a in np.meshgrid(*axes, indexing="ij"))
     if kind == "sphere":
@@ -384,14 +347,15 @@ def sinusoid(shape, size, *, amplitude: float = 1.0, wavelength: float | None = 
     With ``periodic=True`` and ``wavelength`` dividing the size the surface is exactly periodic.
     """
     shape = _shape(shape)
-    size = _per_axis(size, len(shape), "size")
-    amplitude = _real(amplitude, "amplitude")
+    size = per_axis(size, len(shape), "size")
+    amplitude = real_number(amplitude, "amplitude")
     periodic = flag(periodic, "periodic")
     sp = size / np.asarray(shape)
     lam = float(size[-1]) if wavelength is None else positive_number(wavelength, "wavelength")
     axes = np.meshgrid(*[np.arange(n) * d for n, d in zip(shape, sp)], indexing="ij")
     xx = axes[-1]
     yy = axes[0] if len(shape) == 2 else None
+    option(direction, ("x", "y", "xy"), "direction")
     if direction == "x":
         h = amplitude * np.cos(2 * np.pi * xx / lam)
     elif direction == "y" and yy is not None:
@@ -518,16 +482,16 @@ def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_rad
     sp = np.array([spacing(h, d) for d in dims])
     n = np.array([h.sizes[d] for d in dims])
     full = sp * n
-    size = full if size is None else _per_axis(size, len(dims), "size")
-    offset = np.zeros(len(dims)) if offset is None else _per_axis(offset, len(dims), "offset", sign="non-negative")
+    size = full if size is None else per_axis(size, len(dims), "size")
+    offset = np.zeros(len(dims)) if offset is None else per_axis(offset, len(dims), "offset", sign="non-negative")
     if pixels is not None:
         pixels = _shape(pixels, "pixels")
         if len(pixels) not in (1, len(dims)):
             raise GridError(f"pixels must be one number or one per axis {dims}, got {pixels!r}")
     tip_radius = _optional_length(tip_radius, "tip_radius")
     resolution = _optional_length(resolution, "resolution")
-    noise = _real(noise, "noise", low=0.0)
-    missing_fraction = _real(missing_fraction, "missing_fraction", low=0.0, high=1.0)
+    noise = real_number(noise, "noise", low=0.0)
+    missing_fraction = real_number(missing_fraction, "missing_fraction", low=0.0, high=1.0)
     line = flag(line, "line")
     seed = integer(seed, "seed", minimum=0)
     if np.any(offset + size > full * (1 + 1e-12)):

@@ -29,7 +29,14 @@ _FILLED = "filled"
 
 
 def _positions(h, dim):
-    return np.asarray(h.coords[dim].values, dtype=float) if dim in h.coords else np.arange(h.sizes[dim], dtype=float)
+    """Positions along ``dim`` for the polynomial fit (pixel indices when there is no coordinate)."""
+    if dim not in h.coords:
+        return np.arange(h.sizes[dim], dtype=float)
+    v = np.asarray(h.coords[dim].values, dtype=float)
+    if not np.all(np.isfinite(v)):
+        raise GridError(f"detrend: coordinate {dim!r} has {int(np.count_nonzero(~np.isfinite(v)))} NaN or infinite "
+                        "positions; the fit needs a position for every pixel")
+    return v
 
 
 def _finish(obj, h_in, result, line: str, *, nonperiodic: bool = False):

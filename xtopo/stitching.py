@@ -19,9 +19,9 @@ from collections.abc import Mapping
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, integer, lengths, option, positive_number
+from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
-from .conventions import convert_length, lateral_dims, length_factor
+from .conventions import convert_length, lateral_dims, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
@@ -33,7 +33,10 @@ PER_DECADE = 10
 _MODES = "independent_modes"
 
 
-def _common_units(ms: dict) -> str:
+def _common_units(ms: dict, units=None) -> str:
+    """``units`` (checked), else the first measurement's length unit."""
+    if units is not None:
+        return normalize_units(units)
     for ds in ms.values():
         return ds["x"].attrs.get("units", "m")
     raise XtopoError("the twin has no measurements")
@@ -89,8 +92,11 @@ def _settings(per_decade, max_error) -> tuple:
     """Checked ``per_decade`` and ``max_error`` (None: :data:`~xtopo.analysis.reliability.MAX_RELATIVE_ERROR`)."""
     from .analysis.reliability import MAX_RELATIVE_ERROR
 
-    return (integer(per_decade, "per_decade"),
-            MAX_RELATIVE_ERROR if max_error is None else positive_number(max_error, "max_error", infinite=True))
+    per_decade = integer(per_decade, "per_decade")
+    if per_decade > MAX_SPARSE_BINS:  # 10**30 raised numpy's 'Maximum allowed size exceeded'
+        raise XtopoError(f"per_decade must be at most {MAX_SPARSE_BINS}, got {per_decade!r}")
+    return per_decade, MAX_RELATIVE_ERROR if max_error is None else positive_number(max_error, "max_error",
+                                                                                       infinite=True)
 
 
 def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, method: str = "interp",
@@ -318,7 +324,7 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
                      quantity: str = "psd", **kw) -> tuple[dict, dict]:
     reliable = flag(reliable, "reliable")
     ms = _measurements(tree)
-    units = units or _common_units(ms)
+    units = _common_units(ms, units)
     curves, errors, settings = {}, {}, {}
     for name, ds in ms.items():
         ds = _complete(convert_length(ds, units), name)
@@ -493,9 +499,10 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
     from .analysis.sdrp import check_order, sdrp
 
     order = check_order(order)
+    reliable = flag(reliable, "reliable")
     _settings(per_decade, max_error)
     ms = _measurements(tree)
-    units = units or _common_units(ms)
+    units = _common_units(ms, units)
     lo, hi = np.inf, 0.0
     for ds in ms.values():
         x = np.asarray(ds["x"].values, dtype=float) * length_factor(ds["x"].attrs.get("units", units), units)

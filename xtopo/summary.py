@@ -147,6 +147,9 @@ def format_percent(p: float) -> str:
 def table_rows(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
     """Header and formatted cells of :func:`summary_table` (lengths in readable units)."""
     header = ["measurement", "kind", "size", "grid", "tip radius", "missing", "Sq/Rq", "SΔq/RΔq", "SΔ²q/RΔ²q"]
+    if not isinstance(table, xr.Dataset) or "measurement" not in table.dims:
+        raise ValidationError(f"expected a table made by summary_table (a Dataset along 'measurement'), "
+                              f"got {type(table).__name__}")
     lines = []
     for i in range(table.sizes["measurement"]):
         t = table.isel(measurement=i)

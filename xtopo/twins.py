@@ -14,6 +14,7 @@ from collections.abc import Iterable, Mapping
 import xarray as xr
 
 from ._checks import flag
+from ._checks import path as checked_path
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import ValidationError, XtopoError
@@ -175,6 +176,7 @@ def open_twin(path, engine: str | None = None) -> xr.DataTree:
     engine : {"netcdf4", "h5netcdf"}, optional
         NetCDF library (default: xarray's choice).
     """
+    path = checked_path(path, "path", kind="file path")
     try:
         tree = xr.open_datatree(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:

@@ -99,7 +99,7 @@ def test_bad_nb_points_refused(kind, nb_points):
 def test_nb_points_far_beyond_the_data_refused(analysis, kind):
     """nb_points=10**9 allocated gigabytes of empty bins (MemoryError or the OOM killer); sparse bins are fine up
     to MAX_SPARSE_BINS."""
-    from xtopo.analysis._scale import MAX_SPARSE_BINS
+    from xtopo._checks import MAX_SPARSE_BINS
 
     ds = fractal_surface((16, 16), 1.0, hurst=0.6, seed=3)
     run = getattr(ds.topo, analysis)
@@ -107,3 +107,13 @@ def test_nb_points_far_beyond_the_data_refused(analysis, kind):
         run(kind, nb_points=10**9)
     sparse = run(kind, nb_points=MAX_SPARSE_BINS)     # more bins than values: the empty ones are dropped
     assert 0 < sparse.size <= 16 * 16 and np.all(np.isfinite(sparse.values))
+
+
+@pytest.mark.parametrize("kw,match", [({"kind": np.array(["1d", "iso"])}, "kind must be one of"),
+                                      ({"kind": {}}, "kind must be one of"),
+                                      ({"dim": np.array([])}, "is not a lateral dimension")])
+def test_acf_bad_options_refused(kw, match):
+    # arrays raised numpy's 'truth value of an array is ambiguous'
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    with pytest.raises(xtopo.XtopoError, match=match):
+        ds.topo.acf(**kw)

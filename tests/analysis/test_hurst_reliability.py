@@ -113,8 +113,9 @@ def test_bad_periodic_attr_refused(periodic):
             call()
 
 
-@pytest.mark.parametrize("c", [0, -0.5, float("nan"), "0.5", None])
+@pytest.mark.parametrize("c", [0, -0.5, float("nan"), "0.5", None, 10**400])
 def test_bad_tip_factor_refused(c):
+    # 10**400 (beyond float64) raised numpy's TypeError from np.isfinite in _checks.positive_number
     ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1, units="um").assign_attrs(tip_radius=0.05)
     with pytest.raises(xtopo.XtopoError, match="c must be a positive finite number"):
         ds.topo.reliability_cutoff(c=c)
@@ -173,3 +174,20 @@ def test_too_short_default_fit_of_a_result_names_its_analysis():
     v = fractal_surface((32, 48), (1.0, 1.5), hurst=0.7, seed=1, periodic=False).topo.vbm()
     with pytest.raises(xtopo.XtopoError, match="method='vbm'"):
         xtopo.analysis.hurst.hurst(v)
+
+
+def test_tip_factor_may_be_a_large_python_int():
+    # np.isfinite(10**30) raised a bare TypeError; a large int is a valid positive finite number
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1, units="um").assign_attrs(tip_radius=0.05)
+    xr.testing.assert_allclose(ds.topo.reliability_cutoff(c=10**3), ds.topo.reliability_cutoff(c=1000.0))
+
+
+@pytest.mark.parametrize("kw,match", [({"method": np.array(["psd", "acf"])}, "method must be one of"),
+                                      ({"method": ["psd"]}, "method must be one of"),
+                                      ({"kind": np.array([])}, "kind must be one of"),
+                                      ({"kind": "2d"}, "kind must be one of")])
+def test_hurst_bad_method_or_kind_refused(kw, match):
+    # an array raised numpy's 'truth value of an array is ambiguous'; kind='2d' computed the 2D PSD first
+    ds = fractal_surface(256, 1.0, hurst=0.7, seed=1, periodic=False)
+    with pytest.raises(xtopo.XtopoError, match=match):
+        ds.topo.hurst(**kw)

@@ -166,3 +166,23 @@ def test_float32_heights_give_float64_on_both_backends(analysis):
     # the float32 heights' spectrum, not a different one: within float32 precision of the float64 analysis
     exact = analysis(ds32.assign(height=ds32.height.astype(np.float64)))
     xr.testing.assert_allclose(eager, exact, rtol=1e-4, atol=1e-5 * float(exact.max()))
+
+
+@pytest.mark.parametrize("kw,match", [({"kind": np.array(["1d", "iso"])}, "kind must be one of"),
+                                      ({"kind": ["1d"]}, "kind must be one of"),
+                                      ({"convention": np.array([])}, "convention must be one of"),
+                                      ({"window": np.array([1.0, 2.0])}, "window must be"),
+                                      ({"window": 0}, "window must be"),
+                                      ({"window": 1}, "window must be"),
+                                      ({"dim": np.array(["x", "y"])}, "is not a lateral dimension")])
+def test_bad_options_refused(periodic_area, kw, match):
+    # arrays raised numpy's 'truth value of an array is ambiguous'; window=0 was taken as False (no window)
+    with pytest.raises(XtopoError, match=match):
+        periodic_area.topo.psd(**kw)
+
+
+def test_window_none_and_false_mean_no_window():
+    ds = fractal_surface(64, 1.0, hurst=0.7, seed=2, periodic=False)
+    xr.testing.assert_allclose(ds.topo.psd(window=False), ds.topo.psd(window=None))
+    xr.testing.assert_allclose(ds.topo.psd(window="none"), ds.topo.psd(window=None))
+    assert not np.allclose(ds.topo.psd(window="hann").values, ds.topo.psd(window=None).values)

@@ -173,3 +173,19 @@ def test_scalars_direction_is_fixed_width_unicode_for_line_and_area_scans(tmp_pa
     back = xr.open_dataset(xtopo.to_netcdf(s, tmp_path / "s.nc", engine=engine), engine=engine).load()
     assert back.direction.dtype == s.direction.dtype == area.topo.scalars().direction.dtype
     xr.testing.assert_allclose(back, s)
+
+
+@pytest.mark.parametrize("bins", [10**9, 10**30])
+def test_distribution_bins_beyond_the_data_refused(bins):
+    # 10**30 raised numpy's 'Maximum allowed dimension exceeded', 10**9 allocated gigabytes
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    with pytest.raises(xtopo.XtopoError, match="bins must be at most 10000"):
+        ds.topo.distribution(bins=bins)
+
+
+@pytest.mark.parametrize("dim", [np.array(["x", "y"]), np.array([]), ["x"], None])
+def test_distribution_bad_dim_refused(dim):
+    # arrays raised numpy's 'truth value of an array is ambiguous', a list TypeError
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    with pytest.raises(xtopo.XtopoError, match="is not a lateral dim"):
+        ds.topo.distribution("slope", dim=dim)

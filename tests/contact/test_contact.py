@@ -465,3 +465,38 @@ def test_gap_distribution_of_full_contact_is_undefined():
     assert bool(dens.sel(load=2.0).isnull().all())
     width = float(dens.gap_bin[1] - dens.gap_bin[0])
     np.testing.assert_allclose(float(dens.sel(load=1.0).sum()) * width, 1.0)
+
+
+@pytest.mark.parametrize("ds", [None, 3, "result.nc", np.zeros((4, 4)), xr.DataArray(np.zeros(3), dims="load")])
+@pytest.mark.parametrize("func", [stiffness, gap_distribution])
+def test_curve_helpers_refuse_what_is_not_a_result(func, ds):
+    # were a bare AttributeError ('NoneType' object has no attribute 'variables')
+    with pytest.raises(ContactError, match="needs a contact result .*, a Dataset; got"):
+        func(ds)
+
+
+@pytest.mark.parametrize("dim", [np.array(["load", "load"]), np.array([]), ["load"], None])
+def test_stiffness_refuses_a_dim_that_is_not_a_name(dim):
+    # arrays raised numpy's 'truth value of an array is ambiguous'
+    res = Scene(datasets.sphere((16, 16), 1.0, 2.0)).curve(loads=[0.001, 0.002])
+    with pytest.raises(ContactError, match="must run along dim="):
+        stiffness(res, dim=dim)
+
+
+def test_gap_bins_beyond_the_pixels_refused():
+    # gap_bins=10**30 raised numpy's 'Maximum allowed size exceeded' after solving every load;
+    # 10**9 allocated gigabytes
+    scene = Scene(datasets.sphere((16, 16), 1.0, 2.0))
+    for bins in (10**9, 10**30):
+        with pytest.raises(ContactError, match="gap_bins must be at most 10000"):
+            scene.curve(loads=[0.001, 0.002], gap_bins=bins)
+        with pytest.raises(ContactError, match="bins must be at most 10000"):
+            gap_distribution(scene.solve(load=0.001), bins=bins)
+
+
+@pytest.mark.parametrize("values", [True, [True, False], ["0.001"], "0.001"])
+def test_curve_refuses_booleans_and_text_as_controls(values):
+    # True was solved as the load 1, ["0.001"] as the number 0.001 (solve(load=True) is refused)
+    scene = Scene(datasets.sphere((16, 16), 1.0, 2.0))
+    with pytest.raises(ContactError, match="loads must be a sequence of numbers"):
+        scene.curve(loads=values)

@@ -369,3 +369,47 @@ def test_surfacetopography_periodic_flag_spellings(tmp_path, heights, stored, ex
             _open(p)
     else:
         assert bool(_open(p).attrs["periodic"]) is expected
+
+
+@pytest.mark.parametrize("info", [-1, "abc", [1, 2], np.zeros(2)])
+def test_surfacetopography_export_info_must_be_a_dict(tmp_path, info):
+    # any value was JSON-dumped as the file's 'info' (SurfaceTopography reads it as a dict)
+    ds = xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um")
+    with pytest.raises(xtopo.ValidationError, match="info must be a dict"):
+        xtopo.io.to_surfacetopography_netcdf(ds, tmp_path / "st.nc", info=info)
+    assert not (tmp_path / "st.nc").exists()
+
+
+@pytest.mark.parametrize("path", [1, None, 2.5])
+def test_surfacetopography_export_path_must_be_a_path(tmp_path, path):
+    # a bare TypeError from os.fspath
+    ds = xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um")
+    with pytest.raises(xtopo.XtopoError, match="path must be a file path"):
+        xtopo.io.to_surfacetopography_netcdf(ds, path)
+
+
+def test_surfacetopography_export_refuses_heights_in_another_unit(tmp_path):
+    # heights in nm on a µm grid were written with the unit 'nm' for both (the layout has one unit)
+    ds = xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um")
+    ds = ds.assign(height=(ds.height * 1000).assign_attrs(units="nm"))
+    with pytest.raises(xtopo.UnitsError, match="height in 'nm', coordinate 'y' in 'um'"):
+        xtopo.io.to_surfacetopography_netcdf(ds, tmp_path / "st.nc")
+
+
+@pytest.mark.parametrize("physical_size", ["abc", [], [1.0, "a"], np.zeros((2, 2, 2)), 1 + 2j, {}, True, -1.0])
+@pytest.mark.parametrize("read", ["open_topography", "channels"])
+def test_bad_physical_size_refused_before_reading(tmp_path, physical_size, read):
+    # open_topography raised numpy's ValueError/TypeError after reading; channels ignored it
+    path = tmp_path / "a.nc"
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um"), path)
+    with pytest.raises(xtopo.XtopoError, match="physical_size must be"):
+        getattr(xtopo.io, read)(path, physical_size=physical_size)
+
+
+@pytest.mark.parametrize("fmt", [["netcdf"], {}, np.array(["netcdf"])])
+def test_unhashable_format_refused(tmp_path, fmt):
+    # a bare TypeError ('unhashable type') from the format lookup
+    path = tmp_path / "a.nc"
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um"), path)
+    with pytest.raises(xtopo.UnsupportedFormatError, match="unknown format"):
+        xtopo.open_topography(path, format=fmt)

@@ -168,3 +168,51 @@ def test_an_archive_of_synthetic_data_is_its_own_source(tmp_path):
     again = xtopo.open_topography(xtopo.to_netcdf(back, tmp_path / "copy.nc"))  # an archive of a read file
     assert again.attrs["source_file"] == "synthetic.nc"
     assert again.attrs["source_sha256"] == back.attrs["source_sha256"]
+
+
+@pytest.mark.parametrize("path", [True, False, 1, 0, None, 2.5])
+def test_read_netcdf_and_open_twin_refuse_what_is_not_a_path(path):
+    # read_netcdf(True) opened file descriptor 1 and closed it (stdout gone for the rest of the process)
+    from xtopo.io.netcdf import read_netcdf
+
+    for read in (read_netcdf, xtopo.open_twin):
+        with pytest.raises(xtopo.XtopoError, match="path must be a file path"):
+            read(path)
+    os.fstat(1)  # still open
+
+
+@pytest.mark.parametrize("name", ["missing.nc", "."])
+def test_read_netcdf_of_a_missing_file_or_directory(tmp_path, name):
+    # a bare FileNotFoundError / IsADirectoryError from the engine sniffing
+    from xtopo.io.netcdf import read_netcdf
+
+    with pytest.raises(xtopo.ReaderError, match="not a readable NetCDF/HDF5 file"):
+        read_netcdf(tmp_path / name)
+
+
+def test_bytes_paths_are_paths(tmp_path):
+    # atomic_write raised a bare TypeError ('can only concatenate str (not "bytes") to str')
+    ds = xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um")
+    target = os.fsencode(tmp_path / "a.nc")
+    assert xtopo.to_netcdf(ds, target) == os.fsdecode(target)
+    assert xtopo.io.to_surfacetopography_netcdf(ds, os.fsencode(tmp_path / "st.nc")) == str(tmp_path / "st.nc")
+    xr.testing.assert_allclose(xtopo.open_topography(target, units="um").height, ds.height)
+
+
+@pytest.mark.parametrize("channel", ["abc", True, 2.5, -1, ["height"]])
+def test_xtopo_netcdf_has_one_channel(tmp_path, channel):
+    # any channel= was ignored and the heights returned
+    path = tmp_path / "a.nc"
+    xtopo.to_netcdf(xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um"), path)
+    for ok in (None, 0, "height"):
+        assert xtopo.open_topography(path, channel=ok).height.shape == (8, 8)
+    with pytest.raises(xtopo.UnsupportedFormatError, match="netcdf: (no channel named|channel must be|channel index)"):
+        xtopo.open_topography(path, channel=channel)
+
+
+@pytest.mark.parametrize("engine", [np.array(["netcdf4", "h5netcdf"]), ["netcdf4"], "", 3])
+def test_bad_engine_refused(tmp_path, engine):
+    # an array raised numpy's 'truth value ambiguous'; '' was taken as the default
+    ds = xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um")
+    with pytest.raises(xtopo.XtopoError, match="engine must be one of"):
+        xtopo.to_netcdf(ds, tmp_path / "a.nc", engine=engine)

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from .._checks import bin_count
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is_nonuniform, is_periodic,
-                           lateral_dims, provenance_of, spacing)
+                           lateral_dims, provenance_of, shared_length_unit, spacing)
 from ..errors import GridError, XtopoError
 
 __all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance"]
@@ -45,7 +46,7 @@ class Prepared:
             raise GridError(f"{what}(kind='iso') needs at least 2 pixels along 'x' or 'y'; this map is 1×1")
 
     def check_dim(self, dim: str) -> str:
-        if dim not in self.lat:
+        if not isinstance(dim, str) or dim not in self.lat:
             raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {self.lat})")
         return dim
 
@@ -57,17 +58,11 @@ class Prepared:
         return a
 
 
-def _units_of(h: xr.DataArray) -> str:
-    for name in (X, Y):
-        if name in h.coords and "units" in h.coords[name].attrs:
-            return h.coords[name].attrs["units"]
-    return h.attrs.get("units", "1")
-
-
 def prepare(obj) -> Prepared:
     """Heights of a measurement, with nonuniform line scans interpolated onto a uniform grid."""
     h = height_of(obj)
     lat = lateral_dims(h)
+    units = shared_length_unit(h, "heights")
     resampled = False
     if is_nonuniform(h) or is_nonuniform(obj):
         xv = np.asarray(h[X].values, dtype=float)
@@ -79,26 +74,16 @@ def prepare(obj) -> Prepared:
         h.attrs = {k: v for k, v in attrs.items() if k != "grid"}
         h.coords[X].attrs = {**cattrs, "spacing": float(new[1] - new[0])}
         resampled = True
-    return Prepared(h, _units_of(h), is_periodic(h) or is_periodic(obj), lat, resampled)
-
-
-#: ``nb_points`` may exceed the number of values binned (most bins then stay empty) up to this many bins.
-MAX_SPARSE_BINS = 10_000
+    return Prepared(h, units, is_periodic(h) or is_periodic(obj), lat, resampled)
 
 
 def per_decade(lo: float, hi: float, nb_points=None, *, samples: int) -> int:
     """Number of log bins: ``nb_points`` or ``POINTS_PER_DECADE`` per decade of ``[lo, hi]``.
 
-    ``samples``: how many values are binned. ``nb_points`` above both ``samples`` and
-    :data:`MAX_SPARSE_BINS` is refused: such bins are nearly all empty, and a request like
-    ``nb_points=10**9`` would allocate gigabytes of edges and counts.
+    ``samples``: how many values are binned (see :func:`xtopo._checks.bin_count` for the limit on ``nb_points``).
     """
     if nb_points is not None:
-        limit = max(MAX_SPARSE_BINS, int(samples))
-        if nb_points > limit:
-            raise XtopoError(f"nb_points must be at most {limit} here ({int(samples)} values to bin; more bins "
-                             f"than values stay empty), got {nb_points!r}")
-        return max(1, int(nb_points))
+        return max(1, bin_count(nb_points, "nb_points", samples))
     return max(1, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))))
 
 

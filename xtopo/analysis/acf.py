@@ -8,11 +8,10 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer
+from .._checks import integer, option
 from .._kernels import correlation as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
-from ..errors import XtopoError
 from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
 from .reliability import apply_reliability
 
@@ -59,8 +58,7 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
         wrap, nonperiodic data are zero padded and each lag is divided by its own
         number of pairs (so the result equals the direct sum, eq. 11).
     """
-    if kind not in ("1d", "iso"):
-        raise XtopoError(f"kind must be '1d' or 'iso', got {kind!r}")
+    option(kind, ("1d", "iso"), "kind")
     nb_points = None if nb_points is None else integer(nb_points, "nb_points")
     prep = prepare(obj)
     h, u = prep.h, prep.units

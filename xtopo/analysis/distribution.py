@@ -6,9 +6,9 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer, option
+from .._checks import bin_count, option
 from .._kernels.derivatives import forward_difference, second_difference
-from ..conventions import X, Y, height_of, is_periodic, lateral_dims, spacing
+from ..conventions import X, Y, height_of, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import XtopoError
 from ._scale import provenance
 
@@ -69,12 +69,12 @@ def distribution(obj, kind: str = "height", *, dim: str = X, bins: int = 100) ->
         (which may vary along batch dims); units are the inverse of the quantity's.
     """
     option(kind, _KINDS, "kind")
-    bins = integer(bins, "bins")
     h = height_of(obj)
     lat = lateral_dims(h)
-    if dim not in lat:
+    bins = bin_count(bins, "bins", int(np.prod([h.sizes[d] for d in lat])))
+    if not isinstance(dim, str) or dim not in lat:
         raise XtopoError(f"dim {dim!r} is not a lateral dim of this measurement ({lat})")
-    units = h.coords[X].attrs.get("units", h.attrs.get("units", "1"))
+    units = shared_length_unit(h, "distribution")
     long_name, power = _KINDS[kind]
     qunits = {1: units, 0: "1", -1: f"{units}-1"}[power]
     dunits = {1: f"{units}-1", 0: "1", -1: units}[power]

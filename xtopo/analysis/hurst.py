@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from .._checks import option
 from ..errors import XtopoError
 from ._scale import prepare, provenance
 
@@ -167,8 +168,8 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
         length_units = _length_units(da)
         lengths = None
     else:
-        if method not in _METHODS:
-            raise XtopoError(f"method must be one of {_METHODS}, got {method!r}")
+        option(method, _METHODS, "method")
+        option(kind, ("1d", "iso"), "kind")
         from .acf import acf
         from .psd import psd
         from .sdrp import sdrp

@@ -13,7 +13,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import flag, integer
+from .._checks import flag, integer, option
 from .._kernels import spectra as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
@@ -27,13 +27,11 @@ _KINDS = ("1d", "2d", "iso")
 
 
 def _use_window(window, periodic: bool) -> bool:
-    if window == "auto":
-        return not periodic
-    if window in (None, "none", False):
+    if window is None or window is False:  # not 0, nor an array (whose == is elementwise)
         return False
-    if window == "hann":
-        return True
-    raise XtopoError(f"window must be 'auto', 'hann' or None, got {window!r}")
+    if not isinstance(window, str) or window not in ("auto", "hann", "none"):
+        raise XtopoError(f"window must be 'auto', 'hann' or None, got {window!r}")
+    return window == "hann" or (window == "auto" and not periodic)
 
 
 @functools.lru_cache(maxsize=4)
@@ -81,10 +79,8 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
         ``q`` or ``(q_y, q_x)`` in inverse length. Heights are taken about their mean
         (per profile for 1D), so Parseval holds exactly without a window.
     """
-    if kind not in _KINDS:
-        raise XtopoError(f"kind must be one of {_KINDS}, got {kind!r}")
-    if convention not in ("standard", "persson"):
-        raise XtopoError(f"convention must be 'standard' or 'persson', got {convention!r}")
+    option(kind, _KINDS, "kind")
+    option(convention, ("standard", "persson"), "convention")
     nb_points = None if nb_points is None else integer(nb_points, "nb_points")
     equivalent_1d = flag(equivalent_1d, "equivalent_1d")
     prep = prepare(obj)

@@ -17,7 +17,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import flag, positive_number
+from .._checks import flag, option, positive_number
 from .._checks import lengths as check_lengths
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import X, Y, length_attr, length_factor
@@ -281,9 +281,10 @@ def sampling_cutoff(obj, dim: str = X, *, factor: float = SAMPLING_FACTOR) -> fl
     float
         The cutoff wavelength in the measurement's length unit.
     """
+    factor = positive_number(factor, "factor")
     prep = prepare(obj)
-    n = prep.h.sizes[dim]
-    return float(factor) * prep.size(dim) / n
+    n = prep.h.sizes[prep.check_dim(dim)]
+    return factor * prep.size(dim) / n
 
 
 def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction: float = VARIOGRAM_FRACTION) -> xr.DataArray:
@@ -315,7 +316,7 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
     dim : {"x", "y"}
         Profile direction.
     fraction : float
-        Share of the scan's length whose ACF lags define the variogram.
+        Share of the scan's length (in (0, 1]) whose ACF lags define the variogram.
 
     Returns
     -------
@@ -326,10 +327,11 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
     from .._kernels.estimator_error import mean_square_relative_error, variogram_from_samples
     from .acf import acf
 
-    if quantity not in _STENCILS:
-        raise XtopoError(f"quantity must be one of {sorted(_STENCILS)}, got {quantity!r}")
+    option(quantity, sorted(_STENCILS), "quantity")
     offsets, weights = _STENCILS[quantity]
     fraction = positive_number(fraction, "fraction")
+    if fraction > 1:
+        raise XtopoError(f"fraction must be a share of the scan's length, in (0, 1], got {fraction!r}")
     prep = prepare(obj)
     prep.check_dim(dim)
     n, dx = prep.h.sizes[dim], prep.spacing(dim)

@@ -7,7 +7,7 @@ import xarray as xr
 
 from .._apply import apply_lateral
 from .._kernels import scalars as _k
-from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, spacing
+from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
 from ._scale import provenance
 
 __all__ = ["scalars"]
@@ -77,9 +77,7 @@ def scalars(obj) -> xr.Dataset:
     """
     h = height_of(obj)
     lat = lateral_dims(h)
-    units = h.attrs.get("units", obj.attrs.get("units", "1") if hasattr(obj, "attrs") else "1")
-    if X in h.coords and "units" in h.coords[X].attrs:
-        units = h.coords[X].attrs["units"]
+    units = shared_length_unit(h, "scalars")
     periodic = is_periodic(h)
     out = {}
     if lat == (Y, X):

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from .._checks import integer
+from .._checks import bin_count
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning
 from .solve import _control, run_solver, solver_settings, to_dataset
@@ -17,7 +17,10 @@ __all__ = ["curve", "stiffness", "gap_distribution", "contact"]
 
 def _sequence(name, values):
     try:
-        v = np.atleast_1d(np.asarray(values, dtype=float))
+        raw = np.asarray(values)
+        if raw.dtype.kind in "bSU":  # True is not the load 1, nor "0.01" a number
+            raise TypeError
+        v = np.atleast_1d(np.asarray(raw, dtype=float))
     except (TypeError, ValueError):
         raise ContactError(f"{name} must be a sequence of numbers, got {values!r}") from None
     if v.ndim != 1 or v.size == 0:
@@ -26,6 +29,9 @@ def _sequence(name, values):
 
 
 def _curve_variables(ds, names, what: str):
+    if not isinstance(ds, xr.Dataset):
+        raise ContactError(f"{what} needs a contact result (xtopo.contact.Scene.curve/solve), a Dataset; "
+                           f"got {type(ds).__name__}")
     missing = [n for n in names if n not in ds.variables]
     if missing:
         raise ContactError(f"{what} needs a contact result (xtopo.contact.Scene.curve/solve) with variables {names}; "
@@ -60,7 +66,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         mean pressures given; coordinate ``load``) or ``penetration``, plus ``stiffness``
         (``dF/dδ``) and ``gap_distribution``.
     """
-    gap_bins = integer(gap_bins, "gap_bins", 0, error=ContactError)
+    gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), 0, error=ContactError)
     given = [(n, v) for n, v in (("loads", loads), ("mean_pressures", mean_pressures),
                                  ("penetrations", penetrations)) if v is not None]
     if len(given) != 1:
@@ -117,7 +123,7 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
         fewer than two distinct points.
     """
     _curve_variables(ds, ["load", "penetration"], "stiffness")
-    if ds["load"].dims != (dim,) or ds["penetration"].dims != (dim,):
+    if not isinstance(dim, str) or ds["load"].dims != (dim,) or ds["penetration"].dims != (dim,):
         raise ContactError(f"stiffness: 'load' and 'penetration' must run along dim={dim!r}; they have dims "
                            f"{ds['load'].dims} and {ds['penetration'].dims}")
     # neighbours along the curve, not in the order the values were given: sort by the curve's coordinate
@@ -158,9 +164,9 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
     A step in full contact (no point outside the contact) has no gap distribution: NaN.
     """
     _curve_variables(ds, ["gap", "contact"], "gap_distribution")
-    bins = integer(bins, "bins", 1, error=ContactError)
     gap = ds["gap"]
     lateral = [d for d in gap.dims if d in ("x", "y")]
+    bins = bin_count(bins, "bins", int(np.prod([gap.sizes[d] for d in lateral])), error=ContactError)
     extra = [d for d in gap.dims if d not in lateral]
     values = gap.transpose(*extra, *lateral).values
     contact = ds["contact"].transpose(*extra, *lateral).values

@@ -18,6 +18,7 @@ from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import (LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, provenance_of,
+                           shared_length_unit,
                            spacing)
 from ..errors import ContactError, GridError, UnitsError
 from ..presets import resolve as resolve_preset
@@ -56,22 +57,6 @@ def _heights(obj, what: str) -> xr.DataArray:
                            "masked or infinite) points; fill them first (e.g. xtopo.preprocess.fill_missing) — a contact "
                            "calculation needs a height at every pixel")
     return h
-
-
-def _length_units(h: xr.DataArray, what: str = "topography") -> str:
-    """The one length unit of the heights and lateral coordinates of ``h`` (``"1"`` when none is given).
-
-    Heights and positions in different units would make the solver mix them (a height in nm read
-    as µm), so they must agree where both are labelled.
-    """
-    labelled = {name: normalize_units(obj.attrs["units"])
-                for name, obj in [("height", h)] + [(f"coordinate {d!r}", h.coords[d]) for d in h.dims if d in h.coords]
-                if obj.attrs.get("units")}
-    if len(set(labelled.values())) > 1:
-        found = ", ".join(f"{name} in {u!r}" for name, u in labelled.items())
-        raise UnitsError(f"{what}: {found}; contact mechanics needs one length unit for heights and positions "
-                         "(rescale the heights or the coordinates so that they agree)")
-    return next(iter(labelled.values()), "1")
 
 
 class Scene:
@@ -131,7 +116,7 @@ class Scene:
         if modulus_units is not None and not (isinstance(modulus_units, str) and modulus_units.strip()):
             raise ContactError(f"modulus_units must be a units label such as 'GPa' or 'E*', got {modulus_units!r}")
         self.modulus_units = modulus_units.strip() if modulus_units is not None else "E*"
-        self.length_units = _length_units(h)
+        self.length_units = shared_length_unit(h, "topography")
         self.dims = tuple(h.dims)
         self.shape = tuple(h.shape)
         self.spacing = tuple(spacing(h, d) for d in self.dims)
@@ -177,7 +162,7 @@ class Scene:
         if h1.dims != h2.dims or h1.shape != h2.shape:
             raise GridError(f"counter surface has dims {h2.dims} shape {h2.shape}, but the topography has "
                             f"{h1.dims} {h1.shape}; interpolate one onto the other's grid first")
-        u1, u2 = _length_units(h1), _length_units(h2, "counter")
+        u1, u2 = shared_length_unit(h1, "topography"), shared_length_unit(h2, "counter")
         if u1 != u2:
             raise GridError(f"counter surface is in {u2!r} but the topography in {u1!r}; convert with "
                             f".topo.to_units({u1!r})")

@@ -15,7 +15,7 @@ import tempfile
 import numpy as np
 import xarray as xr
 
-from .._checks import flag
+from .._checks import flag, option
 from .._checks import path as checked_path
 from .._version import __version__
 from ..conventions import CONVENTIONS, provenance_of
@@ -102,10 +102,9 @@ def prepare_for_netcdf(ds: xr.Dataset, *, provenance: bool = True) -> xr.Dataset
 
 def check_engine(engine: str | None) -> str:
     """The engine to use (default ``netcdf4`` if installed); raise for unknown ones."""
-    engine = engine or _default_engine()
-    if engine not in ENGINES:
-        raise XtopoError(f"engine must be one of {ENGINES}, got {engine!r}")
-    return engine
+    if engine is None:
+        return _default_engine()
+    return option(engine, ENGINES, "engine")
 
 
 def _default_engine() -> str:
@@ -225,10 +224,11 @@ def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
 
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
     """Open an xtopo NetCDF file; loaded into memory unless ``lazy``."""
-    if engine is None:  # naming the engine skips xarray's guessing over every backend (ours included)
-        with open(path, "rb") as f:
-            engine = "scipy" if f.read(3) == b"CDF" else _default_engine()
+    path = checked_path(path, "path", kind="file path")  # an int would be opened (and closed) as a descriptor
     try:
+        if engine is None:  # naming the engine skips xarray's guessing over every backend (ours included)
+            with open(path, "rb") as f:
+                engine = "scipy" if f.read(3) == b"CDF" else _default_engine()
         ds = xr.open_dataset(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError) as exc:
         raise ReaderError(path, f"not a readable NetCDF/HDF5 file: {exc}") from None

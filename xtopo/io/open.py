@@ -7,10 +7,10 @@ import os
 
 import numpy as np
 
-from .._checks import flag, positive_number
+from .._checks import flag, lengths, per_axis, positive_number
 from ..conventions import append_history, convert_length, lateral_dims, normalize_units, validate
 from ..conventions import physical_size as _physical_size
-from ..errors import ReaderError, UnitsError, UnsupportedFormatError, XtopoError
+from ..errors import GridError, ReaderError, UnitsError, UnsupportedFormatError, XtopoError
 from .registry import READ_OPTIONS, ChannelInfo, detect
 
 __all__ = ["open_topography", "channels", "sha256"]
@@ -69,7 +69,8 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
     """
     path = _path(path)
     to, periodic, lengths = _arguments(path, units, periodic, tip_radius=tip_radius, resolution=resolution)
-    options = {"physical_size": physical_size, "file_units": file_units, "height_units": height_units}
+    options = {"physical_size": _size_option(path, physical_size), "file_units": file_units,
+               "height_units": height_units}
     fmt, ds = _first_success(path, format, "read", channel=channel, **options)
     if physical_size is not None and "physical_size" not in fmt.options:
         ds = _override_size(ds, physical_size, path)
@@ -101,6 +102,17 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         return validate(ds)
     except XtopoError as exc:
         raise ReaderError(path, f"the {fmt.name} reader produced an invalid measurement: {exc}") from exc
+
+
+def _size_option(path, physical_size):
+    """``physical_size`` checked before the file is read: positive finite lengths (how many the data
+    need, the reader or :func:`_override_size` checks).
+
+    Formats that store their size ignored it in :func:`channels` whatever it was ("abc", -1).
+    """
+    if physical_size is not None and lengths(physical_size, f"{path}: physical_size", "the length unit").size == 0:
+        raise GridError(f"{path}: physical_size must be one or two lengths, got {physical_size!r}")
+    return physical_size
 
 
 def _arguments(path, units, periodic, **lengths):
@@ -189,9 +201,7 @@ def _override_size(ds, physical_size, path):
     if ds.attrs.get("grid") == "nonuniform":
         raise ReaderError(path, "physical_size= cannot be given for a nonuniform line scan (its positions are stored)")
     dims = lateral_dims(ds["height"])
-    size = np.broadcast_to(np.asarray(physical_size, dtype=float), (len(dims),))
-    if not np.all(np.isfinite(size)) or np.any(size <= 0):
-        raise XtopoError(f"physical_size must be positive and finite, got {physical_size!r}")
+    size = per_axis(physical_size, len(dims), "physical_size")
     u = ds["height"].attrs["units"]
     for dim, L in zip(dims, size):
         n = ds.sizes[dim]
@@ -226,6 +236,6 @@ def channels(path, *, format: str | None = None, physical_size=None, file_units:
         As :func:`open_topography`.
     """
     path = _path(path)
-    _, out = _first_success(path, format, "channels", physical_size=physical_size, file_units=file_units,
-                            height_units=height_units)
+    _, out = _first_success(path, format, "channels", physical_size=_size_option(path, physical_size),
+                            file_units=file_units, height_units=height_units)
     return list(out)

@@ -129,7 +129,7 @@ def detect(path, format: str | None = None) -> list[Format]:
     """
     fmts = formats()
     if format is not None:
-        if format not in fmts:
+        if not isinstance(format, str) or format not in fmts:
             raise UnsupportedFormatError(path, f"unknown format {format!r}; known: {', '.join(sorted(fmts))}")
         return [fmts[format]]
     head = read_head(path)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..netcdf import read_netcdf
+from ._common import pick_channel
 from ..registry import Format, register
 
 
@@ -11,6 +12,7 @@ def _sniff(head: bytes, path: str) -> bool:
 
 
 def _read(path, *, channel=None):
+    pick_channel(path, ["height"], channel)  # the one channel: 0, "height" or None (anything else was ignored)
     ds = read_netcdf(path)
     if "height" not in ds:
         from ...errors import UnsupportedFormatError

@@ -27,13 +27,14 @@ from __future__ import annotations
 import datetime
 import json
 import math
-import os
+from collections.abc import Mapping
 
 import numpy as np
 import xarray as xr
 
+from ..._checks import path as checked_path
 from ...conventions import (height_of, is_nonuniform, is_periodic, lateral_dims, normalize_units, periodic_flag,
-                            physical_size)
+                            physical_size, shared_length_unit)
 from ...errors import ReaderError, UnitsError, UnsupportedFormatError, ValidationError
 from .._generic import check_array_bytes, generic_measurement
 from ..netcdf import atomic_write
@@ -198,7 +199,11 @@ def to_surfacetopography_netcdf(ds, path, *, info: dict | None = None) -> str:
     str
         The path written.
     """
+    path = checked_path(path, "path", kind="file path")
+    if info is not None and not isinstance(info, Mapping):
+        raise ValidationError(f"info must be a dict (written as the file's JSON 'info'), got {type(info).__name__}")
     h = height_of(ds)
+    shared_length_unit(h, "to_surfacetopography_netcdf")  # the layout has one unit for heights and positions
     extra = [d for d in h.dims if d not in ("x", "y")]
     if extra:
         raise ValidationError(f"to_surfacetopography_netcdf writes one measurement; select along {extra} first")
@@ -230,8 +235,8 @@ def to_surfacetopography_netcdf(ds, path, *, info: dict | None = None) -> str:
                                        {"length": float(L), "periodic": periodic, "unit": unit})
     out = xr.Dataset(variables, attrs={"json": json.dumps(info, default=str)})
     encoding = {name: {"_FillValue": None} for name in out.variables}
-    return atomic_write(os.fspath(path), lambda tmp: out.to_netcdf(tmp, format="NETCDF3_64BIT", engine="scipy",
-                                                                   encoding=encoding))
+    return atomic_write(path, lambda tmp: out.to_netcdf(tmp, format="NETCDF3_64BIT", engine="scipy",
+                                                        encoding=encoding))
 
 
 def _sniff(head: bytes, path: str) -> bool:
