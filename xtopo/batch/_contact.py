@@ -146,7 +146,8 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
             hardness: float | None = None, periodic: bool | None = None, tol: float | None = None,
             maxiter: int | None = None, maps: bool = False, chunks=None, client=None, scheduler=None,
             workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
-            retries: int = 1, read_options: dict | None = None, units: str | None = None) -> xr.Dataset:
+            retries: int = 1, read_options: dict | None = None, units: str | None = None,
+            preprocess=None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
     Exactly one of ``loads``, ``mean_pressures``, ``penetrations`` is given; it becomes the
@@ -189,8 +190,10 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     maps : bool
         Keep the pressure/displacement/gap/contact maps (large); default only the scalars
         (load, mean pressure, area fraction, penetration, iterations, residual, converged).
-    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options
-        See :func:`run`.
+    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options, preprocess
+        See :func:`run`. A measurement with missing points needs
+        ``preprocess={"fill_missing": True}`` (after ``"detrend"``, if any): a contact
+        calculation needs a height at every pixel.
     units : str, optional
         Length unit of the solves (``"um"``, ``"nm"``, ...). Default: the unit of the first
         measurement (for a file, the unit it is read in: metres unless ``read_options`` give
@@ -239,5 +242,5 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         dim_attrs["units"] = dim_units
     return run_batch(func, measurements, values, dim=control, dim_attrs=dim_attrs, chunks=chunks, client=client,
                      scheduler=scheduler, workers=workers, store=store, progress=progress, fft_threads=fft_threads,
-                     retries=retries, read_options=read_options,
+                     retries=retries, read_options=read_options, preprocess=preprocess,
                      finish={"name": "settle_scans", "kwargs": {"control": control, "units": units}})
