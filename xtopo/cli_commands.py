@@ -157,20 +157,13 @@ def _control(args) -> tuple[str, list]:
 
 
 def _cmd_contact(args) -> int:
-    import numpy as np
-
     from .batch import _contact_item, _require_contact
-    from .conventions import height_of
     from .io import open_topography
     from .io.netcdf import to_netcdf
 
     _require_contact()
     control, values = _control(args)
     ds = preprocess(open_topography(args.file, channel=args.channel, **read_options(args)), args)
-    if bool((~np.isfinite(height_of(ds))).any()):
-        _err(f"{args.file}: {int((~np.isfinite(height_of(ds))).sum())} points have no height; a contact calculation "
-             "needs a height at every pixel: pass --fill-missing")
-        return 2
     res = _contact_item(ds, values, control=control, scene=_scene_kwargs(args), solve=_solve_kwargs(args),
                         maps=not args.scalars_only)
     print(f"xtopo contact: {args.file}, {len(values)} {control.replace('_', ' ')}(s)\n")

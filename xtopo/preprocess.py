@@ -210,17 +210,17 @@ def _step_options(step: str, options, name: str) -> dict | None:
     elif params:
         kwargs = {params[0]: options}
     else:
-        raise XtopoError(f"{name} step {step!r} takes no options, got {options!r}; give True")
+        raise XtopoError(f"{name}: step {step!r} takes no options, got {options!r}; give True")
     unknown = [k for k in kwargs if k not in params]
     if unknown:
-        raise XtopoError(f"{name} step {step!r} has no option {', '.join(map(repr, unknown))}; its options: "
+        raise XtopoError(f"{name}: step {step!r} has no option {', '.join(map(repr, unknown))}; its options: "
                          f"{', '.join(params) or 'none'}")
     bound = inspect.signature(func).bind(None, **kwargs)
     bound.apply_defaults()
     try:
         return check(**{k: v for k, v in bound.arguments.items() if k in params})
     except XtopoError as exc:
-        raise type(exc)(f"{name} step {step!r}: {exc}") from None
+        raise type(exc)(f"{name}: step {step!r}: {exc}") from None
 
 
 def checked_steps(steps, name: str = "preprocess") -> tuple:

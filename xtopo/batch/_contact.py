@@ -13,8 +13,8 @@ import numpy as np
 import xarray as xr
 
 from .._checks import flag
-from ..conventions import append_history, convert_length, length_units_of, normalize_units
-from ..errors import UnitsError, XtopoError
+from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
+from ..errors import ContactError, UnitsError, XtopoError
 from ._engine import run_batch
 from ._inputs import checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
@@ -59,6 +59,16 @@ def _in_batch_units(ds, units):
                      "first measurement has none); give batch.contact(units=...) and units to every one")
 
 
+def _require_heights(ds) -> None:
+    """A :class:`~xtopo.errors.ContactError` naming the preprocessing that fills them where ``ds`` has missing
+    heights (the Scene's own error names a Python function, which a batch or command cannot call)."""
+    n = int((~np.isfinite(height_of(ds))).sum())
+    if n:
+        raise ContactError(f"{ds.attrs.get('source_file') or 'the measurement'}: {n} points have no height; a "
+                           "contact calculation needs a height at every pixel: fill them (--fill-missing on the "
+                           "command line, preprocess={'fill_missing': True} in xtopo.batch)")
+
+
 def _contact_item(ds, values, *, control, scene, solve, maps, units=None, required_scan=None):
     """Contact solutions of one measurement for each value of ``control`` (runs in the worker).
 
@@ -90,6 +100,7 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None, requir
     """
     from ..contact import Scene
 
+    _require_heights(ds)
     ds = _in_batch_units(ds, units)
     sc = Scene(ds, **scene)
     kind = "line" if sc.line else "area"
