@@ -175,7 +175,8 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
         stored = {c.key: ds for row in grid for c in row if (ds := store_obj.reusable(c.key)) is not None}
     todo = [c for row in grid for c in row if c.key not in stored]
     manifest = {"function": func_name(func), "dim": dim, "dim_attrs": dim_attrs, "measurements": names,
-                "params": params, "preprocess": [list(step) for step in steps], "sources": [s if isinstance(s, str) else "" for s in sources],
+                "params": params, "preprocess": [list(step) for step in steps],
+                "sources": [s if isinstance(s, str) else "" for s in sources],
                 "chunks": [[{"key": c.key, "m": list(c.rows), "p": None if c.cols is None else list(c.cols)}
                             for c in row] for row in grid],
                 "finish": finish, "status": "running"}

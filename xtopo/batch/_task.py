@@ -4,8 +4,8 @@ A :class:`Chunk` is one Dask task's work (a block of measurements × a block of 
 values); :func:`run_chunk` does it. The measurements are opened inside the worker (paths
 travel, not arrays) and preprocessed there (the steps travel by name), ``func`` builds
 whatever it needs there (a contact Scene and its FFT plans never cross a process
-boundary), and the chunk's Dataset is written atomically into
-the store as soon as it is done. An item that raises (an unreadable file, a failed solve)
+boundary), and the chunk's Dataset is written atomically into the store as soon as it is
+done. An item that raises (an unreadable file, a failed preprocessing step or solve)
 becomes an ``error`` entry; the chunk's other items go on.
 """
 
