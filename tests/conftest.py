@@ -19,6 +19,18 @@ def real_data():
     return REAL_DATA
 
 
+@pytest.fixture
+def tilted_with_hole(tmp_path):
+    """A rough map on a strong tilt with a hole of 40 points, written as an xtopo archive: (path, the file read)."""
+    ds = xtopo.datasets.fractal_surface((48, 64), 1e-5, hurst=0.8, rms_height=1e-8, periodic=False, seed=4)
+    ds = ds.assign(height=ds.height + 0.05 * ds.x)  # a tilt of 5 %: Sq of the file is that of the tilt
+    ds["mask"] = (ds.height.dims, np.zeros(ds.height.shape, bool))
+    ds["mask"][10:14, 20:30] = True
+    path = tmp_path / "tilted.nc"
+    xtopo.to_netcdf(ds, path)
+    return path, xtopo.open_topography(path)
+
+
 def batch(ds, n=3, dask=False):
     """Stack ``n`` scaled copies of a measurement along a ``sample`` dim (optionally dask-backed)."""
     out = xr.concat([ds.assign(height=ds.height * (1 + 0.5 * i)) for i in range(n)],

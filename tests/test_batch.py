@@ -609,3 +609,113 @@ def test_computed_and_reused_chunks_are_identical(tmp_path):
     for key in ("settings", "converged"):
         assert fresh.attrs[key] == reused.attrs[key]
     xr.testing.assert_identical(fresh.drop_attrs(deep=False), reused.drop_attrs(deep=False))
+
+
+# --------------------------------------------------------------------------- preprocessing in the worker
+
+PREPROCESS = {"detrend": "plane", "fill_missing": True}
+_BOOKKEEPING = ["error", "source", "history"]
+
+
+def _preprocessed(ds):
+    """What PREPROCESS asks for, step by step."""
+    return xtopo.preprocess.fill_missing(xtopo.preprocess.detrend(ds, "plane"))
+
+
+@pytest.mark.parametrize("scheduler", ["sync", "threads"])
+def test_analyze_preprocesses_files_and_datasets_in_the_worker(tilted_with_hole, scheduler):
+    """A batch used the heights as read: the scalars of a tilted file were those of its tilt, and the
+    command line's --detrend/--fill-missing had no batch counterpart."""
+    path, ds = tilted_with_hole
+    raw = batch.analyze({"file": path}, scheduler=scheduler, progress=False)
+    res = batch.analyze({"file": path, "memory": ds}, scheduler=scheduler, workers=2, progress=False,
+                        preprocess=PREPROCESS)
+    assert res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+    want = xtopo.analysis.scalars.scalars(_preprocessed(ds))
+    for name in ("file", "memory"):
+        got = res.drop_vars(_BOOKKEEPING).sel(measurement=name, drop=True)
+        xr.testing.assert_allclose(got, want, rtol=1e-12)
+        history = str(res.history.sel(measurement=name).item())
+        assert "detrend(mode='plane', per_line=False)" in history and "fill_missing(harmonic)" in history
+    unprocessed = xtopo.analysis.scalars.scalars(ds)
+    xr.testing.assert_allclose(raw.drop_vars(_BOOKKEEPING).sel(measurement="file", drop=True), unprocessed)
+    assert float(raw.Sq.item()) > 10 * float(want.Sq)  # the tilt, which the preprocessing removes
+
+
+def test_contact_batch_fills_and_detrends_on_request(tilted_with_hole):
+    """A file with missing points could not be solved in a batch at all."""
+    Scene = _scene()
+    path, ds = tilted_with_hole
+    without = batch.contact([path], mean_pressures=[0.01], scheduler="sync", progress=False)
+    error = str(without.error.item())  # it named xtopo.preprocess.fill_missing, which a batch could not call
+    assert "tilted.nc: 40 points have no height" in error and "preprocess={'fill_missing': True}" in error
+    res = batch.contact([path, ds], mean_pressures=[0.01, 0.02], scheduler="sync", progress=False,
+                        preprocess=[("detrend", {"mode": "plane"}), "fill_missing"])
+    assert res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+    direct = Scene(_preprocessed(ds), modulus=1.0).curve(mean_pressures=[0.01, 0.02])
+    for name in res.measurement.values:
+        np.testing.assert_allclose(res.area_fraction.sel(measurement=name).values, direct.area_fraction.values,
+                                   rtol=1e-6)
+        history = str(res.history.sel(measurement=name).item()).split("\n")
+        steps = [i for i, line in enumerate(history) if line.startswith(("detrend(", "fill_missing("))]
+        contact_line = next(i for i, line in enumerate(history) if line.startswith("xtopo contact"))
+        assert len(steps) == 2 and steps[-1] < contact_line  # preprocessed, then solved
+
+
+def test_store_keys_hold_the_preprocessing(tmp_path, counter, tilted_with_hole):
+    """The steps enter each chunk's key: the same steps (in any form) reuse a chunk, other steps recompute it;
+    a function whose result has no history gets the preprocessed measurement's."""
+    path, ds = tilted_with_hole
+    store = tmp_path / "store"
+    kw = dict(scheduler="sync", store=store, progress=False)
+    first = batch.run(fft_work, [path], LOADS, preprocess=PREPROCESS, **kw)
+    assert counter() == 1 and first.attrs["chunks_computed"] == 1
+    assert "fill_missing(harmonic)" in str(first.history.item())
+    same = batch.run(fft_work, [path], LOADS, preprocess=[("detrend", {"mode": "plane", "per_line": False}),
+                                                           ("fill_missing", True)], **kw)
+    assert counter() == 1 and same.attrs["chunks_reused"] == 1
+    xr.testing.assert_identical(_data(same), _data(first))
+    other = batch.run(fft_work, [path], LOADS, preprocess={"detrend": "curvature", "fill_missing": True}, **kw)
+    assert counter() == 2 and other.attrs["chunks_computed"] == 1
+    assert "detrend(mode='curvature'" in str(other.history.item())
+    assert not np.allclose(other.mean_gap.values, first.mean_gap.values)
+    manifest = json.load(open(store / "manifest.json"))
+    assert manifest["preprocess"] == [["detrend", {"mode": "curvature", "per_line": False}], ["fill_missing", {}]]
+    batch.run(fft_work, [path], LOADS, **kw)  # none: the file as read
+    assert counter() == 3
+    direct = fft_work(_preprocessed(ds), LOADS)[["mean_gap", "area_fraction"]]
+    xr.testing.assert_allclose(first[["mean_gap", "area_fraction"]].squeeze("measurement", drop=True)
+                               .drop_vars("load"), direct)
+
+
+@pytest.mark.parametrize("preprocess,match", [
+    ({"detrnd": "plane"}, "preprocess: unknown preprocessing step 'detrnd'; the steps: detrend, fill_missing"),
+    ({"detrend": "tilt"}, "preprocess: step 'detrend': mode must be one of .*got 'tilt'"),
+    ({"detrend": {"order": 1}}, "preprocess: step 'detrend' has no option 'order'; its options: mode, per_line"),
+    ({"detrend": {"per_line": "yes"}}, "preprocess: step 'detrend': per_line must be True or False"),
+    ({"fill_missing": "harmonic"}, "preprocess: step 'fill_missing' takes no options"),
+    ([("detrend",)], r"a step is a name or a \(name, options\) pair"),
+    (3, "preprocess must be a step name, a dict"),
+])
+@pytest.mark.parametrize("call", ["run", "analyze", "contact"])
+def test_bad_preprocessing_is_refused_before_dispatch(preprocess, match, call, monkeypatch):
+    def no_task(*args, **kw):
+        raise AssertionError("a task was dispatched")
+
+    if call == "contact":
+        _scene()
+    monkeypatch.setattr(batch._dispatch, "run_chunk", no_task)
+    args = {"run": (fft_work, _surfaces(1, size=16), LOADS), "analyze": (_surfaces(1, size=16),),
+            "contact": (_surfaces(1, size=16), [1e-14])}[call]
+    with pytest.raises(XtopoError, match=match):
+        getattr(batch, call)(*args, scheduler="sync", progress=False, preprocess=preprocess)
+
+
+def test_distributed_batch_preprocesses_in_the_workers(tilted_with_hole, cluster):
+    _, client = cluster
+    path, ds = tilted_with_hole
+    res = batch.analyze([str(path), ds], client=client, progress=False, preprocess=PREPROCESS)
+    assert res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+    want = xtopo.analysis.scalars.scalars(_preprocessed(ds))
+    for name in res.measurement.values:
+        xr.testing.assert_allclose(res.drop_vars(_BOOKKEEPING).sel(measurement=name, drop=True), want, rtol=1e-12)

@@ -134,21 +134,10 @@ def test_analyze_says_how_many_measurements_each_average_holds(tmp_path, capsys)
     assert "no reliable point from blurred.nc" in lines[vbm + 1]
 
 
-def _tilted_with_holes(tmp_path):
-    """A rough map on a strong tilt with a hole, written as an xtopo archive; returns (path, dataset)."""
-    ds = xtopo.datasets.fractal_surface((48, 64), 1e-5, hurst=0.8, rms_height=1e-8, periodic=False, seed=4)
-    ds = ds.assign(height=ds.height + 0.05 * ds.x)  # a tilt of 5 %: Sq of the file is that of the tilt
-    ds["mask"] = (ds.height.dims, np.zeros(ds.height.shape, bool))
-    ds["mask"][10:14, 20:30] = True
-    path = tmp_path / "tilted.nc"
-    xtopo.to_netcdf(ds, path)
-    return path, xtopo.open_topography(path)
-
-
-def test_analyze_and_convert_detrend_and_fill_on_request(tmp_path, capsys):
+def test_analyze_and_convert_detrend_and_fill_on_request(tmp_path, capsys, tilted_with_hole):
     """The command line could not detrend or fill: real (tilted) files were analysed as read, and
     their Sq was that of the sample tilt. --detrend/--fill-missing run the library's steps."""
-    path, ds = _tilted_with_holes(tmp_path)
+    path, ds = tilted_with_hole
     want = xtopo.preprocess.fill_missing(xtopo.preprocess.detrend(ds, "plane"))
     assert main(["analyze", str(path), "--detrend", "plane", "--fill-missing", "-o", str(tmp_path / "a.nc")]) == 0
     import xarray as xr
@@ -162,10 +151,10 @@ def test_analyze_and_convert_detrend_and_fill_on_request(tmp_path, capsys):
     assert "detrend(mode='plane'" in back.attrs["history"] and "fill_missing" in back.attrs["history"]
 
 
-def test_contact_names_the_option_for_missing_data(tmp_path, capsys):
+def test_contact_names_the_option_for_missing_data(tmp_path, capsys, tilted_with_hole):
     """On a file with missing data `xtopo contact` said 'fill them first (e.g. xtopo.preprocess.fill_missing)',
     a Python function the command line had no way to call; it names --fill-missing, which works."""
-    path, _ = _tilted_with_holes(tmp_path)
+    path, _ = tilted_with_hole
     out = tmp_path / "c.nc"
     assert main(["contact", str(path), "--mean-pressures", "0.01", "-o", str(out)]) == 2
     err = capsys.readouterr().err

@@ -287,3 +287,40 @@ def test_contact_scene_options_are_checked_by_the_parser(files, capsys, command,
         main(command + [files[0], "--mean-pressures", "0.01", option, value])
     err = capsys.readouterr().err
     assert e.value.code == 2 and f"argument {option}" in err and "None" not in err, err
+
+
+def test_batch_commands_detrend_and_fill_on_request(tilted_with_hole, tmp_path, capsys):
+    """`xtopo batch analyze|contact` had no --detrend/--fill-missing: a tilted file's scalars were those of its
+    tilt, and a file with missing points could not be solved by `batch contact` at all."""
+    path, ds = tilted_with_hole
+    store = tmp_path / "store"
+    flags = ["--detrend", "plane", "--fill-missing"]
+    argv = ["batch", "analyze", str(path), "--scheduler", "sync", "-q", "-o", str(store)]
+    assert main(argv + flags) == 0, capsys.readouterr().err
+    assert "(1 chunks computed, 0 reused)" in capsys.readouterr().out
+    want = xtopo.analysis.scalars.scalars(xtopo.preprocess.fill_missing(xtopo.preprocess.detrend(ds, "plane")))
+    with xr.open_dataset(store / "result.nc") as res:
+        xr.testing.assert_allclose(res[list(want.data_vars)].squeeze("measurement", drop=True), want, rtol=1e-12)
+        assert "detrend(mode='plane'" in str(res.history.item()) and "fill_missing" in str(res.history.item())
+    assert main(argv + flags) == 0 and "(0 chunks computed, 1 reused)" in capsys.readouterr().out
+    assert main(argv) == 0 and "(1 chunks computed, 0 reused)" in capsys.readouterr().out  # as read: another key
+    with xr.open_dataset(store / "result.nc") as res:
+        np.testing.assert_allclose(res.Sq.values, float(xtopo.analysis.scalars.scalars(ds).Sq), rtol=1e-12)
+
+    _need_contact()
+    argv = ["batch", "contact", str(path), "--mean-pressures", "0.01", "--scheduler", "sync", "-q",
+            "-o", str(tmp_path / "contact")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "40 points have no height" in err and "--fill-missing" in err, err
+    assert main(argv + flags) == 0, capsys.readouterr().err
+    with xr.open_dataset(tmp_path / "contact" / "result.nc") as res:
+        assert bool(res.converged.all()) and "fill_missing" in str(res.history.item())
+
+
+@pytest.mark.parametrize("command,extra", [("analyze", []), ("contact", ["--mean-pressures", "0.01"])])
+def test_batch_detrend_mode_is_checked_by_the_parser(files, tmp_path, capsys, command, extra):
+    with pytest.raises(SystemExit) as e:
+        main(["batch", command, files[0], *extra, "--detrend", "tilt", "-o", str(tmp_path / "s")])
+    assert e.value.code == 2 and "argument --detrend: invalid choice: 'tilt'" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

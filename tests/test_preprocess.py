@@ -329,3 +329,20 @@ def test_detrend_refuses_nan_positions(mode):
                     coords={"x": ("x", x, {"units": "um"})}, attrs={"grid": "nonuniform"})
     with pytest.raises(GridError, match="coordinate 'x' has 1 NaN or infinite positions"):
         detrend(ds, mode=mode)
+
+
+def test_steps_by_name_apply_in_the_order_given(tilted_with_hole):
+    """apply_steps (the form xtopo.batch and the command line request preprocessing in) runs the named
+    steps in the order given, with their options, as the functions do; the same request in another form
+    is the same steps."""
+    from xtopo.preprocess import apply_steps, checked_steps
+
+    _, ds = tilted_with_hole
+    xr.testing.assert_identical(apply_steps(ds, {"detrend": "curvature", "fill_missing": True}),
+                                fill_missing(detrend(ds, "curvature")))
+    xr.testing.assert_identical(apply_steps(ds, ["fill_missing", ("detrend", {"per_line": True})]),
+                                detrend(fill_missing(ds), "plane", per_line=True))
+    xr.testing.assert_identical(apply_steps(ds, {"detrend": False, "fill_missing": None}), ds)
+    assert checked_steps({"detrend": "plane"}) == checked_steps([("detrend", {"mode": "plane", "per_line": False})])
+    with pytest.raises(xtopo.XtopoError, match="steps: step 'detrend': mode must be one of"):
+        apply_steps(ds, {"detrend": "tilt"})

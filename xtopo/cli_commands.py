@@ -12,7 +12,8 @@ import math
 import os
 import sys
 
-__all__ = ["add_commands", "add_preprocess_options", "add_read_options", "parse_channel", "preprocess", "read_options"]
+__all__ = ["add_commands", "add_preprocess_options", "add_read_options", "parse_channel", "preprocess",
+           "preprocess_steps", "read_options"]
 
 
 def parse_channel(value):
@@ -54,18 +55,23 @@ def add_preprocess_options(p) -> None:
                         "scans")
 
 
-def preprocess(ds, args):
-    """``ds`` after the steps :func:`add_preprocess_options` asked for: detrend, then fill missing data.
+def preprocess_steps(args) -> tuple:
+    """The steps :func:`add_preprocess_options` asked for, in the form :mod:`xtopo.batch` takes them
+    (:func:`xtopo.preprocess.checked_steps`): detrend, then fill missing data.
 
     Detrending first fits the background to the measured heights only (the fill would otherwise enter it).
     """
-    from .preprocess import detrend, fill_missing
+    from .preprocess import checked_steps
 
-    if getattr(args, "detrend", None):
-        ds = detrend(ds, args.detrend)
-    if getattr(args, "fill_missing", False):
-        ds = fill_missing(ds)
-    return ds
+    return checked_steps([("detrend", getattr(args, "detrend", None)),
+                          ("fill_missing", getattr(args, "fill_missing", False))], "--detrend/--fill-missing")
+
+
+def preprocess(ds, args):
+    """``ds`` after the steps :func:`add_preprocess_options` asked for (:func:`preprocess_steps`)."""
+    from .preprocess import apply_steps
+
+    return apply_steps(ds, preprocess_steps(args))
 
 
 def _err(msg: str) -> None:
@@ -151,20 +157,13 @@ def _control(args) -> tuple[str, list]:
 
 
 def _cmd_contact(args) -> int:
-    import numpy as np
-
     from .batch import _contact_item, _require_contact
-    from .conventions import height_of
     from .io import open_topography
     from .io.netcdf import to_netcdf
 
     _require_contact()
     control, values = _control(args)
     ds = preprocess(open_topography(args.file, channel=args.channel, **read_options(args)), args)
-    if bool((~np.isfinite(height_of(ds))).any()):
-        _err(f"{args.file}: {int((~np.isfinite(height_of(ds))).sum())} points have no height; a contact calculation "
-             "needs a height at every pixel: pass --fill-missing")
-        return 2
     res = _contact_item(ds, values, control=control, scene=_scene_kwargs(args), solve=_solve_kwargs(args),
                         maps=not args.scalars_only)
     print(f"xtopo contact: {args.file}, {len(values)} {control.replace('_', ' ')}(s)\n")
@@ -206,7 +205,7 @@ def _report_batch(result, store_dir) -> int:
 
 def _batch_common(args) -> dict:
     return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=not args.quiet,
-                chunks=args.chunk_size, read_options=read_options(args))
+                chunks=args.chunk_size, read_options=read_options(args), preprocess=preprocess_steps(args))
 
 
 def _positive_int(value: str) -> int:
@@ -308,6 +307,7 @@ def _add_batch_options(p) -> None:
                    help="store directory: one NetCDF file per finished chunk plus result.nc; rerunning with "
                         "the same store resumes (only missing chunks are computed)")
     g.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_preprocess_options(p)
     add_read_options(p)
 
 

@@ -12,6 +12,8 @@ would make :func:`xtopo.conventions.height_of` hide the filled values again.
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 import xarray as xr
 
@@ -21,9 +23,9 @@ from ._kernels import laplace_fill as _fill
 from ._kernels import polyfit as _poly
 from .conventions import (MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims,
                           length_factor, spacing)
-from .errors import GridError, UnitsError
+from .errors import GridError, UnitsError, XtopoError
 
-__all__ = ["detrend", "fill_missing"]
+__all__ = ["detrend", "fill_missing", "apply_steps", "checked_steps"]
 
 _FILLED = "filled"
 
@@ -58,6 +60,11 @@ def _finish(obj, h_in, result, line: str, *, nonperiodic: bool = False):
     return append_history(result, line)
 
 
+def _detrend_options(mode, per_line) -> dict:
+    """:func:`detrend`'s options, checked (an :class:`~xtopo.errors.XtopoError` naming the bad one)."""
+    return {"mode": option(mode, _poly.DEGREES, "mode"), "per_line": flag(per_line, "per_line")}
+
+
 def detrend(obj, mode: str = "plane", per_line: bool = False):
     """Subtract the least-squares polynomial background that minimises the RMS height.
 
@@ -80,8 +87,8 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
         so its subtraction leaves a step where the surface wraps around, and the result has
         ``periodic=0`` (analyses then window it instead of differentiating across the step).
     """
-    degree = _poly.DEGREES[option(mode, _poly.DEGREES, "mode")]
-    per_line = flag(per_line, "per_line")
+    options = _detrend_options(mode, per_line)
+    degree, per_line = _poly.DEGREES[options["mode"]], options["per_line"]
     h = height_of(obj)
     dims = lateral_dims(h)
     breaks_periodicity = degree > 0 and is_periodic(h)
@@ -180,3 +187,114 @@ def _checked(kernel):
             raise GridError(f"fill_missing: {exc}") from None
 
     return run
+
+
+# --------------------------------------------------------------------------- steps requested by name
+
+#: the steps a batch (``preprocess=``) or the command line (``--detrend``, ``--fill-missing``) requests by name:
+#: name → (the function, its options checked into a dict)
+_STEPS = {"detrend": (detrend, _detrend_options), "fill_missing": (fill_missing, lambda: {})}
+STEPS = tuple(_STEPS)
+
+
+def _step_options(step: str, options, name: str) -> dict | None:
+    """Every option of ``step`` (defaults filled in) from what was given for it; None: the step is left out."""
+    func, check = _STEPS[step]
+    params = list(inspect.signature(func).parameters)[1:]  # after the measurement
+    if options is None or (isinstance(options, (bool, np.bool_)) and not options):
+        return None
+    if isinstance(options, (bool, np.bool_)):
+        kwargs = {}
+    elif isinstance(options, dict):
+        kwargs = dict(options)
+    elif params:
+        kwargs = {params[0]: options}
+    else:
+        raise XtopoError(f"{name}: step {step!r} takes no options, got {options!r}; give True")
+    unknown = [k for k in kwargs if k not in params]
+    if unknown:
+        raise XtopoError(f"{name}: step {step!r} has no option {', '.join(map(repr, unknown))}; its options: "
+                         f"{', '.join(params) or 'none'}")
+    bound = inspect.signature(func).bind(None, **kwargs)
+    bound.apply_defaults()
+    try:
+        return check(**{k: v for k, v in bound.arguments.items() if k in params})
+    except XtopoError as exc:
+        raise type(exc)(f"{name}: step {step!r}: {exc}") from None
+
+
+def checked_steps(steps, name: str = "preprocess") -> tuple:
+    """Preprocessing steps requested by name, checked: ``((step, options), ...)`` in the order given.
+
+    The form in which :mod:`xtopo.batch` (``preprocess=``) and the command line
+    (``--detrend``, ``--fill-missing``) request preprocessing; :func:`apply_steps` applies it.
+
+    Parameters
+    ----------
+    steps : None, str, dict or sequence
+        None or empty: no preprocessing. A step name (``"fill_missing"``). A dict
+        ``{step: options}``, or a sequence of step names and ``(step, options)`` pairs, applied
+        in the order given, where ``options`` is True (the step's defaults), False or None (the
+        step is left out), a dict of the step's keywords (``{"mode": "plane", "per_line": True}``)
+        or the value of its first keyword (``"plane"`` for ``detrend``'s ``mode``). The steps:
+        ``"detrend"`` (:func:`detrend`) and ``"fill_missing"`` (:func:`fill_missing`); detrend
+        first, so that the fill does not enter the fitted background.
+    name : str
+        What the steps are called in an error message (the argument or option that gave them).
+
+    Returns
+    -------
+    tuple of (str, dict)
+        Each step's name and all its options (defaults included), JSON-serialisable; the same
+        request in another form gives the same tuple (``{"detrend": "plane"}`` and
+        ``[("detrend", {"mode": "plane", "per_line": False})]``).
+
+    Raises
+    ------
+    XtopoError
+        For an unknown step, an option the step does not have, or a bad option value; the
+        message names ``name`` and the step.
+    """
+    if steps is None:
+        return ()
+    if isinstance(steps, str):
+        items = [(steps, True)]
+    elif isinstance(steps, dict):
+        items = list(steps.items())
+    elif isinstance(steps, (list, tuple)):
+        items = [(s, True) if isinstance(s, str) else s for s in steps]
+    else:
+        raise XtopoError(f"{name} must be a step name, a dict {{step: options}} or a sequence of steps, got "
+                         f"{type(steps).__name__}; the steps: {', '.join(STEPS)}")
+    out = []
+    for item in items:
+        if not (isinstance(item, (list, tuple)) and len(item) == 2 and isinstance(item[0], str)):
+            raise XtopoError(f"{name}: a step is a name or a (name, options) pair, got {item!r}")
+        step, options = item
+        if step not in _STEPS:
+            raise XtopoError(f"{name}: unknown preprocessing step {step!r}; the steps: {', '.join(STEPS)}")
+        kwargs = _step_options(step, options, name)
+        if kwargs is not None:
+            out.append((step, kwargs))
+    return tuple(out)
+
+
+def apply_steps(obj, steps):
+    """``obj`` after preprocessing steps requested by name (as a batch or the command line requests them).
+
+    Parameters
+    ----------
+    obj : xarray.Dataset or xarray.DataArray
+        A measurement.
+    steps : None, str, dict or sequence
+        The steps and their options, e.g. ``{"detrend": "plane", "fill_missing": True}``; see
+        :func:`checked_steps`.
+
+    Returns
+    -------
+    Same type as ``obj``
+        After each step in turn, each recorded in its ``history``; ``obj`` itself is unchanged.
+    """
+    for step, kwargs in checked_steps(steps, "steps"):
+        obj = _STEPS[step][0](obj, **kwargs)
+    return obj

@@ -8,7 +8,8 @@
 
 The work is a grid of *items* (one measurement × one parameter value) cut into *chunks*
 (blocks of measurements × parameter values), one Dask task each. A task opens its
-measurements in the worker (paths travel, not arrays), builds what the work needs there
+measurements in the worker (paths travel, not arrays), preprocesses them there when asked
+(``preprocess={"detrend": "plane", "fill_missing": True}``), builds what the work needs there
 and writes its chunk atomically into the store as soon as it is done; a rerun with the
 same store computes only the chunks that are missing or had failed items. Errors of
 single items (an unreadable file, a solve that fails) are caught in the task and reported

@@ -52,7 +52,7 @@ def _analyze_item(ds, *, analyses):
 
 def analyze(measurements, analyses=("scalars",), *, chunks=None, client=None, scheduler=None, workers=None,
             store=None, progress: bool = True, fft_threads: int | None = 1, retries: int = 1,
-            read_options: dict | None = None) -> xr.Dataset:
+            read_options: dict | None = None, preprocess=None) -> xr.Dataset:
     """Analyses of many measurements as a chunked Dask batch (see :func:`run`).
 
     Parameters
@@ -63,8 +63,9 @@ def analyze(measurements, analyses=("scalars",), *, chunks=None, client=None, sc
         Names of :mod:`xtopo.analysis` modules (``"scalars"``, ``"psd"``, ...; the function of
         the same name is called with the measurement) or picklable functions ``f(ds)``.
         With several analyses the variables are named ``<analysis>_<variable>``.
-    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options
-        See :func:`run`.
+    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options, preprocess
+        See :func:`run`; e.g. ``preprocess={"detrend": "plane"}`` for the scalars of a tilted
+        measurement without its tilt.
 
     Returns
     -------
@@ -78,4 +79,5 @@ def analyze(measurements, analyses=("scalars",), *, chunks=None, client=None, sc
         _resolve_analysis(a)  # fail early, on the client, for unknown names
     func = functools.partial(_analyze_item, analyses=analyses)
     return run(func, measurements, None, chunks=chunks, client=client, scheduler=scheduler, workers=workers,
-               store=store, progress=progress, fft_threads=fft_threads, retries=retries, read_options=read_options)
+               store=store, progress=progress, fft_threads=fft_threads, retries=retries, read_options=read_options,
+               preprocess=preprocess)

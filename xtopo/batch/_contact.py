@@ -13,8 +13,8 @@ import numpy as np
 import xarray as xr
 
 from .._checks import flag
-from ..conventions import append_history, convert_length, length_units_of, normalize_units
-from ..errors import UnitsError, XtopoError
+from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
+from ..errors import ContactError, UnitsError, XtopoError
 from ._engine import run_batch
 from ._inputs import checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
@@ -59,6 +59,16 @@ def _in_batch_units(ds, units):
                      "first measurement has none); give batch.contact(units=...) and units to every one")
 
 
+def _require_heights(ds) -> None:
+    """A :class:`~xtopo.errors.ContactError` naming the preprocessing that fills them where ``ds`` has missing
+    heights (the Scene's own error names a Python function, which a batch or command cannot call)."""
+    n = int((~np.isfinite(height_of(ds))).sum())
+    if n:
+        raise ContactError(f"{ds.attrs.get('source_file') or 'the measurement'}: {n} points have no height; a "
+                           "contact calculation needs a height at every pixel: fill them (--fill-missing on the "
+                           "command line, preprocess={'fill_missing': True} in xtopo.batch)")
+
+
 def _contact_item(ds, values, *, control, scene, solve, maps, units=None, required_scan=None):
     """Contact solutions of one measurement for each value of ``control`` (runs in the worker).
 
@@ -90,6 +100,7 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None, requir
     """
     from ..contact import Scene
 
+    _require_heights(ds)
     ds = _in_batch_units(ds, units)
     sc = Scene(ds, **scene)
     kind = "line" if sc.line else "area"
@@ -146,7 +157,8 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
             hardness: float | None = None, periodic: bool | None = None, tol: float | None = None,
             maxiter: int | None = None, maps: bool = False, chunks=None, client=None, scheduler=None,
             workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
-            retries: int = 1, read_options: dict | None = None, units: str | None = None) -> xr.Dataset:
+            retries: int = 1, read_options: dict | None = None, units: str | None = None,
+            preprocess=None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
     Exactly one of ``loads``, ``mean_pressures``, ``penetrations`` is given; it becomes the
@@ -189,8 +201,10 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     maps : bool
         Keep the pressure/displacement/gap/contact maps (large); default only the scalars
         (load, mean pressure, area fraction, penetration, iterations, residual, converged).
-    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options
-        See :func:`run`.
+    chunks, client, scheduler, workers, store, progress, fft_threads, retries, read_options, preprocess
+        See :func:`run`. A measurement with missing points needs
+        ``preprocess={"fill_missing": True}`` (after ``"detrend"``, if any): a contact
+        calculation needs a height at every pixel.
     units : str, optional
         Length unit of the solves (``"um"``, ``"nm"``, ...). Default: the unit of the first
         measurement (for a file, the unit it is read in: metres unless ``read_options`` give
@@ -239,5 +253,5 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         dim_attrs["units"] = dim_units
     return run_batch(func, measurements, values, dim=control, dim_attrs=dim_attrs, chunks=chunks, client=client,
                      scheduler=scheduler, workers=workers, store=store, progress=progress, fft_threads=fft_threads,
-                     retries=retries, read_options=read_options,
+                     retries=retries, read_options=read_options, preprocess=preprocess,
                      finish={"name": "settle_scans", "kwargs": {"control": control, "units": units}})

@@ -16,6 +16,7 @@ import os
 import xarray as xr
 
 from ..errors import XtopoError
+from ..preprocess import checked_steps
 from ._dispatch import execute, fft_env
 from ._inputs import checked_read_options, chunk_sizes, names_and_sources, run_options
 from ._results import combine, failed_items, failure_block
@@ -31,7 +32,8 @@ _FINISH = {"settle_scans": settle_scans}
 
 def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict | None = None, chunks=None,
         client=None, scheduler: str | None = None, workers: int | None = None, store=None, progress: bool = True,
-        fft_threads: int | None = 1, retries: int = 1, read_options: dict | None = None) -> xr.Dataset:
+        fft_threads: int | None = 1, retries: int = 1, read_options: dict | None = None,
+        preprocess=None) -> xr.Dataset:
     """Run ``func`` on every measurement (× every parameter value) as chunked Dask tasks.
 
     The work is a grid of *items* (one measurement × one parameter value, e.g. a load) cut
@@ -86,6 +88,15 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
         Keywords of :func:`xtopo.open_topography` for the file paths, e.g.
         ``{"file_units": "um", "physical_size": (Ly, Lx)}`` for files that store no size or
         unit (plain text, npy, MATLAB, HDF5). They are part of a chunk's store key.
+    preprocess : str, dict or sequence, optional
+        Preprocessing applied in the worker to each measurement (file or Dataset) before
+        ``func`` sees it, by step name and options, in the order given:
+        ``{"detrend": "plane", "fill_missing": True}``, ``[("detrend", {"mode": "curvature"}),
+        "fill_missing"]`` (see :func:`xtopo.preprocess.checked_steps`; the same as
+        :func:`xtopo.preprocess.apply_steps` does in-process). Checked before any task is
+        built; part of a chunk's store key (a rerun with other steps recomputes). Each step is
+        recorded in the history of the item's result (a result without a history of its own
+        gets the preprocessed measurement's).
 
     Returns
     -------
@@ -100,10 +111,11 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     """
     return run_batch(func, measurements, params, dim=dim, dim_attrs=dim_attrs, chunks=chunks, client=client,
                      scheduler=scheduler, workers=workers, store=store, progress=progress, fft_threads=fft_threads,
-                     retries=retries, read_options=read_options)
+                     retries=retries, read_options=read_options, preprocess=preprocess)
 
 
-def _plan(func, dim, names, sources, params, chunks, read_options, store, fft_threads) -> list[list[Chunk]]:
+def _plan(func, dim, names, sources, params, chunks, read_options, steps, store,
+          fft_threads) -> list[list[Chunk]]:
     """The batch's chunks: rows of measurement blocks, each a list of parameter-value blocks."""
     mchunk, pchunk = chunk_sizes(chunks, dim, len(names), 1 if params is None else len(params))
     # a file read with other options is another measurement: the options enter its fingerprint
@@ -117,9 +129,9 @@ def _plan(func, dim, names, sources, params, chunks, read_options, store, fft_th
         for j in range(0, 1 if params is None else len(params), pchunk):
             p = None if params is None else params[j:j + pchunk]
             row.append(Chunk(func=func, dim=dim, names=names[m], sources=sources[m], params=p,
-                             key=chunk_key(func, dim, names[m], prints[m], p),
+                             key=chunk_key(func, dim, names[m], prints[m], p, steps),
                              store=None if store is None else store.directory, fft_threads=fft_threads,
-                             home_pid=home, read_options=read_options, rows=(m.start, m.stop),
+                             home_pid=home, read_options=read_options, preprocess=steps, rows=(m.start, m.stop),
                              cols=None if p is None else (j, j + len(p))))
         grid.append(row)
     return grid
@@ -139,7 +151,7 @@ def _assemble(blocks, dim, has_params, dim_attrs, finish, where: str = "a batch"
 
 
 def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, scheduler, workers, store, progress,
-              fft_threads, retries, read_options, finish: dict | None = None) -> xr.Dataset:
+              fft_threads, retries, read_options, preprocess, finish: dict | None = None) -> xr.Dataset:
     """:func:`run` with a last step of the assembly.
 
     Parameters
@@ -154,15 +166,17 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
     names, sources = names_and_sources(measurements)
     params = run_options(dim, workers, fft_threads, retries, progress, params)
     read_options = checked_read_options(read_options)
+    steps = checked_steps(preprocess)
     store_obj = Store(store) if store is not None else None
-    grid = _plan(func, dim, names, sources, params, chunks, read_options, store_obj, fft_threads)
+    grid = _plan(func, dim, names, sources, params, chunks, read_options, steps, store_obj, fft_threads)
 
     stored = {}
     if store_obj is not None:
         stored = {c.key: ds for row in grid for c in row if (ds := store_obj.reusable(c.key)) is not None}
     todo = [c for row in grid for c in row if c.key not in stored]
     manifest = {"function": func_name(func), "dim": dim, "dim_attrs": dim_attrs, "measurements": names,
-                "params": params, "sources": [s if isinstance(s, str) else "" for s in sources],
+                "params": params, "preprocess": [list(step) for step in steps],
+                "sources": [s if isinstance(s, str) else "" for s in sources],
                 "chunks": [[{"key": c.key, "m": list(c.rows), "p": None if c.cols is None else list(c.cols)}
                             for c in row] for row in grid],
                 "finish": finish, "status": "running"}

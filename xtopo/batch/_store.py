@@ -61,8 +61,12 @@ def fingerprint(source) -> str:
     return f"file:{path}:{st.st_size}:{st.st_mtime_ns}"
 
 
-def chunk_key(func, dim, names, prints, params) -> str:
+def chunk_key(func, dim, names, prints, params, preprocess=()) -> str:
     """SHA-256 key of one chunk's inputs.
+
+    ``preprocess``: the steps applied to each measurement after reading
+    (:func:`xtopo.preprocess.checked_steps`); a chunk without any has the key it had
+    before batches could preprocess, so that its stored file is still reused.
 
     The function (a partial's arguments included) and the parameter values enter by content
     (dask's ``tokenize``; the function's own code too, :mod:`xtopo._tokens`), which is the same in every
@@ -72,9 +76,11 @@ def chunk_key(func, dim, names, prints, params) -> str:
     """
     from dask.base import tokenize
 
-    blob = json.dumps({"f": callable_token(func), "dim": dim, "names": list(names),
-                       "m": list(prints), "p": None if params is None else tokenize(list(params)), "v": __version__},
-                      sort_keys=True, default=repr)
+    inputs = {"f": callable_token(func), "dim": dim, "names": list(names), "m": list(prints),
+              "p": None if params is None else tokenize(list(params)), "v": __version__}
+    if preprocess:
+        inputs["pre"] = [[step, options] for step, options in preprocess]
+    blob = json.dumps(inputs, sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()
 
 

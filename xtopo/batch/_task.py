@@ -2,9 +2,10 @@
 
 A :class:`Chunk` is one Dask task's work (a block of measurements × a block of parameter
 values); :func:`run_chunk` does it. The measurements are opened inside the worker (paths
-travel, not arrays), ``func`` builds whatever it needs there (a contact Scene and its FFT
-plans never cross a process boundary), and the chunk's Dataset is written atomically into
-the store as soon as it is done. An item that raises (an unreadable file, a failed solve)
+travel, not arrays) and preprocessed there (the steps travel by name), ``func`` builds
+whatever it needs there (a contact Scene and its FFT plans never cross a process
+boundary), and the chunk's Dataset is written atomically into the store as soon as it is
+done. An item that raises (an unreadable file, a failed preprocessing step or solve)
 becomes an ``error`` entry; the chunk's other items go on.
 """
 
@@ -16,6 +17,7 @@ from typing import Callable, NamedTuple
 import xarray as xr
 
 from ..errors import XtopoError
+from ..preprocess import apply_steps
 from ._results import chunk_dataset
 from ._store import IO_LOCK, Store, func_name
 
@@ -35,6 +37,7 @@ class Chunk(NamedTuple):
     fft_threads: int | None  #: FFT threads in a worker process (None: its setting)
     home_pid: int  #: the client's process id: elsewhere, the task runs in a dedicated worker process
     read_options: dict  #: keywords of :func:`xtopo.open_topography` for the file paths
+    preprocess: tuple  #: the steps applied to each measurement once read (:func:`xtopo.preprocess.checked_steps`)
     rows: tuple  #: (first, end) index of the measurements in the batch
     cols: tuple | None  #: (first, end) index of the parameter values in the batch
 
@@ -53,8 +56,12 @@ def _load(source, read_options) -> xr.Dataset:
         return open_topography(source, **read_options)
 
 
-def _call(func, ds, params, dim) -> xr.Dataset:
-    """``func`` on one measurement (and the parameter values ``params``), its result checked and loaded."""
+def _call(func, ds, params, dim, preprocessed: bool = False) -> xr.Dataset:
+    """``func`` on one measurement (and the parameter values ``params``), its result checked and loaded.
+
+    ``preprocessed``: ``ds`` was preprocessed; a result without a history of its own gets ``ds``'s, which
+    records the preprocessing.
+    """
     out = func(ds) if params is None else func(ds, list(params))
     if isinstance(out, xr.DataArray):
         out = out.to_dataset(name=out.name or "result")
@@ -62,6 +69,8 @@ def _call(func, ds, params, dim) -> xr.Dataset:
         raise XtopoError(f"batch function {func_name(func)} returned a {type(out).__name__}; "
                          "it must return an xarray Dataset or DataArray")
     out = out.compute()
+    if preprocessed and "history" not in out.attrs and "history" in ds.attrs:
+        out.attrs["history"] = ds.attrs["history"]
     if params is not None:
         if out.sizes.get(dim) != len(params):
             raise XtopoError(f"batch function {func_name(func)} must return a Dataset with dim {dim!r} of "
@@ -71,16 +80,16 @@ def _call(func, ds, params, dim) -> xr.Dataset:
     return out
 
 
-def _run_item(func, source, params, dim, read_options):
-    """(result or None, errors) of one measurement: errors is one message per parameter value ('' where it
-    worked), or one message for a batch without parameters."""
+def _run_item(func, source, params, dim, read_options, steps=()):
+    """(result or None, errors) of one measurement, read and preprocessed by ``steps``: errors is one message per
+    parameter value ('' where it worked), or one message for a batch without parameters."""
     n = 1 if params is None else len(params)
     try:
-        ds = _load(source, read_options)
+        ds = apply_steps(_load(source, read_options), steps)
     except Exception as exc:
         return None, [error_message(exc)] * n
     try:
-        return _call(func, ds, params, dim), [""] * n
+        return _call(func, ds, params, dim, bool(steps)), [""] * n
     except Exception as exc:
         if params is None or n == 1:
             return None, [error_message(exc)]
@@ -88,7 +97,7 @@ def _run_item(func, source, params, dim, read_options):
     parts, errors = [], []
     for p in params:
         try:
-            parts.append(_call(func, ds, [p], dim))
+            parts.append(_call(func, ds, [p], dim, bool(steps)))
             errors.append("")
         except Exception as exc:
             errors.append(error_message(exc))
@@ -144,7 +153,7 @@ def run_chunk(chunk: Chunk) -> xr.Dataset:
             os.environ["XTOPO_FFT_THREADS"] = str(int(chunk.fft_threads))
     results, errors = [], []
     for source in chunk.sources:
-        res, err = _run_item(chunk.func, source, chunk.params, chunk.dim, chunk.read_options)
+        res, err = _run_item(chunk.func, source, chunk.params, chunk.dim, chunk.read_options, chunk.preprocess)
         results.append(res)
         errors.append(err)
     ds = chunk_dataset(chunk.names, chunk.sources, results, errors, chunk.params, chunk.dim)
