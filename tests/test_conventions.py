@@ -215,3 +215,25 @@ def test_append_history_refuses_non_xarray_objects(obj):
     # a bare AttributeError ('NoneType' object has no attribute 'copy')
     with pytest.raises(ValidationError, match="expected a topography"):
         xtopo.conventions.append_history(obj, "step")
+
+
+def test_to_units_converts_each_length_from_its_own_unit():
+    """Heights in nm on positions in µm: analyses refuse the mix and name .topo.to_units as the fix, but
+    to_units converted only the lengths in the positions' unit (to 'um' it changed nothing), and a
+    tip radius in its own unit was scaled as if it were in the positions' unit."""
+    ds = xtopo.datasets.fractal_surface((16, 16), 2.0, hurst=0.8, rms_height=0.05, units="um", seed=3)
+    mixed = ds.assign(height=(ds.height * 1000).assign_attrs(units="nm"))
+    mixed.attrs.update(tip_radius=20.0, tip_radius_units="nm")
+    with pytest.raises(xtopo.UnitsError, match="one length unit"):
+        mixed.topo.scalars()
+    for to, f in (("um", 1.0), ("nm", 1000.0)):
+        out = mixed.topo.to_units(to)
+        np.testing.assert_allclose(out.height.values, ds.height.values * f, rtol=1e-12)
+        np.testing.assert_allclose(out.x.values, ds.x.values * f, rtol=1e-12)
+        assert out.x.attrs["units"] == out.height.attrs["units"] == to
+        np.testing.assert_allclose(out.attrs["tip_radius"], 0.02 * f, rtol=1e-12)
+        assert out.attrs["tip_radius_units"] == to
+        np.testing.assert_allclose(float(out.topo.scalars().Sq), float(ds.topo.scalars().Sq) * f, rtol=1e-10)
+    assert "from 'nm', 'um'" in mixed.topo.to_units("m").attrs["history"]
+    same = ds.topo.to_units("um")
+    assert same.attrs.get("history") == ds.attrs.get("history")  # nothing to convert, nothing recorded

@@ -126,7 +126,8 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
     """Convert coordinates, heights and length attributes to ``units``.
 
     Works on a measurement Dataset or on a height DataArray whose coords carry
-    ``units``. The original unit is recorded in ``history``.
+    ``units``. Each length is converted from its own unit (heights in nm on positions in µm
+    end up in one unit); the original units are recorded in ``history``.
 
     Parameters
     ----------
@@ -134,37 +135,55 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
         A measurement or a height DataArray (lengths in any unit pint knows).
     units : str
         Target length unit (UDUNITS spelling: ``"m"``, ``"um"``, ``"nm"``, ...); ``x``, ``y``,
-        ``height`` and the length attributes (``tip_radius``, ``resolution``) are converted together.
+        the length-valued variables (``height``) and the length attributes (``tip_radius``,
+        ``resolution``, in their ``*_units`` or else the positions' unit) are converted together.
     """
     to = normalize_units(units)
     obj = _xarray(ds).copy(deep=False)
-    current = length_units_of(obj)
-    if current == to:
-        return obj
-    f = length_factor(current, to)
+    current = length_units_of(obj)  # the unit of whatever length carries no label of its own
+    sources = set()
+
+    def own(label):
+        """The normalised length unit ``label`` (None: not a length, so not converted)."""
+        if label is None:
+            return current
+        try:
+            return normalize_units(label)
+        except UnitsError:
+            return None
+
     for name in (X, Y):
         if name in obj.coords:
             c = obj.coords[name]
-            obj = obj.assign_coords({name: c.copy(data=c.values * f)})
-            obj.coords[name].attrs = _scale_attr_units(c.attrs, current, to)
+            u = own(c.attrs.get("units"))
+            if u is not None and u != to:
+                sources.add(u)
+                obj = obj.assign_coords({name: c.copy(data=c.values * length_factor(u, to))})
+                obj.coords[name].attrs = _scale_attr_units(c.attrs, u, to)
     variables = [obj] if isinstance(obj, xr.DataArray) else [obj[v] for v in obj.data_vars]
     for var in variables:
-        if var.attrs.get("units") is not None and var.dtype.kind == "f":
-            try:
-                same = normalize_units(var.attrs["units"]) == current
-            except UnitsError:
-                same = False
-            if same:
-                if isinstance(obj, xr.DataArray):
-                    obj = (obj * f).assign_attrs(_scale_attr_units(obj.attrs, current, to))
-                    obj.name = ds.name
-                else:
-                    obj[var.name] = (var * f).assign_attrs(_scale_attr_units(var.attrs, current, to))
+        u = own(var.attrs["units"]) if var.attrs.get("units") is not None and var.dtype.kind == "f" else None
+        if u is not None and u != to:
+            sources.add(u)
+            scaled = (var * length_factor(u, to)).assign_attrs(_scale_attr_units(var.attrs, u, to))
+            if isinstance(obj, xr.DataArray):
+                obj = scaled
+                obj.name = ds.name
+            else:
+                obj[var.name] = scaled
     for key in LENGTH_ATTRS:
         if obj.attrs.get(key) is not None:
-            obj.attrs[key] = float(obj.attrs[key]) * f
+            u = own(obj.attrs.get(f"{key}_units"))
+            if u is None:
+                raise UnitsError(f"convert_length: attribute {key}_units={obj.attrs[f'{key}_units']!r} is not a "
+                                 "length unit")
+            if u != to:
+                sources.add(u)
+                obj.attrs[key] = float(obj.attrs[key]) * length_factor(u, to)
             obj.attrs[f"{key}_units"] = to
-    return append_history(obj, f"convert_length(units={to!r}) from {current!r}")
+    if not sources:
+        return obj
+    return append_history(obj, f"convert_length(units={to!r}) from {', '.join(map(repr, sorted(sources)))}")
 
 
 def _xarray(obj):
