@@ -10,13 +10,15 @@ from __future__ import annotations
 import math
 import numbers
 import os
+from collections.abc import Mapping
 
 import numpy as np
+import xarray as xr
 
 from .errors import GridError, XtopoError
 
 __all__ = ["option", "flag", "integer", "positive_number", "real_number", "per_axis", "lengths", "path",
-           "make_directory", "bin_count", "MAX_SPARSE_BINS"]
+           "make_directory", "bin_count", "MAX_SPARSE_BINS", "xarray_object", "text", "mapping"]
 
 #: a number of bins may exceed the number of values binned (most bins then stay empty) up to this many bins.
 MAX_SPARSE_BINS = 10_000
@@ -27,6 +29,30 @@ def option(value, options, name: str):
     if not isinstance(value, str) or value not in options:
         raise XtopoError(f"{name} must be one of {tuple(options)}, got {value!r}")
     return value
+
+
+def xarray_object(value, what: str, types: tuple = (xr.Dataset, xr.DataArray)):
+    """``value`` if it is one of the xarray ``types``, else an XtopoError; ``what`` names the argument."""
+    if not isinstance(value, types):
+        names = " or ".join(t.__name__ for t in types)
+        raise XtopoError(f"{what} needs an xarray {names}, got {type(value).__name__}")
+    return value
+
+
+def text(value, name: str, *, optional: bool = True):
+    """``value`` if it is a str (or None when ``optional``): a title, a label, a variable name."""
+    if isinstance(value, str) or (optional and value is None):
+        return value
+    raise XtopoError(f"{name} must be a string{' or None' if optional else ''}, got {type(value).__name__}")
+
+
+def mapping(value, name: str) -> dict:
+    """``value`` as a dict if it is a mapping (None: empty), e.g. legend labels by name."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping) or isinstance(value, (xr.Dataset, xr.DataTree)):
+        raise XtopoError(f"{name} must be a dict (or None), got {type(value).__name__}")
+    return dict(value)
 
 
 def flag(value, name: str, *, error: type[XtopoError] = XtopoError) -> bool:
