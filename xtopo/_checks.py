@@ -175,11 +175,17 @@ def lengths(values, name: str, units: str, longest: float | None = None) -> np.n
 
 
 def path(value, name: str, *, kind: str = "path") -> str:
-    """``value`` as a str path if it is one (str, bytes or os.PathLike); ``kind`` says which (e.g. "file path")."""
+    """``value`` as a str path if it is one (str, bytes or os.PathLike); ``kind`` says which (e.g. "file path").
+
+    An empty path is refused: it would mean the working directory (a store or cache filling it).
+    """
     try:
-        return os.fsdecode(os.fspath(value))  # bytes too: a str, as the callers join it with str
+        text = os.fsdecode(os.fspath(value))  # bytes too: a str, as the callers join it with str
     except TypeError:
         raise XtopoError(f"{name} must be a {kind} (str or os.PathLike), got {type(value).__name__}") from None
+    if not text:
+        raise XtopoError(f"{name} must be a {kind}, got an empty string")
+    return text
 
 
 def make_directory(directory: str, what: str) -> None:
