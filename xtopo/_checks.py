@@ -18,7 +18,7 @@ import xarray as xr
 from .errors import GridError, XtopoError
 
 __all__ = ["option", "flag", "integer", "positive_number", "real_number", "per_axis", "lengths", "path",
-           "make_directory", "bin_count", "MAX_SPARSE_BINS", "xarray_object", "text", "mapping"]
+           "make_directory", "bin_count", "MAX_SPARSE_BINS", "xarray_object", "text", "mapping", "real_array"]
 
 #: a number of bins may exceed the number of values binned (most bins then stay empty) up to this many bins.
 MAX_SPARSE_BINS = 10_000
@@ -150,6 +150,17 @@ def real_number(value, name: str, *, low: float = -np.inf, high: float = np.inf,
             bounds = f" in [{low:g}, {high:g}]" if closed else f" in ({low:g}, {high:g})"
         raise XtopoError(f"{name} must be a finite number{bounds}, got {value!r}")
     return number
+
+
+def real_array(values) -> np.ndarray | None:
+    """``values`` as a float array (any shape) if they are real numbers (not bools, strings or objects), else None."""
+    if isinstance(values, (str, bytes)):
+        return None
+    try:
+        raw = np.asarray(values)
+        return np.asarray(raw, dtype=float) if raw.dtype.kind in "iuf" else None
+    except (TypeError, ValueError, OverflowError):
+        return None
 
 
 def lengths(values, name: str, units: str, longest: float | None = None) -> np.ndarray:

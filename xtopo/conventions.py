@@ -26,7 +26,7 @@ import unicodedata
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, per_axis, positive_number, real_number
+from ._checks import flag, per_axis, positive_number, real_array, real_number
 from .errors import GridError, UnitsError, ValidationError
 
 __all__ = [
@@ -265,13 +265,7 @@ def is_nonuniform(obj) -> bool:
 
 def is_uniform(coord, rtol: float = 1e-6) -> bool:
     """True if the coordinate values are equally spaced within ``rtol``."""
-    v = None
-    if not isinstance(coord, (str, bytes)):
-        try:
-            raw = np.asarray(coord)
-            v = np.asarray(raw, dtype=float) if raw.dtype.kind in "iuf" else None
-        except (TypeError, ValueError, OverflowError):
-            v = None
+    v = real_array(coord)
     if v is None or v.ndim != 1:
         raise GridError(f"is_uniform needs a 1D sequence of positions (a coordinate), got {coord!r}")
     rtol = real_number(rtol, "rtol", low=0.0)

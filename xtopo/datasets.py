@@ -18,7 +18,7 @@ import math
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, integer, lengths, option, per_axis, positive_number, real_number
+from ._checks import flag, integer, lengths, option, per_axis, positive_number, real_array, real_number
 from ._kernels import fft as _fft
 from ._kernels.derivatives import fourier_first, wavevectors
 from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
@@ -180,13 +180,7 @@ class FractalPSD:
 
 def _finite_values(values, name: str) -> np.ndarray:
     """``values`` as a float array of finite real numbers (any shape), else an XtopoError naming ``name``."""
-    v = None
-    if not isinstance(values, (str, bytes)):
-        try:
-            raw = np.asarray(values)
-            v = np.asarray(raw, dtype=float) if raw.dtype.kind in "iuf" else None
-        except (TypeError, ValueError, OverflowError):
-            v = None
+    v = real_array(values)
     if v is None or not np.all(np.isfinite(v)):
         raise XtopoError(f"{name} must be finite real numbers, got {values!r}")
     return v
