@@ -483,6 +483,108 @@ def test_open_store_names_the_store_whose_manifest_has_an_unknown_finishing_step
         batch.open_store(store)
 
 
+@pytest.mark.parametrize("manifest", ['{"dim": "load"}', "[1, 2]", '{"dim": "load", "params": null, '
+                                      '"measurements": ["a"], "sources": [""], "chunks": 5}'])
+def test_open_store_of_a_damaged_manifest_names_the_store(tmp_path, manifest):
+    """A manifest without 'params' raised a bare KeyError, a JSON list or chunks=5 a TypeError."""
+    (tmp_path / "manifest.json").write_text(manifest)
+    with pytest.raises(XtopoError, match=r"batch store .* \(manifest.json\) is damaged or not a batch manifest"):
+        batch.open_store(tmp_path)
+
+
+def test_open_store_does_not_create_a_missing_store(tmp_path):
+    """open_store of a mistyped directory created it (and then said it had no manifest)."""
+    with pytest.raises(XtopoError, match="no batch store at .*typo: not a directory"):
+        batch.open_store(tmp_path / "typo")
+    assert not (tmp_path / "typo").exists()
+
+
+@pytest.mark.parametrize("store", ["", b""])
+def test_an_empty_store_path_is_refused(tmp_path, monkeypatch, store):
+    """store='' wrote the chunk files, manifest.json (and, on the command line, result.nc) into the working
+    directory."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(XtopoError, match="batch store must be a directory path, got an empty string"):
+        batch.run(fft_work, _surfaces(1), LOADS, scheduler="sync", store=store, progress=False)
+    assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("measurements", [None, 3, 2.5, True, object()])
+def test_measurements_that_are_no_collection_are_refused(measurements):
+    """None or a number raised a bare TypeError "'int' object is not iterable"."""
+    with pytest.raises(XtopoError, match="measurements must be a Dataset, a file path, or a mapping"):
+        batch.run(fft_work, measurements, LOADS, scheduler="sync")
+    with pytest.raises(XtopoError, match="measurements must be a Dataset, a file path, or a mapping"):
+        batch.analyze(measurements, scheduler="sync")
+
+
+@pytest.mark.parametrize("func", [None, 5, "fft_work"])
+def test_run_refuses_a_func_that_is_not_callable(func):
+    """A func that is no function ran the batch and reported every item as failed ("'int' object is not
+    callable") instead of failing at once."""
+    with pytest.raises(XtopoError, match="func must be a function"):
+        batch.run(func, _surfaces(2), LOADS, scheduler="sync", progress=False)
+
+
+@pytest.mark.parametrize("dim_attrs", [5, [1], "units", np.zeros(2)])
+def test_run_refuses_dim_attrs_that_are_no_dict(dim_attrs):
+    """dim_attrs=5 or [1] raised a bare TypeError when the result was assembled, after every task ran."""
+    with pytest.raises(XtopoError, match="dim_attrs must be a dict"):
+        batch.run(fft_work, _surfaces(1), LOADS, scheduler="sync", dim_attrs=dim_attrs, progress=False)
+
+
+@pytest.mark.parametrize("client", [5, "tcp://localhost:8786", object()])
+def test_run_refuses_a_client_that_is_no_distributed_client(client):
+    """client=5 raised "'int' object has no attribute 'submit'"."""
+    with pytest.raises(XtopoError, match="client must be a distributed.Client"):
+        batch.run(fft_work, _surfaces(1), LOADS, client=client, progress=False)
+
+
+@pytest.mark.parametrize("scheduler", ["tcp://", "tcp://:"])
+def test_a_scheduler_address_without_host_or_port_is_refused(scheduler):
+    """distributed's ValueError ('missing port number in address') escaped."""
+    with pytest.raises(XtopoError, match=f"cannot connect to the Dask scheduler at {scheduler}.*dask worker "
+                                         f"{scheduler}"):
+        batch.run(fft_work, _surfaces(1), LOADS, scheduler=scheduler, progress=False)
+
+
+@pytest.mark.parametrize("read_options, match", [
+    ({"units": 5}, "read_options: units=5 is not a length unit"),
+    ({"file_units": "s"}, "read_options: file_units='s' is not a length unit"),
+    ({"height_units": "abc"}, "read_options: height_units='abc' is not a length unit"),
+    ({"physical_size": -1}, "read_options: physical_size must be positive finite lengths"),
+    ({"periodic": "yes"}, "read_options: periodic must be True or False"),
+    ({"tip_radius": 0}, "read_options: tip_radius .* must be a positive finite number"),
+    ({"format": "nope"}, "unknown format 'nope'"),
+])
+def test_read_option_values_are_checked_before_any_task(tmp_path, read_options, match):
+    """Bad read_options values were only found in the workers, as one identical error per file."""
+    paths = _files(tmp_path, 2, size=16)
+    with pytest.raises(XtopoError, match=match):
+        batch.analyze(paths, scheduler="sync", read_options=read_options, progress=False)
+
+
+@pytest.mark.parametrize("analyses", [None, 5, 2.5])
+def test_analyze_refuses_analyses_that_are_no_sequence(analyses):
+    """analyses=None or a number raised a bare TypeError "'int' object is not iterable"."""
+    with pytest.raises(XtopoError, match="analyses must be a name, a function or a sequence"):
+        batch.analyze(_surfaces(1), analyses, scheduler="sync")
+
+
+def test_analyze_takes_one_analysis_name():
+    """analyses='scalars' was split into its letters ("unknown analysis 's'")."""
+    xr.testing.assert_identical(batch.analyze(_surfaces(1), "scalars", scheduler="sync", progress=False),
+                                batch.analyze(_surfaces(1), ["scalars"], scheduler="sync", progress=False))
+
+
+def test_unknown_analysis_lists_only_what_analyze_can_run():
+    """'reliability' (a module without a function of its name) was refused as unknown and listed as available."""
+    with pytest.raises(XtopoError, match="unknown analysis 'reliability'") as info:
+        batch.analyze(_surfaces(1), ["reliability"], scheduler="sync")
+    available = str(info.value).split("available: ")[1]
+    assert "reliability" not in available and "scalars" in available
+
+
 @pytest.mark.parametrize("control", ["loads", "mean_pressures"])
 def test_mixed_files_batch_does_not_read_the_history_wording(tmp_path, monkeypatch, control):
     """The kind of each file's scan was recovered from the wording of its contact history line: reworded, a

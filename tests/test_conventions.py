@@ -237,3 +237,51 @@ def test_to_units_converts_each_length_from_its_own_unit():
     assert "from 'nm', 'um'" in mixed.topo.to_units("m").attrs["history"]
     same = ds.topo.to_units("um")
     assert same.attrs.get("history") == ds.attrs.get("history")  # nothing to convert, nothing recorded
+
+
+@pytest.mark.parametrize("masked", [False, True])
+def test_validate_refuses_a_measurement_without_any_valid_height(masked):
+    """All-NaN (or all-masked) heights passed validate: a measurement without a single height."""
+    ds = fractal_surface((8, 8), 1.0, hurst=0.8)
+    ds = ds.assign(mask=(("y", "x"), np.ones((8, 8), bool))) if masked else ds.assign(height=ds.height * np.nan)
+    with pytest.raises(ValidationError, match="'height' has no valid value: all 64 points are NaN or masked"):
+        xtopo.validate(ds)
+
+
+def test_validate_accepts_a_partly_missing_measurement():
+    ds = fractal_surface((8, 8), 1.0, hurst=0.8)
+    ds = ds.assign(height=ds.height.where(ds.x > ds.x[3]))
+    assert xtopo.validate(ds) is ds
+
+
+def test_validate_of_heights_in_another_unit_names_what_fixes_it():
+    """The message suggested .topo.to_units, which then converted only the lengths in the coordinates' unit
+    (the heights stayed apart); it converts each length from its own unit now, and the fix it names works."""
+    ds = fractal_surface((8, 8), 1.0, hurst=0.8, units="um")
+    ds["height"] = (ds.height * 1000).assign_attrs(units="nm")
+    with pytest.raises(ValidationError, match=r"convert them to one, e.g. ds.topo.to_units\('um'\)"):
+        xtopo.validate(ds)
+    fixed = ds.topo.to_units("um")
+    xr.testing.assert_allclose(xtopo.validate(fixed).height, fractal_surface((8, 8), 1.0, hurst=0.8).height)
+    with pytest.raises(UnitsError, match=r"ds.topo.to_units\('um'\)"):
+        xtopo.conventions.shared_length_unit(ds.height)
+
+
+@pytest.mark.parametrize("coord", ["abc", {"a": 1}, object(), np.zeros((3, 3)), [True, False, True]])
+def test_is_uniform_refuses_what_is_no_coordinate(coord):
+    """is_uniform('abc') raised numpy's 'could not convert string to float', a dict a TypeError."""
+    with pytest.raises(GridError, match="is_uniform needs a 1D sequence of positions"):
+        xtopo.conventions.is_uniform(coord)
+
+
+@pytest.mark.parametrize("rtol", [-1.0, np.nan, "a"])
+def test_is_uniform_refuses_a_bad_tolerance(rtol):
+    with pytest.raises(XtopoError, match="rtol must be a finite number >= 0"):
+        xtopo.conventions.is_uniform([0.0, 1.0, 2.0], rtol=rtol)
+
+
+@pytest.mark.parametrize("key", [["tip_radius"], np.zeros(2), {"a": 1}, 3])
+def test_length_attr_key_must_be_a_name(key):
+    """length_attr(ds, key=[...]) raised 'unhashable type: list'."""
+    with pytest.raises(ValidationError, match="key must be the name"):
+        xtopo.conventions.length_attr(fractal_surface((8, 8), 1.0, hurst=0.8), key)

@@ -242,3 +242,90 @@ def test_prescribed_psd_of_what_is_no_dataset(ds):
     # a bare AttributeError ('NoneType' object has no attribute 'attrs')
     with pytest.raises(xtopo.XtopoError, match="carries no prescribed PSD"):
         prescribed_psd(ds)
+
+
+@pytest.mark.parametrize("shape", [10**30, (10**30, 4), 2**40, (2**31, 2**31), (2**15, 2**16)])
+def test_fractal_surface_refuses_a_shape_beyond_memory(shape):
+    """10**30 raised numpy's 'Maximum allowed size exceeded', 2**40 a MemoryError (4 TiB), (2**31, 2**31) was
+    killed by the kernel (out of memory)."""
+    with pytest.raises(xtopo.GridError, match=r"shape=.* more than the 1073741824"):
+        xtopo.datasets.fractal_surface(shape, 1.0, hurst=0.8)
+
+
+def test_nonperiodic_surface_counts_its_parent_grid():
+    """A nonperiodic window is cut from a parent four times as large: its size counts."""
+    with pytest.raises(xtopo.GridError, match="twice as large"):
+        xtopo.datasets.fractal_surface((2**15, 2**14), 1.0, hurst=0.8, periodic=False)
+
+
+@pytest.mark.parametrize("pixels", [10**30, (10**30, 4), 2**40])
+def test_measure_refuses_pixels_beyond_memory(pixels):
+    """pixels=10**30 raised OverflowError 'Python int too large to convert to C long', 2**40 a MemoryError."""
+    surface = xtopo.datasets.fractal_surface((16, 16), 1.0, hurst=0.8)
+    with pytest.raises(xtopo.GridError, match="pixels=.* more than the"):
+        xtopo.datasets.measure(surface, pixels=pixels)
+
+
+@pytest.mark.parametrize("radius", [1e30, 1e300])
+def test_a_huge_tip_records_the_highest_point(radius):
+    """tip_radius=1e30 raised numpy's 'zero-size array to reduction operation fmax' (the crop margin overflowed);
+    a flat tip rests on the highest point of the surface everywhere."""
+    for surface in (xtopo.datasets.fractal_surface((16, 16), 1.0, hurst=0.8, seed=3),
+                    xtopo.datasets.fractal_surface(32, 1.0, hurst=0.8, seed=3)):
+        out = xtopo.datasets.measure(surface, tip_radius=radius)
+        np.testing.assert_allclose(out.height.values, float(surface.height.max()), rtol=1e-12)
+
+
+def test_large_tip_dilation_is_unchanged_by_the_stable_formula():
+    surface = xtopo.datasets.fractal_surface((32, 32), 1.0, hurst=0.8, rms_height=0.01, seed=3)
+    out = xtopo.datasets.measure(surface, tip_radius=0.05)
+    h, dx = surface.height.values, 1.0 / 32
+    expected = h.copy()
+    for i in range(-32, 33):
+        for j in range(-32, 33):
+            r2 = (i * dx) ** 2 + (j * dx) ** 2
+            if r2 > 0.05 ** 2:
+                continue
+            shifted = np.full_like(h, -np.inf)
+            shifted[max(0, -i):32 - max(0, i), max(0, -j):32 - max(0, j)] = \
+                h[max(0, i):32 - max(0, -i), max(0, j):32 - max(0, -j)]
+            expected = np.maximum(expected, shifted - (0.05 - np.sqrt(0.05 ** 2 - r2)))
+    np.testing.assert_allclose(out.height.values, expected, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(hurst=None), "hurst must be a finite number in"), (dict(hurst=1.5), "hurst must be a finite number in"),
+    (dict(hurst="0.8"), "hurst must be"), (dict(prefactor=-1.0), "prefactor must be a positive"),
+    (dict(prefactor=np.nan), "prefactor must be a positive"), (dict(prefactor=[1.0]), "prefactor must be"),
+    (dict(long_cutoff=0), "long_cutoff must be a positive"), (dict(short_cutoff="a"), "short_cutoff must be"),
+    (dict(dim=3), "dim must be 1"), (dict(dim=True), "dim must be an integer"),
+])
+def test_fractal_psd_refuses_bad_parameters(kwargs, match):
+    """FractalPSD took anything (hurst=None, prefactor=-1, dim=3) and failed, if at all, in its methods."""
+    with pytest.raises(xtopo.XtopoError, match=match):
+        xtopo.datasets.FractalPSD(**{"hurst": 0.8, "prefactor": 1.0, **kwargs})
+
+
+@pytest.mark.parametrize("method", ["c_native", "c_iso", "c1d", "__call__"])
+@pytest.mark.parametrize("q", ["abc", {"a": 1}, np.nan, [1.0, np.inf], object()])
+def test_fractal_psd_refuses_wavevectors_that_are_no_numbers(method, q):
+    """q='abc' raised numpy's 'could not convert string to float', NaN gave NaN."""
+    psd = xtopo.datasets.FractalPSD(hurst=0.8, prefactor=1.0, long_cutoff=1e-6)
+    with pytest.raises(xtopo.XtopoError, match="q .wavevectors. must be finite real numbers"):
+        getattr(psd, method)(q)
+
+
+@pytest.mark.parametrize("method", ["acf", "slope"])
+@pytest.mark.parametrize("distance", ["abc", -1.0, 0.0, np.nan, np.inf, [], np.zeros((2, 2))])
+def test_fractal_psd_refuses_distances_that_are_no_lengths(method, distance):
+    """distance=inf raised numpy's 'Geometric sequence cannot include zero', [] 'zero-size array to reduction',
+    a 2D array a broadcast error; -1/0/NaN gave NaN or inf."""
+    psd = xtopo.datasets.FractalPSD(hurst=0.8, prefactor=1.0, long_cutoff=1e-6, short_cutoff=1e-8)
+    with pytest.raises(xtopo.XtopoError, match="distance must"):
+        getattr(psd, method)(distance)
+
+
+def test_fractal_psd_c1d_keeps_the_shape_of_q():
+    psd = xtopo.datasets.FractalPSD(hurst=0.8, prefactor=1.0, long_cutoff=1e-6)
+    q = np.geomspace(1e5, 1e8, 6)
+    np.testing.assert_array_equal(psd.c1d(q.reshape(2, 3)), psd.c1d(q).reshape(2, 3))

@@ -339,8 +339,8 @@ def test_average_curves_accepts_a_curve_on_a_decreasing_coordinate():
 def test_twin_average_names_a_measurement_without_data():
     s = fractal_surface((32, 32), 1.0, hurst=0.7, units="um", seed=1)
     empty = xtopo.make_measurement(np.full((8, 8), np.nan), spacing=1.0, units="um")
-    with pytest.raises(xtopo.GridError, match="measurement 'empty'.*all data are missing"):
-        xtopo.twin({"s": s, "empty": empty}).topo.psd()
+    with pytest.raises(xtopo.ValidationError, match="measurement 'empty': 'height' has no valid value"):
+        xtopo.twin({"s": s, "empty": empty})
 
 
 def test_twin_average_of_two_overlapping_crops_follows_the_whole_surface():

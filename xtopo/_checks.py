@@ -10,13 +10,15 @@ from __future__ import annotations
 import math
 import numbers
 import os
+from collections.abc import Mapping
 
 import numpy as np
+import xarray as xr
 
 from .errors import GridError, XtopoError
 
 __all__ = ["option", "flag", "integer", "positive_number", "real_number", "per_axis", "lengths", "path",
-           "make_directory", "bin_count", "MAX_SPARSE_BINS"]
+           "make_directory", "bin_count", "MAX_SPARSE_BINS", "xarray_object", "text", "mapping", "real_array"]
 
 #: a number of bins may exceed the number of values binned (most bins then stay empty) up to this many bins.
 MAX_SPARSE_BINS = 10_000
@@ -27,6 +29,30 @@ def option(value, options, name: str):
     if not isinstance(value, str) or value not in options:
         raise XtopoError(f"{name} must be one of {tuple(options)}, got {value!r}")
     return value
+
+
+def xarray_object(value, what: str, types: tuple = (xr.Dataset, xr.DataArray)):
+    """``value`` if it is one of the xarray ``types``, else an XtopoError; ``what`` names the argument."""
+    if not isinstance(value, types):
+        names = " or ".join(t.__name__ for t in types)
+        raise XtopoError(f"{what} needs an xarray {names}, got {type(value).__name__}")
+    return value
+
+
+def text(value, name: str, *, optional: bool = True):
+    """``value`` if it is a str (or None when ``optional``): a title, a label, a variable name."""
+    if isinstance(value, str) or (optional and value is None):
+        return value
+    raise XtopoError(f"{name} must be a string{' or None' if optional else ''}, got {type(value).__name__}")
+
+
+def mapping(value, name: str) -> dict:
+    """``value`` as a dict if it is a mapping (None: empty), e.g. legend labels by name."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping) or isinstance(value, (xr.Dataset, xr.DataTree)):
+        raise XtopoError(f"{name} must be a dict (or None), got {type(value).__name__}")
+    return dict(value)
 
 
 def flag(value, name: str, *, error: type[XtopoError] = XtopoError) -> bool:
@@ -126,6 +152,17 @@ def real_number(value, name: str, *, low: float = -np.inf, high: float = np.inf,
     return number
 
 
+def real_array(values) -> np.ndarray | None:
+    """``values`` as a float array (any shape) if they are real numbers (not bools, strings or objects), else None."""
+    if isinstance(values, (str, bytes)):
+        return None
+    try:
+        raw = np.asarray(values)
+        return np.asarray(raw, dtype=float) if raw.dtype.kind in "iuf" else None
+    except (TypeError, ValueError, OverflowError):
+        return None
+
+
 def lengths(values, name: str, units: str, longest: float | None = None) -> np.ndarray:
     """``values`` as a 1D float array of lengths in ``(0, longest]`` (``units`` names their unit).
 
@@ -149,11 +186,17 @@ def lengths(values, name: str, units: str, longest: float | None = None) -> np.n
 
 
 def path(value, name: str, *, kind: str = "path") -> str:
-    """``value`` as a str path if it is one (str, bytes or os.PathLike); ``kind`` says which (e.g. "file path")."""
+    """``value`` as a str path if it is one (str, bytes or os.PathLike); ``kind`` says which (e.g. "file path").
+
+    An empty path is refused: it would mean the working directory (a store or cache filling it).
+    """
     try:
-        return os.fsdecode(os.fspath(value))  # bytes too: a str, as the callers join it with str
+        text = os.fsdecode(os.fspath(value))  # bytes too: a str, as the callers join it with str
     except TypeError:
         raise XtopoError(f"{name} must be a {kind} (str or os.PathLike), got {type(value).__name__}") from None
+    if not text:
+        raise XtopoError(f"{name} must be a {kind}, got an empty string")
+    return text
 
 
 def make_directory(directory: str, what: str) -> None:

@@ -31,7 +31,7 @@ import weakref
 import numpy as np
 import xarray as xr
 
-from ._checks import integer, make_directory
+from ._checks import integer, make_directory, xarray_object
 from ._checks import path as checked_path
 from ._tokens import callable_token
 from ._version import __version__
@@ -104,7 +104,7 @@ def freeze(ds: xr.Dataset) -> xr.Dataset:
     Writing into the arrays raises ``ValueError`` (numpy refuses to make them writeable).
     Dask-backed variables are left as they are.
     """
-    out = _xarray(ds, "freeze", (xr.Dataset,)).copy(deep=False)
+    out = xarray_object(ds, "freeze", (xr.Dataset,)).copy(deep=False)
     for name, var in ds.variables.items():
         if name in ds.indexes or not isinstance(var.data, np.ndarray) or var.dtype.hasobject:
             continue
@@ -113,20 +113,12 @@ def freeze(ds: xr.Dataset) -> xr.Dataset:
     return out
 
 
-def _xarray(ds, what: str, types: tuple = (xr.Dataset, xr.DataArray)):
-    """``ds`` if it is one of ``types`` (what the cache keys and stores), else an XtopoError."""
-    if not isinstance(ds, types):
-        names = " or ".join(t.__name__ for t in types)
-        raise XtopoError(f"{what} needs an xarray {names}, got {type(ds).__name__}")
-    return ds
-
-
 def checksum(ds) -> str:
     """SHA-256 of what an analysis of ``ds`` depends on: data, coordinates and measurement attrs.
 
     Computing it loads dask-backed data.
     """
-    _xarray(ds, "checksum")
+    xarray_object(ds, "checksum")
     h = hashlib.sha256()
     items = ds.variables.items() if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable)] + [
         (k, v.variable) for k, v in ds.coords.items()]

@@ -26,7 +26,7 @@ import unicodedata
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, per_axis, positive_number, real_number
+from ._checks import flag, per_axis, positive_number, real_array, real_number
 from .errors import GridError, UnitsError, ValidationError
 
 __all__ = [
@@ -212,6 +212,21 @@ def length_units_of(obj) -> str:
     raise UnitsError("the data carry no length unit (coordinate attr 'units')")
 
 
+def _one_unit_hint(height_units, coord_units) -> str:
+    """How to make heights in ``height_units`` and coordinates in ``coord_units`` share one unit.
+
+    :func:`convert_length` (``.topo.to_units``) converts each length from its own unit, so it
+    brings both to one; a coordinate without a length unit must be labelled first.
+    """
+    try:
+        coord_units = normalize_units(coord_units)
+    except UnitsError:
+        return (f"label the coordinates with the length unit of their values, e.g. "
+                f"ds.x.attrs['units'] = {height_units!r} (.topo.to_units needs that label to convert them)")
+    return (f"convert them to one, e.g. ds.topo.to_units({coord_units!r}) (each length from its own unit), "
+            "or read the file with open_topography(..., height_units=...)")
+
+
 def shared_length_unit(h: xr.DataArray, what: str = "topography") -> str:
     """The one length unit of the heights ``h`` and their lateral coordinates (``"1"`` when none is labelled).
 
@@ -245,8 +260,9 @@ def shared_length_unit(h: xr.DataArray, what: str = "topography") -> str:
                                  f"({exc})") from None
     if len(set(labelled.values())) > 1:
         found = ", ".join(f"{name} in {u!r}" for name, u in labelled.items())
-        raise UnitsError(f"{what}: {found}; heights and positions need one length unit "
-                         "(rescale the heights or the coordinates so that they agree, e.g. with .topo.to_units)")
+        coord = next(u for name, u in labelled.items() if name != "height")
+        raise UnitsError(f"{what}: {found}; heights and positions need one length unit: "
+                         f"{_one_unit_hint(labelled.get('height'), coord)}")
     return next(iter(labelled.values()), "1")
 
 
@@ -266,7 +282,10 @@ def is_nonuniform(obj) -> bool:
 
 def is_uniform(coord, rtol: float = 1e-6) -> bool:
     """True if the coordinate values are equally spaced within ``rtol``."""
-    v = np.asarray(coord, dtype=float)
+    v = real_array(coord)
+    if v is None or v.ndim != 1:
+        raise GridError(f"is_uniform needs a 1D sequence of positions (a coordinate), got {coord!r}")
+    rtol = real_number(rtol, "rtol", low=0.0)
     if v.size < 3:
         return True
     d = np.diff(v)
@@ -365,6 +384,8 @@ def length_attr(obj, key: str):
     ValidationError
         If the attribute is not a positive finite number.
     """
+    if not isinstance(key, str):
+        raise ValidationError(f"key must be the name (str) of a length attribute, e.g. 'tip_radius', got {key!r}")
     value = obj.attrs.get(key)
     if value is None:
         return None
@@ -574,6 +595,13 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
     if lat not in ((Y, X), (X,)):
         raise ValidationError(f"{HEIGHT!r} must have lateral dims ('y', 'x') or ('x',) in that order, got {h.dims}")
     _check_height_values(h)
+    if h.chunks is None:  # lazy (dask) data are not read just to check them
+        missing = np.isnan(np.asarray(h.values, dtype=float))
+        if MASK in ds and ds[MASK].dtype == bool and ds[MASK].dims == h.dims:
+            missing |= np.asarray(ds[MASK].values)
+        if missing.all():
+            raise ValidationError(f"{HEIGHT!r} has no valid value: all {h.size} points are NaN or masked; "
+                                  "this is no measurement")
     try:
         units = normalize_units(h.attrs.get("units"))
     except UnitsError as exc:
@@ -587,8 +615,8 @@ def validate(ds: xr.Dataset) -> xr.Dataset:
         except UnitsError:
             same = False
         if not same:
-            raise ValidationError(f"coordinate {dim!r} has units {cu!r}, but heights are in {units!r}; "
-                                  "one length unit per dataset (use .topo.to_units)")
+            raise ValidationError(f"coordinate {dim!r} has units {cu!r}, but heights are in {units!r}; one length "
+                                  f"unit per dataset: {_one_unit_hint(units, cu)}")
         v = np.asarray(ds.coords[dim].values, dtype=float)
         if v.size > 1 and np.any(np.diff(v) <= 0):
             raise ValidationError(f"coordinate {dim!r} must be strictly increasing")

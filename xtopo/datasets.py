@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, integer, option, per_axis, positive_number, real_number
+from ._checks import flag, integer, lengths, option, per_axis, positive_number, real_array, real_number
 from ._kernels import fft as _fft
 from ._kernels.derivatives import fourier_first, wavevectors
 from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
@@ -27,8 +28,13 @@ from .errors import GridError, XtopoError
 __all__ = ["FractalPSD", "fractal_surface", "prescribed_psd", "sphere", "sinusoid", "measure", "example_twin"]
 
 
+#: most points of a synthetic surface or simulated measurement (8 GiB per float64 array)
+MAX_POINTS = 2**30
+
+
 def _shape(shape, name: str = "shape") -> tuple[int, ...]:
-    """``shape`` as ``(nx,)`` or ``(ny, nx)`` of positive ints (an int, a tuple, a list or an array of them)."""
+    """``shape`` as ``(nx,)`` or ``(ny, nx)`` of positive ints (an int, a tuple, a list or an array of them),
+    of at most :data:`MAX_POINTS` points."""
     if isinstance(shape, np.ndarray):
         items = (shape.item(),) if shape.ndim == 0 else tuple(shape.ravel()) if shape.ndim == 1 else None
     elif isinstance(shape, (tuple, list)):
@@ -37,7 +43,11 @@ def _shape(shape, name: str = "shape") -> tuple[int, ...]:
         items = (shape,)
     if items is None or len(items) not in (1, 2):
         raise GridError(f"{name} must be nx, (nx,) or (ny, nx), got {shape!r}")
-    return tuple(integer(n, f"each entry of {name}", error=GridError) for n in items)
+    out = tuple(integer(n, f"each entry of {name}", error=GridError) for n in items)
+    if math.prod(out) > MAX_POINTS:
+        raise GridError(f"{name}={shape!r} is {math.prod(out):.3g} points, more than the {MAX_POINTS} (8 GiB per "
+                        "float64 array) a synthetic surface or measurement may have")
+    return out
 
 
 def _optional_length(value, name: str):
@@ -71,6 +81,17 @@ class FractalPSD:
     short_cutoff: float | None = None
     dim: int = 2
 
+    def __post_init__(self):
+        checked = {"hurst": real_number(self.hurst, "hurst", low=0.0, high=1.0, closed=False),
+                   "prefactor": positive_number(self.prefactor, "prefactor"),
+                   "long_cutoff": _optional_length(self.long_cutoff, "long_cutoff"),
+                   "short_cutoff": _optional_length(self.short_cutoff, "short_cutoff"),
+                   "dim": integer(self.dim, "dim")}
+        if checked["dim"] not in (1, 2):
+            raise XtopoError(f"dim must be 1 (line scans) or 2 (areas), got {self.dim!r}")
+        for key, value in checked.items():  # frozen: set the checked values as the dataclass would
+            object.__setattr__(self, key, value)
+
     @property
     def q_long(self) -> float:
         return 0.0 if self.long_cutoff is None else 2 * np.pi / self.long_cutoff
@@ -80,7 +101,7 @@ class FractalPSD:
         return np.inf if self.short_cutoff is None else 2 * np.pi / self.short_cutoff
 
     def _shape(self, q, exponent):
-        q = np.abs(np.asarray(q, dtype=float))
+        q = np.abs(_finite_values(q, "q (wavevectors)"))
         qq = np.maximum(q, self.q_long) if self.q_long > 0 else q
         with np.errstate(divide="ignore"):
             c = np.where(qq > 0, qq ** np.where(qq > 0, exponent, 0.0), 0.0)
@@ -101,7 +122,8 @@ class FractalPSD:
         """1D PSD of profiles: ``C1D(q) = (1/π) ∫_0^∞ C_iso(√(q²+k²)) dk`` for areas."""
         if self.dim == 1:
             return self.c_native(q)
-        q = np.atleast_1d(np.abs(np.asarray(q, dtype=float)))
+        q = np.atleast_1d(np.abs(_finite_values(q, "q (wavevectors)")))
+        shape, q = q.shape, q.ravel()
         kmax = np.sqrt(np.maximum(self.q_short**2 - q**2, 0.0)) if np.isfinite(self.q_short) else None
         # Gauss-Legendre in t with k = q_ref * sinh(t) resolves the kink at q_L and the tail.
         t, w = _gauss_legendre(nodes)
@@ -118,7 +140,7 @@ class FractalPSD:
             # kink at k where sqrt(q²+k²) = q_L: split there for accuracy
             vals = self.c_native(np.sqrt(qi**2 + k**2))
             out[i] = np.sum(w * vals * jac) / np.pi
-        return out
+        return out.reshape(shape)
 
     def acf(self, distance, *, q_max: float | None = None, nodes: int = 4000):
         """Height-difference ACF of profiles, ``A(ℓ) = (1/π) ∫_0^∞ C1D(q) (1 - cos qℓ) dq`` (paper eq. 11).
@@ -126,7 +148,11 @@ class FractalPSD:
         ``q_max`` truncates the integral (e.g. at the Nyquist wavevector of the grid the
         surface was synthesised on); default: the short cutoff or 10⁴/min(ℓ).
         """
-        ell = np.atleast_1d(np.asarray(distance, dtype=float))
+        ell = lengths(distance, "distance", "the PSD's length unit")
+        if not ell.size:
+            raise XtopoError("distance must hold at least one length, got none")
+        if q_max is not None:
+            q_max = positive_number(q_max, "q_max")
         top = q_max if q_max is not None else (self.q_short if np.isfinite(self.q_short) else 1e4 / ell.min())
         bottom = min(self.q_long if self.q_long > 0 else np.inf, 1.0 / ell.max()) * 1e-4
         lq = np.linspace(np.log(bottom), np.log(top), nodes)
@@ -138,7 +164,7 @@ class FractalPSD:
 
     def slope(self, distance, **kw):
         """Scale-dependent RMS slope of profiles, ``sqrt(2 A(ℓ))/ℓ`` (paper §4.7)."""
-        ell = np.atleast_1d(np.asarray(distance, dtype=float))
+        ell = lengths(distance, "distance", "the PSD's length unit")
         return np.sqrt(2 * self.acf(ell, **kw)) / ell
 
     def __call__(self, q, kind: str = "native"):
@@ -150,6 +176,14 @@ class FractalPSD:
                 "psd_long_cutoff": np.nan if self.long_cutoff is None else self.long_cutoff,
                 "psd_short_cutoff": np.nan if self.short_cutoff is None else self.short_cutoff,
                 "psd_dim": self.dim}
+
+
+def _finite_values(values, name: str) -> np.ndarray:
+    """``values`` as a float array of finite real numbers (any shape), else an XtopoError naming ``name``."""
+    v = real_array(values)
+    if v is None or not np.all(np.isfinite(v)):
+        raise XtopoError(f"{name} must be finite real numbers, got {values!r}")
+    return v
 
 
 def prescribed_psd(ds) -> FractalPSD:
@@ -232,6 +266,9 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
     units = normalize_units(units)
     spacings = size / np.asarray(shape)
     gshape = shape if periodic else tuple(2 * n for n in shape)
+    if math.prod(gshape) > MAX_POINTS:
+        raise GridError(f"shape={shape!r}: a nonperiodic window is cut from a periodic surface twice as large "
+                        f"({gshape}), more than the {MAX_POINTS} points a synthetic surface may have")
     gsize = size if periodic else 2 * size
     dim = len(shape)
     psd = FractalPSD(hurst, 1.0, long_cutoff, short_cutoff, dim)
@@ -370,10 +407,28 @@ def sinusoid(shape, size, *, amplitude: float = 1.0, wavelength: float | None = 
     return ds
 
 
+def _tip_reach(h: np.ndarray, radius: float) -> float:
+    """Lateral distance within which a sphere of ``radius`` touching ``h`` can be lifted by another point.
+
+    ``sqrt(r² - (r - ptp)²)`` written as ``sqrt(ptp (2r - ptp))``: ``r²`` overflows for a huge (flat) tip.
+    """
+    ptp = float(np.nanmax(h) - np.nanmin(h)) if h.size else 0.0
+    return radius if ptp >= radius else float(np.sqrt(ptp * (2 * radius - ptp)))
+
+
+def _sphere_drop(radius: float, d2):
+    """How far below its apex a sphere of ``radius`` is at squared lateral distance ``d2`` (≤ radius²).
+
+    ``r - sqrt(r² - d²)`` written as ``d² / (r + sqrt(r - d) sqrt(r + d))``: no overflow of ``r²``, no
+    cancellation for a large tip.
+    """
+    d = np.sqrt(d2)
+    return d2 / (radius + np.sqrt(radius - d) * np.sqrt(radius + d))
+
+
 def _tip_dilate_line(h: np.ndarray, dx: float, radius: float) -> np.ndarray:
     """Morphological dilation of profiles ``h[..., n]`` by a sphere of ``radius`` (apex at the origin)."""
-    ptp = float(np.nanmax(h) - np.nanmin(h)) if h.size else 0.0
-    reach = radius if ptp >= radius else np.sqrt(max(radius**2 - (radius - ptp) ** 2, 0.0))
+    reach = _tip_reach(h, radius)
     k = int(np.ceil(reach / dx))
     out = h.copy()
     n = h.shape[-1]
@@ -381,7 +436,7 @@ def _tip_dilate_line(h: np.ndarray, dx: float, radius: float) -> np.ndarray:
         d = s * dx
         if d > radius:
             break
-        drop = radius - np.sqrt(radius**2 - d**2)
+        drop = _sphere_drop(radius, d**2)
         np.maximum(out[..., :-s], h[..., s:] - drop, out=out[..., :-s])
         np.maximum(out[..., s:], h[..., :-s] - drop, out=out[..., s:])
     return out
@@ -389,8 +444,7 @@ def _tip_dilate_line(h: np.ndarray, dx: float, radius: float) -> np.ndarray:
 
 def _tip_dilate_area(h: np.ndarray, dy: float, dx: float, radius: float) -> np.ndarray:
     """Dilation of a map ``h[ny, nx]`` by a spherical tip; only offsets whose drop can matter are visited."""
-    ptp = float(np.nanmax(h) - np.nanmin(h))
-    reach = radius if ptp >= radius else np.sqrt(max(radius**2 - (radius - ptp) ** 2, 0.0))
+    reach = _tip_reach(h, radius)
     ky, kx = int(np.ceil(reach / dy)), int(np.ceil(reach / dx))
     out = h.copy()
     ny, nx = h.shape
@@ -399,7 +453,7 @@ def _tip_dilate_area(h: np.ndarray, dy: float, dx: float, radius: float) -> np.n
             r2 = (i * dy) ** 2 + (j * dx) ** 2
             if (i == 0 and j == 0) or r2 > reach**2:
                 continue
-            drop = radius - np.sqrt(radius**2 - r2)
+            drop = _sphere_drop(radius, r2)
             # out[y, x] = max(out[y, x], h[y+i, x+j] - drop)
             ys_o = slice(max(0, -i), ny - max(0, i))
             xs_o = slice(max(0, -j), nx - max(0, j))
@@ -501,7 +555,7 @@ def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_rad
     # crop with a margin of one tip reach so the dilation near the window edge sees its neighbours
     margin = np.zeros(len(dims), dtype=int)
     if tip_radius is not None:
-        margin = np.ceil(tip_radius / sp).astype(int)
+        margin = np.minimum(np.ceil(tip_radius / sp), n).astype(int)  # a huge tip reaches the whole surface
     lo = np.maximum(np.floor(offset / sp).astype(int) - margin, 0)
     hi = np.minimum(np.ceil((offset + size) / sp).astype(int) + 1 + margin, n)
     crop = values[tuple(slice(a, b) for a, b in zip(lo, hi))]

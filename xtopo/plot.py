@@ -28,9 +28,9 @@ import warnings
 import numpy as np
 import xarray as xr
 
-from ._checks import integer
+from ._checks import integer, mapping, positive_number, text, xarray_object
 from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
-from .errors import UnitsError, XtopoError
+from .errors import GridError, UnitsError, XtopoError
 
 __all__ = ["plot", "topography", "curve", "spectrum_map", "twin_curves", "contact_area", "contact_maps",
            "measurement_maps", "downsample", "unit_label", "PALETTE"]
@@ -153,6 +153,7 @@ def downsample(da: xr.DataArray, max_pixels: int = MAX_PIXELS) -> xr.DataArray:
         Largest number of points per lateral dimension (at least 2).
     """
     max_pixels = integer(max_pixels, "max_pixels", minimum=2)
+    xarray_object(da, "downsample()", (xr.DataArray,))
     factors = {d: math.ceil(da.sizes[d] / max_pixels) for d in LATERAL_DIMS if d in da.dims}
     factors = {d: f for d, f in factors.items() if f > 1}
     if da.dtype == bool:
@@ -163,6 +164,28 @@ def downsample(da: xr.DataArray, max_pixels: int = MAX_PIXELS) -> xr.DataArray:
     out.name = da.name
     out.attrs = dict(da.attrs, downsampled=f"block mean over {factors}")
     return out
+
+
+def _cmap(cmap):
+    """``cmap`` if HoloViews knows it as a colour map (a name or a list of colours), else an XtopoError."""
+    from holoviews.plotting.util import process_cmap
+
+    try:
+        colours = process_cmap(cmap)
+    except (TypeError, ValueError, KeyError) as exc:
+        raise XtopoError(f"cmap={cmap!r} is not a colour map ({exc})") from None
+    if not len(colours):
+        raise XtopoError("cmap=[] has no colours; give a colour map name like 'viridis' or a list of colours")
+    return cmap
+
+
+def _color(color):
+    """``color`` if it is None or a colour name or hex string both plotting backends accept."""
+    from bokeh.core.properties import Color
+
+    if color is not None and not (isinstance(color, str) and Color().is_valid(color)):
+        raise XtopoError(f"color must be a colour name or hex string like '#1f77b4' (or None), got {color!r}")
+    return color
 
 
 def _frame(x, y) -> dict:
@@ -204,6 +227,7 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
     """
     hv = _hv()
     max_pixels = integer(max_pixels, "max_pixels", minimum=2)  # also for profiles, which do not use it
+    cmap, title, variable = _cmap(cmap), text(title, "title"), text(variable, "variable", optional=False)
     if isinstance(obj, xr.Dataset):
         from .conventions import height_of
 
@@ -223,6 +247,9 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
     if extra:
         raise XtopoError(f"{da.name!r} has dims {extra} besides the lateral ones; select one item first, "
                          f"e.g. .isel({extra[0]}=0)")
+    if any(da.sizes[d] < 2 for d in lat):
+        raise GridError(f"{da.name!r} has {dict(da.sizes)} points; a map or profile needs at least 2 along "
+                        f"{' and '.join(lat)}")
     name = str(da.name or "value")
     units = da.attrs.get("units")
     small = downsample(da, max_pixels if len(lat) == 2 else MAX_POINTS)
@@ -269,6 +296,10 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
 def spectrum_map(da: xr.DataArray, *, max_pixels: int = MAX_PIXELS, cmap: str = "inferno", title: str | None = None):
     """A 2D power spectrum on ``(q_y, q_x)`` with a logarithmic colour scale."""
     hv = _hv()
+    xarray_object(da, "spectrum_map()", (xr.DataArray,))
+    cmap, title = _cmap(cmap), text(title, "title")
+    if "q_x" not in da.dims or "q_y" not in da.dims:
+        raise XtopoError(f"spectrum_map() needs a 2D power spectrum on (q_y, q_x), got {da.name!r} with dims {da.dims}")
     small = downsample(da.rename({"q_y": Y, "q_x": X}), max_pixels).rename({Y: "q_y", X: "q_x"})
     z = _values(small).astype(np.float32)
     z = np.where(z > 0, z, np.nan)
@@ -283,6 +314,7 @@ def spectrum_map(da: xr.DataArray, *, max_pixels: int = MAX_PIXELS, cmap: str = 
 # --------------------------------------------------------------------------- curves
 
 def _curve_dim(da) -> str:
+    xarray_object(da, "a curve", (xr.DataArray,))
     dims = [d for d in da.dims if d in CURVE_COORDS]
     if len(dims) != 1:
         raise XtopoError(f"{da.name!r} is not a scale-dependent curve: expected one of the dims "
@@ -297,10 +329,11 @@ def _cutoff_of(da, cutoff):
             cutoff = da.coords["reliability_cutoff"]
         else:
             cutoff = da.attrs.get("reliability_cutoff")
-    if cutoff is None:
-        return None
-    value = float(np.asarray(getattr(cutoff, "values", cutoff)))
-    return value if np.isfinite(value) and value > 0 else None
+        if cutoff is None:
+            return None
+        value = float(np.asarray(getattr(cutoff, "values", cutoff)))
+        return value if np.isfinite(value) and value > 0 else None
+    return positive_number(getattr(cutoff, "values", cutoff), "cutoff (a length in the curve's length unit)")
 
 
 def _positive(x, y):
@@ -370,6 +403,9 @@ def curve(da: xr.DataArray, *, cutoff=None, title: str | None = None, label: str
     hv = _hv()
     coord = _curve_dim(da)
     cut = _cutoff_of(da, cutoff)
+    title, label, color = text(title, "title"), text(label, "label"), _color(color)
+    if da.sizes[coord] == 0:
+        raise XtopoError(f"{da.name!r} has no points along {coord!r}; nothing to draw")
     xdim = _dimension(coord, da[coord].attrs)
     ydim = _dimension(str(da.name or "value"), da.attrs)
     da = da.transpose(..., coord)
@@ -415,6 +451,8 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
     holoviews.Overlay
     """
     hv = _hv()
+    xarray_object(ds, "twin_curves()", (xr.Dataset,))
+    labels, title = mapping(labels, "labels"), text(title, "title")
     if "average" not in ds or "curves" not in ds:
         raise XtopoError(f"twin_curves() needs a twin average with 'average' and 'curves' (got {list(ds.data_vars)})")
     coord = _curve_dim(ds["average"])
@@ -423,7 +461,6 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
     yname = str(curves.name or "value")
     ydim = _dimension(yname, curves.attrs or ds["average"].attrs)
     x = np.asarray(ds[coord].values, dtype=float)
-    labels = labels or {}
     elements = []
     values = _values(curves)
     for k, name in enumerate(np.asarray(curves["measurement"].values)):
@@ -472,7 +509,13 @@ def contact_area(results, *, labels=None, title: str | None = None, x: str = "me
     hv = _hv()
     if isinstance(results, xr.Dataset):
         results = {"": results}
-    labels = labels or {}
+    results = mapping(results, "results")
+    labels, title = mapping(labels, "labels"), text(title, "title")
+    x, y = text(x, "x", optional=False), text(y, "y", optional=False)
+    if not results:
+        raise XtopoError("contact_area() needs at least one contact result")
+    for key, ds in results.items():
+        xarray_object(ds, f"contact_area() result {key!r}", (xr.Dataset,))
     elements = []
     for k, (key, ds) in enumerate(results.items()):
         for v in (x, y):
@@ -524,7 +567,17 @@ def contact_maps(ds: xr.Dataset, *, variables=("pressure", "gap", "contact"), st
     holoviews.Layout
     """
     hv = _hv()
+    xarray_object(ds, "contact_maps()", (xr.Dataset,))
+    variables = [variables] if isinstance(variables, str) else variables
+    if not isinstance(variables, (list, tuple)) or not variables:
+        raise XtopoError(f"variables must be a name or a non-empty list of names of maps, got {variables!r}")
+    for v in variables:
+        text(v, "each of variables", optional=False)
     dim = _contact_steps_dim(ds)
+    steps = 1 if dim is None else ds.sizes[dim]
+    if integer(step, "step", minimum=-steps) >= steps:
+        raise XtopoError(f"step must be an index of the {steps} step(s) of the result (-{steps} to {steps - 1}), "
+                         f"got {step!r}")
     if dim is not None:
         ds = ds.isel({dim: step})
     panels = []
@@ -557,7 +610,12 @@ def measurement_maps(tree, *, max_pixels: int = 256, cols: int = 3):
     hv = _hv()
     from .twins import measurements
 
-    ms = measurements(tree) if isinstance(tree, xr.DataTree) else dict(tree)
+    ms = measurements(tree) if isinstance(tree, xr.DataTree) else mapping(tree, "measurement_maps() tree")
+    cols = integer(cols, "cols")
+    if not ms:
+        raise XtopoError("measurement_maps() needs at least one measurement; the twin has none")
+    for name, ds in ms.items():
+        xarray_object(ds, f"measurement_maps() measurement {name!r}", (xr.Dataset, xr.DataArray))
     panels = [topography(ds, max_pixels=max_pixels, title=name) for name, ds in ms.items()]
     return hv.Layout(panels).cols(cols)
 

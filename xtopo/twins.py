@@ -87,7 +87,10 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
             raise ValidationError(f"measurement {key!r} must be an xarray.Dataset or a file path, got "
                                   f"{type(m).__name__}")
         ds = m if isinstance(m, xr.Dataset) else _open_lazily(os.fspath(m))
-        validate(ds)
+        try:
+            validate(ds)
+        except ValidationError as exc:
+            raise ValidationError(f"measurement {key!r}: {exc}") from None
         if isinstance(key, str):
             node = safe_name(key)
         elif isinstance(m, xr.Dataset):

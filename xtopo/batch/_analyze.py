@@ -14,10 +14,13 @@ from ._engine import run
 __all__ = ["analyze"]
 
 
-def _available_analyses() -> list[str]:
+@functools.lru_cache(maxsize=1)
+def _available_analyses() -> tuple[str, ...]:
+    """The :mod:`xtopo.analysis` modules that hold a function of their name (what ``analyses`` may name)."""
     from .. import analysis
 
-    return sorted(m.name for m in pkgutil.iter_modules(analysis.__path__) if not m.name.startswith("_"))
+    names = sorted(m.name for m in pkgutil.iter_modules(analysis.__path__) if not m.name.startswith("_"))
+    return tuple(n for n in names if callable(getattr(importlib.import_module(f"xtopo.analysis.{n}"), n, None)))
 
 
 def _resolve_analysis(analysis):
@@ -25,12 +28,10 @@ def _resolve_analysis(analysis):
     if callable(analysis):
         return analysis
     name = str(analysis)
-    try:
-        module = importlib.import_module(f"xtopo.analysis.{name}")
-        return getattr(module, name)
-    except (ImportError, AttributeError):
-        raise XtopoError(f"unknown analysis {name!r}; available: {', '.join(_available_analyses())} "
-                         "(or pass a function)") from None
+    if name in _available_analyses():
+        return getattr(importlib.import_module(f"xtopo.analysis.{name}"), name)
+    raise XtopoError(f"unknown analysis {name!r}; available: {', '.join(_available_analyses())} "
+                     "(or pass a function)")
 
 
 def _analysis_label(analysis) -> str:
@@ -72,7 +73,13 @@ def analyze(measurements, analyses=("scalars",), *, chunks=None, client=None, sc
     xarray.Dataset
         Results along ``measurement`` plus ``error``, in the units the analyses give; see :func:`run`.
     """
-    analyses = tuple(analyses)
+    if isinstance(analyses, str) or callable(analyses):
+        analyses = (analyses,)
+    try:
+        analyses = tuple(analyses)
+    except TypeError:
+        raise XtopoError(f"analyses must be a name, a function or a sequence of them, got "
+                         f"{type(analyses).__name__}") from None
     if not analyses:
         raise XtopoError("give at least one analysis")
     for a in analyses:

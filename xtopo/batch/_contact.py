@@ -231,7 +231,8 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
     tol, maxiter = solver_parameters(tol, maxiter)
     maps = flag(maps, "maps")
-    run_options(control, workers, fft_threads, retries, progress, values)  # a 1D, non-empty sequence
+    # values: a 1D, non-empty sequence
+    run_options(_contact_item, control, None, workers, fft_threads, retries, progress, values)
     values = [control_value(control, v, hardness) for v in np.atleast_1d(np.asarray(values, dtype=object))]
     scene = {"modulus": modulus}
     if hardness is not None:

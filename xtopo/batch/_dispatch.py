@@ -56,6 +56,11 @@ def _active_client():
 def _client_for(client, scheduler, workers):
     """The distributed client to use (None: a local dask scheduler), closing any we open."""
     if client is not None:
+        from distributed import Client
+
+        if not isinstance(client, Client):
+            raise XtopoError(f"client must be a distributed.Client, got {type(client).__name__}; give scheduler= "
+                             "for a local scheduler or a scheduler address")
         yield client
         return
     if scheduler is None:
@@ -81,9 +86,9 @@ def _client_for(client, scheduler, workers):
                          "or a scheduler address like 'tcp://host:8786'")
     try:
         c = Client(scheduler)  # connect timeout: dask config distributed.comm.timeouts.connect
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:  # ValueError: an address without host or port
         raise XtopoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}. Is `dask scheduler` "
-                         "running there, and are workers attached (`dask worker {scheduler}`)?") from None
+                         f"running there, and are workers attached (`dask worker {scheduler}`)?") from None
     try:
         yield c
     finally:

@@ -15,6 +15,7 @@ import os
 
 import xarray as xr
 
+from .._checks import path as checked_path
 from ..errors import XtopoError
 from ..preprocess import checked_steps
 from ._dispatch import execute, fft_env
@@ -164,7 +165,7 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
     Other parameters and the result are those of :func:`run`.
     """
     names, sources = names_and_sources(measurements)
-    params = run_options(dim, workers, fft_threads, retries, progress, params)
+    params = run_options(func, dim, dim_attrs, workers, fft_threads, retries, progress, params)
     read_options = checked_read_options(read_options)
     steps = checked_steps(preprocess)
     store_obj = Store(store) if store is not None else None
@@ -221,24 +222,30 @@ def open_store(directory) -> xr.Dataset:
         The result the run gave (without its run attributes: ``n_failed``, ``chunks_computed``,
         ...). Chunks not (yet) in the store show up with error ``'not computed'`` and NaN results.
     """
-    store = Store(directory)
+    where = os.path.abspath(checked_path(directory, "open_store() directory", kind="directory path"))
+    if not os.path.isdir(where):
+        raise XtopoError(f"no batch store at {where}: not a directory (a batch run's store= creates it)")
+    store = Store(where)
+    where = f"batch store {store.directory} ({MANIFEST})"
     try:
         with open(os.path.join(store.directory, MANIFEST)) as f:
             manifest = json.load(f)
     except (OSError, ValueError) as exc:
         raise XtopoError(f"{directory} is not a readable xtopo batch store ({MANIFEST}: {exc})") from None
-    dim, params, names, sources = manifest["dim"], manifest["params"], manifest["measurements"], manifest["sources"]
-    blocks = []
-    for row in manifest["chunks"]:
-        brow = []
-        for c in row:
-            try:
-                block = store.read(c["key"])
-            except Exception:
-                (i0, i1), p = c["m"], c["p"]
-                block = failure_block(names[i0:i1], sources[i0:i1], None if p is None else params[p[0]:p[1]], dim,
-                                      "not computed")
-            brow.append(block)
-        blocks.append(brow)
-    return _assemble(blocks, dim, params is not None, manifest.get("dim_attrs"), manifest.get("finish"),
-                     where=f"batch store {store.directory} ({MANIFEST})")
+    try:
+        dim, params, names, sources = (manifest["dim"], manifest["params"], manifest["measurements"],
+                                       manifest["sources"])
+        blocks = [[_stored_block(store, c, names, sources, params, dim) for c in row] for row in manifest["chunks"]]
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        raise XtopoError(f"{where} is damaged or not a batch manifest ({type(exc).__name__}: {exc})") from None
+    return _assemble(blocks, dim, params is not None, manifest.get("dim_attrs"), manifest.get("finish"), where=where)
+
+
+def _stored_block(store, chunk: dict, names, sources, params, dim) -> xr.Dataset:
+    """One chunk of a store's manifest: its file, or a 'not computed' block where it is missing or unreadable."""
+    try:
+        return store.read(chunk["key"])
+    except Exception:
+        (i0, i1), p = chunk["m"], chunk["p"]
+        return failure_block(names[i0:i1], sources[i0:i1], None if p is None else params[p[0]:p[1]], dim,
+                             "not computed")

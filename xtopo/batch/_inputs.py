@@ -14,7 +14,7 @@ import os
 import numpy as np
 import xarray as xr
 
-from .._checks import flag, integer
+from .._checks import flag, integer, mapping
 from ..errors import XtopoError
 from ._results import ERROR, HISTORY, MEASUREMENT, SOURCE
 
@@ -34,7 +34,11 @@ def names_and_sources(measurements) -> tuple[list[str], list]:
     elif isinstance(measurements, (str, os.PathLike, xr.Dataset)):
         items = [(None, measurements)]
     else:
-        items = [(None, m) for m in measurements]
+        try:
+            items = [(None, m) for m in measurements]
+        except TypeError:
+            raise XtopoError(f"measurements must be a Dataset, a file path, or a mapping, DataTree or sequence of "
+                             f"them, got {type(measurements).__name__}") from None
     if not items:
         raise XtopoError("a batch needs at least one measurement (a Dataset or a file path)")
     names, sources, seen = [], [], set()
@@ -57,8 +61,11 @@ def names_and_sources(measurements) -> tuple[list[str], list]:
     return names, sources
 
 
-def run_options(dim, workers, fft_threads, retries, progress, params) -> list | None:
+def run_options(func, dim, dim_attrs, workers, fft_threads, retries, progress, params) -> list | None:
     """The run options checked; returns ``params`` (the parameter values along ``dim``) as a list, or None."""
+    if not callable(func):
+        raise XtopoError(f"func must be a function to run on each measurement, got {type(func).__name__}")
+    mapping(dim_attrs, "dim_attrs")
     reserved = (MEASUREMENT, ERROR, HISTORY, SOURCE)
     if not isinstance(dim, str) or not dim or dim in reserved:
         raise XtopoError(f"dim must be a name (str) other than {', '.join(map(repr, reserved))}, got {dim!r}")
@@ -108,10 +115,11 @@ def checked_read_options(read_options) -> dict:
                          f"{type(read_options).__name__}")
     if not read_options:
         return {}
-    from ..io.open import open_topography
+    from ..io.open import check_options, open_topography
 
     allowed = [k for k, v in inspect.signature(open_topography).parameters.items() if v.kind is v.KEYWORD_ONLY]
     unknown = sorted(set(read_options) - set(allowed))
     if unknown:
         raise XtopoError(f"read_options {unknown} are not options of xtopo.open_topography ({', '.join(allowed)})")
+    check_options("read_options", read_options)
     return dict(read_options)

@@ -13,7 +13,7 @@ from ..conventions import physical_size as _physical_size
 from ..errors import GridError, ReaderError, UnitsError, UnsupportedFormatError, XtopoError
 from .registry import READ_OPTIONS, ChannelInfo, detect
 
-__all__ = ["open_topography", "channels", "sha256"]
+__all__ = ["open_topography", "channels", "sha256", "check_options"]
 
 
 def sha256(path) -> str:
@@ -131,6 +131,26 @@ def _arguments(path, units, periodic, **lengths):
     given = {key: positive_number(val, f"{path}: {key} (a length in the result's units)")
              for key, val in lengths.items() if val is not None}
     return units, periodic, given
+
+
+def check_options(where: str, options: dict) -> None:
+    """The values of :func:`open_topography`'s keyword ``options`` checked without reading a file.
+
+    For options given once for many files (a batch's ``read_options``): a bad value fails before
+    any file is read; ``where`` names the options in the error.
+    """
+    _arguments(where, options.get("units", "m"), options.get("periodic"), tip_radius=options.get("tip_radius"),
+               resolution=options.get("resolution"))
+    _size_option(where, options.get("physical_size"))
+    for key in ("file_units", "height_units"):
+        if options.get(key) is not None:
+            try:
+                normalize_units(options[key])
+            except UnitsError as exc:
+                raise UnitsError(f"{where}: {key}={options[key]!r} is not a length unit ({exc})") from None
+    fmt = options.get("format")
+    if fmt is not None:
+        detect(where, fmt)
 
 
 def _path(path) -> str:
