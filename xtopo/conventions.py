@@ -93,7 +93,7 @@ def normalize_units(units) -> str:
     if units is None:
         raise UnitsError("no length unit given")
     if not isinstance(units, str):  # str() made 5, True, b'um' or an array a unit pint failed to parse
-        raise UnitsError(f"a length unit must be a string such as 'm' or 'um', not a {type(units).__name__}")
+        raise UnitsError(f"a length unit must be a string such as 'm' or 'um', not {type(units).__name__}")
     u = units.strip()
     u = _UNIT_ALIASES.get(u, u).replace("µ", "u").replace("μ", "u")
     _length_in_m(u)
