@@ -522,3 +522,25 @@ def test_line_positions_near_the_float_limit_warn_nothing(tmp_path):
         ds = _open(p, file_units="um")
     np.testing.assert_array_equal(ds.x.values, [0.0, 1e308, 1.7e308])
     np.testing.assert_array_equal(ds.height.values, [1.0, 2.0, 3.0])
+
+
+@pytest.mark.parametrize("drop, match", [(5, "drop_variables must be a variable name or a list of names, got int"),
+                                         (object(), "drop_variables must be .* got object"),
+                                         ([["mask"]], "drop_variables item must be a string, got list"),
+                                         (np.array([1, 2]), "drop_variables item must be a string, got int64")])
+def test_xarray_backend_refuses_drop_variables_that_are_no_names(tmp_path, heights, drop, match):
+    """xr.open_dataset(engine="xtopo", drop_variables=5) silently ignored it (xarray's own engines raise);
+    an array of names raised numpy's 'truth value ambiguous'."""
+    np.save(tmp_path / "a.npy", heights)
+    with pytest.raises(XtopoError, match=match):
+        xr.open_dataset(tmp_path / "a.npy", engine="xtopo", physical_size=(5.0, 7.0), file_units="um",
+                        drop_variables=drop)
+
+
+@pytest.mark.parametrize("drop", ["height", ["height"], np.array(["height", "nothing"]), ()])
+def test_xarray_backend_drops_the_variables_named(tmp_path, heights, drop):
+    np.save(tmp_path / "a.npy", heights)
+    kw = dict(physical_size=(5.0, 7.0), file_units="um")
+    ds = xr.open_dataset(tmp_path / "a.npy", engine="xtopo", drop_variables=drop, **kw)
+    full = xtopo.open_topography(tmp_path / "a.npy", **kw)
+    xr.testing.assert_identical(ds, full.drop_vars(["height"] if len(drop) else []))
