@@ -285,3 +285,23 @@ def test_length_attr_key_must_be_a_name(key):
     """length_attr(ds, key=[...]) raised 'unhashable type: list'."""
     with pytest.raises(ValidationError, match="key must be the name"):
         xtopo.conventions.length_attr(fractal_surface((8, 8), 1.0, hurst=0.8), key)
+
+
+@pytest.mark.parametrize("units", [b"um", 5, True, ["um"], np.array(["um"]), 1 + 2j])
+def test_a_unit_that_is_not_a_string_is_refused(units):
+    """A non-string unit was str()-ed and handed to pint: b'um' became "b'um'", and the messages quoted
+    pint's parser internals ("unindent does not match any outer indentation level", "'ParserHelper'")."""
+    with pytest.raises(UnitsError, match=rf"a length unit must be a string such as 'm' or 'um', not "
+                                         rf"{type(units).__name__}$"):
+        normalize_units(units)
+
+
+@pytest.mark.parametrize("units, match", [("s", r"units='s' is not a length unit \('s' is not a length unit\)"),
+                                          (5, r"units=5 is not a length unit \(.*must be a string.*not int\)")])
+def test_to_units_names_the_argument(units, match):
+    """ds.topo.to_units('s') said "'s' is not a length unit" without naming the argument."""
+    ds = fractal_surface((8, 8), 1.0, hurst=0.8, seed=0, units="um")
+    with pytest.raises(UnitsError, match=match):
+        ds.topo.to_units(units)
+    with pytest.raises(UnitsError, match=match):
+        ds["height"].topo.to_units(units)

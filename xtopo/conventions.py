@@ -32,7 +32,7 @@ from .errors import GridError, UnitsError, ValidationError
 __all__ = [
     "HEIGHT", "MASK", "X", "Y", "LATERAL_DIMS", "CONVENTIONS",
     "LENGTH_ATTRS", "MEASUREMENT_ATTRS",
-    "normalize_units", "length_factor", "convert_length",
+    "normalize_units", "unit_argument", "length_factor", "convert_length",
     "spacing", "physical_size", "is_uniform", "is_periodic", "length_attr", "is_nonuniform",
     "lateral_dims", "height_of", "make_measurement", "validate", "append_history", "length_units_of",
     "shared_length_unit",
@@ -92,10 +92,26 @@ def normalize_units(units) -> str:
     """
     if units is None:
         raise UnitsError("no length unit given")
-    u = str(units).strip()
+    if not isinstance(units, str):  # str() made 5, True, b'um' or an array a unit pint failed to parse
+        raise UnitsError(f"a length unit must be a string such as 'm' or 'um', not {type(units).__name__}")
+    u = units.strip()
     u = _UNIT_ALIASES.get(u, u).replace("µ", "u").replace("μ", "u")
     _length_in_m(u)
     return u
+
+
+def unit_argument(units, name: str) -> str:
+    """The length unit ``units`` given as the argument ``name``, normalised (:func:`normalize_units`).
+
+    Raises
+    ------
+    UnitsError
+        If ``units`` is not a length unit; the message names the argument as typed (``units='s'``).
+    """
+    try:
+        return normalize_units(units)
+    except UnitsError as exc:
+        raise UnitsError(f"{name}={units!r:.60} is not a length unit ({exc})") from None
 
 
 def length_factor(from_units: str, to_units: str) -> float:
@@ -138,7 +154,7 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
         the length-valued variables (``height``) and the length attributes (``tip_radius``,
         ``resolution``, in their ``*_units`` or else the positions' unit) are converted together.
     """
-    to = normalize_units(units)
+    to = unit_argument(units, "units")
     obj = _xarray(ds).copy(deep=False)
     current = length_units_of(obj)  # the unit of whatever length carries no label of its own
     sources = set()
@@ -507,7 +523,7 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
     -------
     xarray.Dataset
     """
-    units = normalize_units(units)
+    units = unit_argument(units, "units")
     h = np.asarray(height)
     if h.ndim not in (1, 2):
         raise GridError(f"height must be 1D or 2D, got shape {h.shape}")

@@ -22,7 +22,7 @@ from ._checks import flag, integer, lengths, option, per_axis, positive_number, 
 from ._kernels import fft as _fft
 from ._kernels.derivatives import fourier_first, wavevectors
 from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
-                          normalize_units, spacing)
+                          spacing, unit_argument)
 from .errors import GridError, XtopoError
 
 __all__ = ["FractalPSD", "fractal_surface", "prescribed_psd", "sphere", "sinusoid", "measure", "example_twin"]
@@ -263,7 +263,7 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
     seed = integer(seed, "seed", minimum=0)
     if rms_height is None and rms_slope is None and prefactor is None:
         rms_height = 1.0
-    units = normalize_units(units)
+    units = unit_argument(units, "units")
     spacings = size / np.asarray(shape)
     gshape = shape if periodic else tuple(2 * n for n in shape)
     if math.prod(gshape) > MAX_POINTS:

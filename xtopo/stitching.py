@@ -21,7 +21,7 @@ import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
-from .conventions import convert_length, lateral_dims, length_factor, normalize_units
+from .conventions import convert_length, lateral_dims, length_factor, unit_argument
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
@@ -36,7 +36,7 @@ _MODES = "independent_modes"
 def _common_units(ms: dict, units=None) -> str:
     """``units`` (checked), else the first measurement's length unit."""
     if units is not None:
-        return normalize_units(units)
+        return unit_argument(units, "units")
     for ds in ms.values():
         return ds["x"].attrs.get("units", "m")
     raise XtopoError("the twin has no measurements")

@@ -1,5 +1,7 @@
 """Generic formats: text, npy/npz, MATLAB v5/v7.3, HDF5, both NetCDF layouts; size/unit options."""
 
+import re
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -413,3 +415,132 @@ def test_unhashable_format_refused(tmp_path, fmt):
     xtopo.to_netcdf(xtopo.datasets.fractal_surface((8, 8), 1.0, hurst=0.7, units="um"), path)
     with pytest.raises(xtopo.UnsupportedFormatError, match="unknown format"):
         xtopo.open_topography(path, format=fmt)
+
+
+@pytest.mark.parametrize("option, match", [
+    (dict(height_units=""), r"height_units='' is not a length unit"),  # was taken as not given
+    (dict(height_units="V"), r"height_units='V' is not a length unit"),
+    (dict(file_units=5), r"file_units=5 is not a length unit .*must be a string"),
+    (dict(file_units=b"um"), r"file_units=b'um' is not a length unit .*must be a string"),
+])
+@pytest.mark.parametrize("read", ["open_topography", "channels"])
+def test_unit_options_checked_and_named_before_reading(tmp_path, heights, option, match, read):
+    """file_units/height_units were checked only by the reader (an error saying 'length unit:' or
+    'height unit:'), an empty height_units was silently ignored."""
+    np.save(tmp_path / "a.npy", heights)
+    kw = {"file_units": "um", **option}
+    with pytest.raises(xtopo.UnitsError, match=f"a.npy: {match}"):
+        getattr(xtopo.io, read)(tmp_path / "a.npy", physical_size=(5.0, 7.0), **kw)
+
+
+def test_channels_with_a_size_for_maps_beside_a_line(tmp_path, heights):
+    """channels() of a container holding a 1D and a 2D array with physical_size=(Ly, Lx) raised a numpy
+    broadcast error (wrapped as 'reader failed on malformed content'); the size fits only the map."""
+    np.savez(tmp_path / "a.npz", line=heights[0], heights=heights)
+    infos = xtopo.io.channels(tmp_path / "a.npz", physical_size=(5.0, 7.0), file_units="um")
+    assert [(c.name, c.shape, c.size) for c in infos] == [("line", (7,), None), ("heights", (5, 7), (5.0, 7.0))]
+    one = xtopo.io.channels(tmp_path / "a.npz", physical_size=5.0, file_units="um")
+    assert [c.size for c in one] == [(5.0,), (5.0, 5.0)]
+
+
+def test_npy_negative_shape(tmp_path, heights):
+    """A negative shape in a .npy header reached file.read (numpy's 'read length must be non-negative')."""
+    p = tmp_path / "a.npy"
+    np.save(p, heights)
+    p.write_bytes(p.read_bytes().replace(b"'shape': (5, 7), ", b"'shape': (-5, 7),"))
+    with pytest.raises(ReaderError, match=r"a.npy: invalid shape \(-5, 7\) for the array: negative size") as err:
+        _open(p, physical_size=(5.0, 7.0), file_units="um")
+    assert "malformed content" not in str(err.value)
+
+
+@pytest.mark.parametrize("name, write", [
+    ("one.txt", lambda p: p.write_text("3.0\n")),
+    ("one.npy", lambda p: np.save(p, np.ones((1, 1)))),
+    ("one1d.npy", lambda p: np.save(p, np.ones(1))),
+])
+def test_a_single_value_is_no_measurement(tmp_path, name, write):
+    """One height was read as a measurement (a 1x1 map with the given size as its spacing)."""
+    write(tmp_path / name)
+    with pytest.raises(ReaderError, match=r"at least 2 heights"):
+        _open(tmp_path / name, physical_size=5.0, file_units="um")
+
+
+def test_first_text_row_with_a_bad_number_is_not_a_header(tmp_path):
+    """'0x10 1' (a number in a form float() does not read) was silently dropped as a header line."""
+    p = tmp_path / "a.txt"
+    p.write_text("0x10 1\n2 3\n4 5\n")
+    with pytest.raises(ReaderError, match=r"a.txt: the first data row contains a token that is not a number: '0x10'"):
+        _open(p, physical_size=(3.0, 2.0), file_units="um")
+    p.write_text("2020-01-01 12:00\n2 3\n4 5\n")  # a header line that merely starts with a digit stays a header
+    assert _open(p, physical_size=(2.0, 2.0), file_units="um").height.shape == (2, 2)
+
+
+def test_netcdf4_dimension_scales_are_not_heights(tmp_path, heights):
+    """A NetCDF-4 file read as generic HDF5 offered its dimension axes (bare zeros) as channels; by default
+    the first one was read as the heights."""
+    pytest.importorskip("netCDF4")
+    p = tmp_path / "plain.nc"
+    xr.Dataset({"topo": (("a", "b"), heights)}).to_netcdf(p, engine="netcdf4")
+    assert [c.name for c in xtopo.io.channels(p, file_units="um")] == ["topo"]
+    ds = _open(p, physical_size=(5.0, 7.0), file_units="um")
+    assert ds.attrs["channel"] == "topo"
+    np.testing.assert_array_equal(ds.height.values, heights)
+
+
+def test_hdf5_heights_in_another_layout_get_the_hdf5_readers_error(tmp_path, heights):
+    """An HDF5 file with a dataset 'heights' got the SurfaceTopography reader's "'heights' has dims
+    ('phony_dim_0', ...)" for any problem instead of the generic HDF5 reader's."""
+    h5py = pytest.importorskip("h5py")
+    p = tmp_path / "a.h5"
+    with h5py.File(p, "w") as f:
+        f["heights"] = heights
+        f["heights"].attrs["units"] = "um"
+    with pytest.raises(ReaderError, match=r"a.h5: .*stores no physical size; pass physical_size"):
+        _open(p)
+    np.testing.assert_array_equal(_open(p, physical_size=(5.0, 7.0)).height.values, heights)
+
+
+@pytest.mark.parametrize("channel", [0.0, False, np.float64(0), 1])
+@pytest.mark.parametrize("name", ["a.txt", "a.npy"])
+def test_single_channel_readers_take_only_the_index_0(tmp_path, heights, name, channel):
+    """channel=0.0 or False was taken as channel 0 by the text and .npy readers (npz/NetCDF refuse them)."""
+    p = tmp_path / name
+    np.savetxt(p, heights) if name.endswith(".txt") else np.save(p, heights)
+    with pytest.raises(UnsupportedFormatError, match=re.escape(f"{name}: has a single channel; channel {channel!r} does not")):
+        _open(p, channel=channel, physical_size=(5.0, 7.0), file_units="um")
+    assert _open(p, channel=0, physical_size=(5.0, 7.0), file_units="um").height.shape == heights.shape
+
+
+def test_line_positions_near_the_float_limit_warn_nothing(tmp_path):
+    """Positions near 1.7e308 made the grid check's least-squares fit emit numpy overflow RuntimeWarnings."""
+    import warnings
+
+    p = tmp_path / "a.txt"
+    p.write_text("0 1\n1e308 2\n1.7e308 3\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        ds = _open(p, file_units="um")
+    np.testing.assert_array_equal(ds.x.values, [0.0, 1e308, 1.7e308])
+    np.testing.assert_array_equal(ds.height.values, [1.0, 2.0, 3.0])
+
+
+@pytest.mark.parametrize("drop, match", [(5, "drop_variables must be a variable name or a list of names, got int"),
+                                         (object(), "drop_variables must be .* got object"),
+                                         ([["mask"]], "drop_variables item must be a string, got list"),
+                                         (np.array([1, 2]), "drop_variables item must be a string, got int64")])
+def test_xarray_backend_refuses_drop_variables_that_are_no_names(tmp_path, heights, drop, match):
+    """xr.open_dataset(engine="xtopo", drop_variables=5) silently ignored it (xarray's own engines raise);
+    an array of names raised numpy's 'truth value ambiguous'."""
+    np.save(tmp_path / "a.npy", heights)
+    with pytest.raises(XtopoError, match=match):
+        xr.open_dataset(tmp_path / "a.npy", engine="xtopo", physical_size=(5.0, 7.0), file_units="um",
+                        drop_variables=drop)
+
+
+@pytest.mark.parametrize("drop", ["height", ["height"], np.array(["height", "nothing"]), ()])
+def test_xarray_backend_drops_the_variables_named(tmp_path, heights, drop):
+    np.save(tmp_path / "a.npy", heights)
+    kw = dict(physical_size=(5.0, 7.0), file_units="um")
+    ds = xr.open_dataset(tmp_path / "a.npy", engine="xtopo", drop_variables=drop, **kw)
+    full = xtopo.open_topography(tmp_path / "a.npy", **kw)
+    xr.testing.assert_identical(ds, full.drop_vars(["height"] if len(drop) else []))

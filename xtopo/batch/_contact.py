@@ -13,7 +13,7 @@ import numpy as np
 import xarray as xr
 
 from .._checks import flag
-from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
+from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units, unit_argument
 from ..errors import ContactError, UnitsError, XtopoError
 from ._engine import run_batch
 from ._inputs import checked_read_options, names_and_sources, run_options
@@ -34,7 +34,7 @@ def _contact_units(units, sources, read_options) -> str:
     """The one length unit of a contact batch: ``units``, else the first measurement's (a file's: the unit it
     is read in, metres unless ``read_options`` say otherwise); ``"1"`` when the first measurement has none."""
     if units is not None:
-        return normalize_units(units)
+        return unit_argument(units, "units")
     first = sources[0]
     if not isinstance(first, xr.Dataset):
         return normalize_units(read_options.get("units") or "m")

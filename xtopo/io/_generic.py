@@ -7,13 +7,15 @@ unless ``height_units`` differs). A file that states a unit refuses ``file_units
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from ..conventions import length_factor, make_measurement
 from ..errors import ReaderError
 from ._text import length_unit
 
-__all__ = ["resolve_units", "generic_measurement"]
+__all__ = ["resolve_units", "generic_measurement", "single_channel"]
 
 
 def resolve_units(path, *, found_units=None, found_height_units=None, file_units=None, height_units=None):
@@ -58,8 +60,8 @@ def generic_measurement(path, heights, *, physical_size=None, found_size=None, f
         Extra factor applied to the values (e.g. a phase-to-height conversion).
     """
     h = np.asarray(heights)
-    if h.ndim not in (1, 2) or h.size == 0:
-        raise ReaderError(path, f"expected a 1D or 2D array of heights, got shape {h.shape}")
+    if h.ndim not in (1, 2) or h.size < 2:  # one value is no measurement (a 1x1 map had a spacing of its size)
+        raise ReaderError(path, f"expected a 1D or 2D array of at least 2 heights, got shape {h.shape}")
     if h.dtype.kind not in "fiu":
         raise ReaderError(path, f"heights must be numeric, got dtype {h.dtype}")
     lateral, factor = resolve_units(path, found_units=found_units, found_height_units=found_height_units,
@@ -126,12 +128,31 @@ def pick_array(path, entries, channel=None):
     raise UnsupportedFormatError(path, f"channel {channel!r} does not exist; arrays: {names}")
 
 
+def single_channel(path, channel, names=()) -> None:
+    """Refuse any ``channel`` of a single-channel file but ``None``, the index 0 or one of ``names``.
+
+    Raises
+    ------
+    UnsupportedFormatError
+        For any other channel (``0.0`` or ``False`` too, which equal 0 but are no index).
+    """
+    from ..errors import UnsupportedFormatError
+
+    index = isinstance(channel, numbers.Integral) and not isinstance(channel, (bool, np.bool_))
+    if channel is None or (index and channel == 0) or (isinstance(channel, str) and channel in names):
+        return
+    raise UnsupportedFormatError(path, f"has a single channel; channel {channel!r} does not exist")
+
+
 def check_array_bytes(path, shape, itemsize: int, available: int | None, what: str) -> None:
     """Refuse an array whose ``shape`` would need more bytes than the file can hold (or than 2 GiB)."""
     try:
-        n = int(np.prod([int(s) for s in shape], dtype=object)) * int(itemsize)
+        dims = [int(s) for s in shape]
+        n = int(np.prod(dims, dtype=object)) * int(itemsize)
     except (TypeError, ValueError, OverflowError):
         raise ReaderError(path, f"invalid shape {shape!r} for {what}") from None
+    if any(d < 0 for d in dims):  # read as a negative byte count ("read length must be non-negative")
+        raise ReaderError(path, f"invalid shape {tuple(shape)} for {what}: negative size (corrupt header)")
     if n > MAX_ARRAY_BYTES or (available is not None and n > available):
         raise ReaderError(path, f"{what} of shape {tuple(shape)} needs {n} bytes, more than the file holds "
                                 "(truncated or corrupt)")
@@ -142,12 +163,13 @@ def channel_infos(path, entries, *, physical_size=None, file_units=None, height_
     from .registry import ChannelInfo
 
     units = found_units or file_units
+    given = None if physical_size is None else np.atleast_1d(np.asarray(physical_size, dtype=float))
     out = []
     for name, shape in entries:
         if len(shape) in (1, 2) and int(np.prod(shape)) > 1:
-            size = None
-            if physical_size is not None:
-                size = tuple(np.broadcast_to(np.asarray(physical_size, dtype=float), (len(shape),)).tolist())
+            size = None  # also where the given size does not fit (two lengths, a 1D array): reading it refuses them
+            if given is not None and given.size in (1, len(shape)):
+                size = tuple(np.broadcast_to(given, (len(shape),)).tolist())
             out.append(ChannelInfo(index=len(out), name=str(name), shape=tuple(int(s) for s in shape), size=size,
                                    units=units, height_units=height_units or units))
     return out

@@ -207,7 +207,8 @@ def uniform_spacing(x: np.ndarray, tolerance: float = 0.0) -> float | None:
         return None
     m = np.arange(n, dtype=float)
     mc = m - m.mean()
-    d = float(np.dot(mc, x - x.mean()) / np.dot(mc, mc))
+    with np.errstate(over="ignore", invalid="ignore"):  # positions near the float limit: no grid, no warning
+        d = float(np.dot(mc, x - x.mean()) / np.dot(mc, mc))
     if not (np.isfinite(d) and d > 0):
         return None
     dev = np.abs(x - x.mean() - d * mc)

@@ -6,7 +6,21 @@ import os
 
 from xarray.backends import BackendEntrypoint
 
+from .._checks import text
+from ..errors import XtopoError
 from .open import open_topography
+
+
+def _names(drop_variables) -> list:
+    """``drop_variables`` (a variable name or names) as a list of str; 5 or an object was ignored."""
+    if isinstance(drop_variables, str):
+        return [drop_variables]
+    try:
+        names = list(drop_variables)
+    except TypeError:
+        raise XtopoError(f"drop_variables must be a variable name or a list of names, "
+                         f"got {type(drop_variables).__name__}") from None
+    return [text(name, "drop_variables item", optional=False) for name in names]
 
 
 class XtopoBackendEntrypoint(BackendEntrypoint):
@@ -21,8 +35,8 @@ class XtopoBackendEntrypoint(BackendEntrypoint):
                      format=None, physical_size=None, file_units=None, height_units=None):
         ds = open_topography(filename_or_obj, channel=channel, units=units, periodic=periodic, format=format,
                              physical_size=physical_size, file_units=file_units, height_units=height_units)
-        if drop_variables:
-            ds = ds.drop_vars(drop_variables, errors="ignore")
+        if drop_variables is not None:
+            ds = ds.drop_vars(_names(drop_variables), errors="ignore")
         return ds
 
     def guess_can_open(self, filename_or_obj):

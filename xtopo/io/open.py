@@ -8,9 +8,9 @@ import os
 import numpy as np
 
 from .._checks import flag, lengths, per_axis, positive_number
-from ..conventions import append_history, convert_length, lateral_dims, normalize_units, validate
+from ..conventions import append_history, convert_length, lateral_dims, unit_argument, validate
 from ..conventions import physical_size as _physical_size
-from ..errors import GridError, ReaderError, UnitsError, UnsupportedFormatError, XtopoError
+from ..errors import GridError, ReaderError, UnsupportedFormatError, XtopoError
 from .registry import READ_OPTIONS, ChannelInfo, detect
 
 __all__ = ["open_topography", "channels", "sha256", "check_options"]
@@ -69,8 +69,8 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
     """
     path = _path(path)
     to, periodic, lengths = _arguments(path, units, periodic, tip_radius=tip_radius, resolution=resolution)
-    options = {"physical_size": _size_option(path, physical_size), "file_units": file_units,
-               "height_units": height_units}
+    options = {"physical_size": _size_option(path, physical_size),
+               **_unit_options(path, file_units=file_units, height_units=height_units)}
     fmt, ds = _first_success(path, format, "read", channel=channel, **options)
     if physical_size is not None and "physical_size" not in fmt.options:
         ds = _override_size(ds, physical_size, path)
@@ -115,6 +115,16 @@ def _size_option(path, physical_size):
     return physical_size
 
 
+def _unit_options(path, **units) -> dict:
+    """The ``file_units``/``height_units`` options checked before the file is read: each ``None`` or a
+    length unit (an empty ``height_units`` was taken as not given). Returned as given: a format that
+    states its unit refuses them, whatever they are."""
+    for key, val in units.items():
+        if val is not None:
+            unit_argument(val, f"{path}: {key}")
+    return units
+
+
 def _arguments(path, units, periodic, **lengths):
     """The options of :func:`open_topography` checked before the file is read (errors name the file).
 
@@ -122,10 +132,7 @@ def _arguments(path, units, periodic, **lengths):
     periodicity as a bool (None: the file's) and the given ``tip_radius``/``resolution`` as floats.
     """
     if units is not None:
-        try:
-            units = normalize_units(units)
-        except UnitsError as exc:
-            raise UnitsError(f"{path}: units={units!r} is not a length unit to convert to ({exc})") from None
+        units = unit_argument(units, f"{path}: units")
     if periodic is not None:
         periodic = flag(periodic, f"{path}: periodic")
     given = {key: positive_number(val, f"{path}: {key} (a length in the result's units)")
@@ -142,12 +149,7 @@ def check_options(where: str, options: dict) -> None:
     _arguments(where, options.get("units", "m"), options.get("periodic"), tip_radius=options.get("tip_radius"),
                resolution=options.get("resolution"))
     _size_option(where, options.get("physical_size"))
-    for key in ("file_units", "height_units"):
-        if options.get(key) is not None:
-            try:
-                normalize_units(options[key])
-            except UnitsError as exc:
-                raise UnitsError(f"{where}: {key}={options[key]!r} is not a length unit ({exc})") from None
+    _unit_options(where, file_units=options.get("file_units"), height_units=options.get("height_units"))
     fmt = options.get("format")
     if fmt is not None:
         detect(where, fmt)
@@ -257,5 +259,5 @@ def channels(path, *, format: str | None = None, physical_size=None, file_units:
     """
     path = _path(path)
     _, out = _first_success(path, format, "channels", physical_size=_size_option(path, physical_size),
-                            file_units=file_units, height_units=height_units)
+                            **_unit_options(path, file_units=file_units, height_units=height_units))
     return list(out)

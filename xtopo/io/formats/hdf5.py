@@ -40,18 +40,27 @@ def open_h5(path):
 
 
 def h5_datasets(f, skip=("#refs#", "#subsystem#")):
-    """``[(path, dataset)]`` of the numeric datasets of an open HDF5 file, in file order."""
+    """``[(path, dataset)]`` of the numeric datasets of an open HDF5 file, in file order.
+
+    Dimension scales (the axes of NetCDF-4 variables, often bare zeros) are coordinates, not heights.
+    """
     import h5py
 
     out = []
 
     def visit(name, obj):
-        if isinstance(obj, h5py.Dataset) and not any(name.startswith(s) for s in skip):
+        if isinstance(obj, h5py.Dataset) and not any(name.startswith(s) for s in skip) and not _is_scale(obj):
             if obj.dtype.kind in "biuf" and obj.shape is not None:
                 out.append((name, obj))
 
     f.visititems(visit)
     return out
+
+
+def _is_scale(dset) -> bool:
+    """Whether ``dset`` is an HDF5 dimension scale (attribute ``CLASS = "DIMENSION_SCALE"``)."""
+    value = dset.attrs.get("CLASS")
+    return (value.decode("ascii", "replace") if isinstance(value, bytes) else str(value)) == "DIMENSION_SCALE"
 
 
 def read_dataset(path, dset, what: str) -> np.ndarray:

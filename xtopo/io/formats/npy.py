@@ -17,7 +17,7 @@ import numpy as np
 from numpy.lib import format as npformat
 
 from ...errors import ReaderError
-from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array
+from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array, single_channel
 from ..registry import Format, register
 
 __all__ = ["read_npy", "read_npz"]
@@ -61,8 +61,7 @@ def _npy_shape(path):
 
 def read_npy(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a ``.npy`` array (see the module docstring)."""
-    if channel not in (None, 0):
-        raise ReaderError(path, f"a .npy file holds one array; channel {channel!r} does not exist")
+    single_channel(path, channel)  # a .npy file holds one array
     with open(path, "rb") as f:
         arr = _read_stream(path, f, os.path.getsize(path), "the array")
     return generic_measurement(path, arr, physical_size=physical_size, file_units=file_units,

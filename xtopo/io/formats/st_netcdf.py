@@ -36,7 +36,7 @@ from ..._checks import path as checked_path
 from ...conventions import (height_of, is_nonuniform, is_periodic, lateral_dims, normalize_units, periodic_flag,
                             physical_size, shared_length_unit)
 from ...errors import ReaderError, UnitsError, UnsupportedFormatError, ValidationError
-from .._generic import check_array_bytes, generic_measurement
+from .._generic import check_array_bytes, generic_measurement, single_channel
 from ..netcdf import atomic_write
 from ..registry import Format, register
 
@@ -126,8 +126,7 @@ def _attrs_from_info(info: dict) -> dict:
 
 def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a SurfaceTopography NetCDF file (see the module docstring)."""
-    if channel not in (None, 0):
-        raise UnsupportedFormatError(path, f"has a single channel; channel {channel!r} does not exist")
+    single_channel(path, channel)
     nc = _open(path)
     with nc:
         if "heights" not in nc.variables:
@@ -136,7 +135,8 @@ def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, h
         hv = nc["heights"]
         dims = hv.dims
         if dims not in (("x", "y"), ("x",), ("n",)):
-            raise ReaderError(path, f"'heights' has dims {dims}; expected ('x', 'y'), ('x',) or ('n',)")
+            raise UnsupportedFormatError(path, f"'heights' has dims {dims}, not ('x', 'y'), ('x',) or ('n',) "
+                                               "(not the SurfaceTopography layout)")
         try:
             check_array_bytes(path, hv.shape, 8, None, "heights")
             h = np.asarray(hv.values, dtype=float)

@@ -24,8 +24,8 @@ from __future__ import annotations
 import re
 
 from ...conventions import length_factor
-from ...errors import ReaderError, UnsupportedFormatError
-from .._generic import generic_measurement, resolve_units
+from ...errors import ReaderError
+from .._generic import generic_measurement, resolve_units, single_channel
 from .._text import (header_value, is_number, line_measurement, looks_like_text, parse_quantity, parse_table,
                      read_text, token_ulp)
 from ..registry import Format, register
@@ -35,6 +35,8 @@ __all__ = ["read_text_measurement", "read_dhm", "split_header"]
 _COMMENT = ("#", "%", "//")
 _NUMBER_START = re.compile(r"^\s*[-+]?(?:\d|\.\d|nan\b|inf\b)", re.IGNORECASE)
 _OPTIONS = ("physical_size", "file_units", "height_units")
+#: names of the one channel of a text file (besides the index 0)
+_CHANNEL_NAMES = ("0", "default", "Default")
 
 
 def _is_data_line(line: str) -> bool:
@@ -51,7 +53,8 @@ def split_header(lines, path=None):
     ------
     ReaderError
         If the (non-comment) line just before the data has as many fields as a data row,
-        most of them numbers: a corrupt first row, which must not silently become a header.
+        most of them numbers (half of them if it starts with one, as ``0x10 1``): a corrupt first row,
+        which must not silently become a header.
     """
     header = {}
     start = len(lines)
@@ -74,7 +77,8 @@ def split_header(lines, path=None):
     if previous is not None and data:
         fields = _fields(previous)
         numbers = sum(is_number(t) for t in fields)
-        if len(fields) == len(_fields(data[0])) and numbers > len(fields) / 2:
+        numeric = numbers > len(fields) / 2 or (_NUMBER_START.match(previous) and numbers >= len(fields) / 2)
+        if len(fields) == len(_fields(data[0])) and numeric:
             bad = next(t for t in fields if not is_number(t))
             raise ReaderError(path, f"the first data row contains a token that is not a number: {bad[:40]!r} "
                                     "(corrupt row)")
@@ -104,7 +108,7 @@ def _read_table(path, data_lines):
 
 def read_text_measurement(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a ``text``/``gwyddion-text`` file (see the module docstring)."""
-    _check_channel(path, channel)
+    single_channel(path, channel, _CHANNEL_NAMES)
     header, data = split_header(read_text(path).splitlines(), path)
     if not data:
         raise ReaderError(path, "contains no table of numbers")
@@ -147,14 +151,9 @@ def _line_xy(path, x, h, tolerance, common):
     return line_measurement(path, x, h * factor, lateral, tolerance=tolerance)
 
 
-def _check_channel(path, channel):
-    if channel not in (None, 0, "0", "default", "Default"):
-        raise UnsupportedFormatError(path, f"has a single channel; channel {channel!r} does not exist")
-
-
 def read_dhm(path, *, channel=None):
     """Read a ``dhm-text`` matrix (``h= w=`` header; height = value × conversion factor, in m)."""
-    _check_channel(path, channel)
+    single_channel(path, channel, _CHANNEL_NAMES)
     lines = read_text(path).splitlines()
     m = re.match(r"^\s*h\s*=\s*(\d+)\s+w\s*=\s*(\d+)\s*$", lines[0] if lines else "")
     if not m:
