@@ -143,6 +143,24 @@ def test_generic_hdf5(tmp_path, heights):
     assert [c.name for c in xtopo.io.channels(p)] == ["meta/counts", "scan/topography"]
 
 
+@pytest.mark.parametrize("units", ["V", "deg", b"nA"])
+def test_hdf5_dataset_in_a_unit_that_is_no_length(tmp_path, heights, units):
+    """A dataset that states units 'V' (an amplitude or phase channel) was read as heights in file_units,
+    its unit ignored without a word; without file_units the error said the file stores no length unit."""
+    h5py = pytest.importorskip("h5py")
+    p = tmp_path / "amplitude.h5"
+    with h5py.File(p, "w") as f:
+        f["signal"] = heights
+        f["signal"].attrs["units"] = units
+    shown = units.decode() if isinstance(units, bytes) else units
+    for options in ({}, {"file_units": "um", "physical_size": (1.0, 1.0)}):
+        with pytest.raises(ReaderError, match=rf"amplitude.h5.*'signal' states units '{shown}', which is not a length"):
+            _open(p, **options)
+    # the caller may still say what the values are
+    ds = _open(p, file_units="um", height_units="nm", physical_size=(1.0, 1.0))
+    np.testing.assert_allclose(ds.height.values, heights * 1e-3)
+
+
 def test_xtopo_netcdf_round_trip(tmp_path, heights):
     ds = make_measurement(heights, size=(1.0, 1.4), units="um", periodic=True)
     xtopo.io.to_netcdf(ds, tmp_path / "x.nc")

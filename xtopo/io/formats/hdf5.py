@@ -73,16 +73,25 @@ def read_dataset(path, dset, what: str) -> np.ndarray:
         raise ReaderError(path, f"cannot read dataset {what!r}: {exc}") from None
 
 
-def _units_attr(dset):
+def _units_attr(path, dset, name, height_units):
+    """The length unit the dataset's ``units`` (or ``unit``) attribute states (None: it states none).
+
+    A stated unit that is not a length (``"V"``, ``"deg"``) marks a channel that holds no heights: it is
+    refused unless the caller says what the values are (``height_units``), rather than read as lengths.
+    """
+    from ...conventions import normalize_units
+
     for key in ("units", "unit"):
         if key in dset.attrs:
             val = dset.attrs[key]
             val = val.decode("utf-8", "replace") if isinstance(val, bytes) else str(val)
             try:
-                from ...conventions import normalize_units
-
                 return normalize_units(val)
             except Exception:
+                if height_units is None:
+                    raise ReaderError(path, f"dataset {name!r} states units {val!r}, which is not a length: it holds "
+                                            "no heights (pick another dataset with channel=), or pass height_units= "
+                                            "if its values are lengths") from None
                 return None
     return None
 
@@ -95,7 +104,7 @@ def read_hdf5(path, *, channel=None, physical_size=None, file_units=None, height
             _, name = pick_array(path, [(n, d.shape) for n, d in dsets], channel)
             dset = dict(dsets)[name]
             arr = read_dataset(path, dset, name)
-            found = _units_attr(dset)
+            found = _units_attr(path, dset, name, height_units)
         except ReaderError:  # already names the file and the problem (a ValueError too)
             raise
         except _H5_ERRORS as exc:
