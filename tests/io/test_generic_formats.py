@@ -161,6 +161,52 @@ def test_hdf5_dataset_in_a_unit_that_is_no_length(tmp_path, heights, units):
     np.testing.assert_allclose(ds.height.values, heights * 1e-3)
 
 
+def _netcdf3(path, variables, fmt="NETCDF3_64BIT"):
+    xr.Dataset(variables, coords={"col": np.arange(variables[next(iter(variables))][1].shape[-1], dtype=float)}
+               ).to_netcdf(path, format=fmt, engine="scipy")
+    return path
+
+
+@pytest.mark.parametrize("fmt", ["NETCDF3_CLASSIC", "NETCDF3_64BIT"])
+def test_plain_netcdf3_variable(tmp_path, heights, fmt):
+    """A NetCDF-3 file in neither xtopo's nor SurfaceTopography's layout was refused by every reader."""
+    p = _netcdf3(tmp_path / "plain.nc", {"z": (("row", "col"), heights, {"units": "nm"}),
+                                         "other": (("row", "col"), heights * 2, {"units": "nm"})}, fmt)
+    ds = _open(p, physical_size=(50.0, 70.0))
+    assert ds.attrs["source_format"] == "generic-netcdf" and ds.height.attrs["units"] == "nm"
+    np.testing.assert_array_equal(ds.height.values, heights)
+    assert (physical_size(ds, "y"), physical_size(ds, "x")) == pytest.approx((50.0, 70.0))
+    assert [c.name for c in xtopo.io.channels(p)] == ["z", "other"]  # the coordinate 'col' is an axis
+    np.testing.assert_array_equal(_open(p, channel=1, physical_size=(50.0, 70.0)).height.values, heights * 2)
+    np.testing.assert_array_equal(_open(p, channel="other", physical_size=(50.0, 70.0)).height.values, heights * 2)
+    with pytest.raises(UnsupportedFormatError, match="channel 'col' does not exist"):
+        _open(p, channel="col", physical_size=(50.0, 70.0))
+    with pytest.raises(ReaderError, match="states its length unit"):
+        _open(p, physical_size=(50.0, 70.0), file_units="um")
+
+
+def test_plain_netcdf3_fill_values_and_units(tmp_path, heights):
+    holed = heights.copy()
+    holed[1, 2] = -999.0
+    p = _netcdf3(tmp_path / "holes.nc", {"heights": (("row", "col"), holed, {"_FillValue": -999.0}),
+                                         "amplitude": (("row", "col"), heights, {"units": "V"})})
+    ds = _open(p, physical_size=(1.0, 1.0), file_units="um")
+    assert ds.height.attrs["units"] == "um" and bool(ds["mask"][1, 2]) and int(ds["mask"].sum()) == 1
+    np.testing.assert_array_equal(ds.height.values[~ds["mask"].values], heights[~ds["mask"].values])
+    with pytest.raises(ReaderError, match="'amplitude' states units 'V', which is not a length"):
+        _open(p, channel="amplitude", physical_size=(1.0, 1.0), file_units="um")
+    with pytest.raises(ReaderError, match="stores no length unit"):
+        _open(p, physical_size=(1.0, 1.0))
+
+
+def test_truncated_plain_netcdf3(tmp_path, heights):
+    p = _netcdf3(tmp_path / "cut.nc", {"z": (("row", "col"), heights, {"units": "nm"})})
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) - 40])
+    with pytest.raises(XtopoError, match="cut.nc"):
+        _open(p, physical_size=(1.0, 1.0))
+
+
 def test_xtopo_netcdf_round_trip(tmp_path, heights):
     ds = make_measurement(heights, size=(1.0, 1.4), units="um", periodic=True)
     xtopo.io.to_netcdf(ds, tmp_path / "x.nc")

@@ -11,11 +11,11 @@ import numbers
 
 import numpy as np
 
-from ..conventions import length_factor, make_measurement
-from ..errors import ReaderError
+from ..conventions import length_factor, make_measurement, normalize_units
+from ..errors import ReaderError, UnitsError
 from ._text import length_unit
 
-__all__ = ["resolve_units", "generic_measurement", "single_channel"]
+__all__ = ["resolve_units", "generic_measurement", "single_channel", "stated_length_unit"]
 
 
 def resolve_units(path, *, found_units=None, found_height_units=None, file_units=None, height_units=None):
@@ -40,6 +40,33 @@ def resolve_units(path, *, found_units=None, found_height_units=None, file_units
     hu = found_height_units or height_units or lateral
     hu = length_unit(path, hu, "height unit")
     return lateral, length_factor(hu, lateral)
+
+
+def stated_length_unit(path, attrs, name: str, height_units=None) -> str | None:
+    """The length unit an array's ``units`` (or ``unit``) attribute states (None: it states none).
+
+    ``attrs`` is the array's attribute mapping (text or bytes values). A stated unit that is not a
+    length (``"V"``, ``"deg"``) marks a channel that holds no heights: it is refused unless the
+    caller says what the values are (``height_units``), rather than read as lengths.
+
+    Raises
+    ------
+    ReaderError
+        For a unit that is not a length when ``height_units`` is not given.
+    """
+    for key in ("units", "unit"):
+        if key in attrs:
+            val = attrs[key]
+            val = val.decode("utf-8", "replace") if isinstance(val, bytes) else str(val)
+            try:
+                return normalize_units(val)
+            except UnitsError:
+                if height_units is None:
+                    raise ReaderError(path, f"dataset {name!r} states units {val!r}, which is not a length: it holds "
+                                            "no heights (pick another dataset with channel=), or pass height_units= "
+                                            "if its values are lengths") from None
+                return None
+    return None
 
 
 def generic_measurement(path, heights, *, physical_size=None, found_size=None, file_units=None, height_units=None,

@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from ...errors import ReaderError
-from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array
+from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array, stated_length_unit
 from ..registry import Format, register
 
 __all__ = ["read_hdf5", "h5_datasets", "open_h5"]
@@ -73,29 +73,6 @@ def read_dataset(path, dset, what: str) -> np.ndarray:
         raise ReaderError(path, f"cannot read dataset {what!r}: {exc}") from None
 
 
-def _units_attr(path, dset, name, height_units):
-    """The length unit the dataset's ``units`` (or ``unit``) attribute states (None: it states none).
-
-    A stated unit that is not a length (``"V"``, ``"deg"``) marks a channel that holds no heights: it is
-    refused unless the caller says what the values are (``height_units``), rather than read as lengths.
-    """
-    from ...conventions import normalize_units
-
-    for key in ("units", "unit"):
-        if key in dset.attrs:
-            val = dset.attrs[key]
-            val = val.decode("utf-8", "replace") if isinstance(val, bytes) else str(val)
-            try:
-                return normalize_units(val)
-            except Exception:
-                if height_units is None:
-                    raise ReaderError(path, f"dataset {name!r} states units {val!r}, which is not a length: it holds "
-                                            "no heights (pick another dataset with channel=), or pass height_units= "
-                                            "if its values are lengths") from None
-                return None
-    return None
-
-
 def read_hdf5(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read one dataset of an HDF5 file (see the module docstring)."""
     with open_h5(path) as f:
@@ -104,7 +81,7 @@ def read_hdf5(path, *, channel=None, physical_size=None, file_units=None, height
             _, name = pick_array(path, [(n, d.shape) for n, d in dsets], channel)
             dset = dict(dsets)[name]
             arr = read_dataset(path, dset, name)
-            found = _units_attr(path, dset, name, height_units)
+            found = stated_length_unit(path, dset.attrs, name, height_units)
         except ReaderError:  # already names the file and the problem (a ValueError too)
             raise
         except _H5_ERRORS as exc:

@@ -1,0 +1,83 @@
+"""Generic NetCDF-3 files (classic and 64-bit offset, read with scipy): any 1D or 2D numeric variable.
+
+The NetCDF counterpart of the generic HDF5 reader (which also reads NetCDF-4 files, being
+HDF5): for files in neither xtopo's layout nor SurfaceTopography's. ``channel`` is the
+variable's name or its index among the 1D/2D numeric variables in file order (default: one
+named ``heights``/``height``/... or the first); coordinate variables (a 1D variable named
+after its dimension) are axes, not heights. A variable attribute ``units``/``unit`` holding a
+length unit is used; otherwise pass ``file_units=``. ``_FillValue``/``missing_value`` points
+become missing data, ``scale_factor``/``add_offset`` are applied. The physical size always
+comes from ``physical_size=``.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ...errors import ReaderError
+from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array, stated_length_unit
+from ..registry import Format, register
+
+__all__ = ["read_generic_netcdf"]
+
+_MAGIC = (b"CDF\x01", b"CDF\x02")  # classic, 64-bit offset (scipy reads no CDF-5)
+_OPTIONS = ("physical_size", "file_units", "height_units")
+_ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, OverflowError, MemoryError)
+
+
+def _open(path):
+    from scipy.io import netcdf_file
+
+    try:
+        return netcdf_file(path, "r", mmap=False, maskandscale=True)
+    except _ERRORS as exc:
+        raise ReaderError(path, f"not a readable NetCDF-3 file: {exc}") from None
+
+
+def _variables(f):
+    """``[(name, variable)]`` of the numeric variables that are not coordinate variables, in file order."""
+    out = []
+    for name, var in f.variables.items():
+        dims = tuple(var.dimensions)
+        if var.data.dtype.kind in "biuf" and not (len(dims) == 1 and dims[0] == name):
+            out.append((name, var))
+    return out
+
+
+def read_generic_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
+    """Read one variable of a NetCDF-3 file (see the module docstring)."""
+    with _open(path) as f:
+        try:
+            variables = _variables(f)
+            _, name = pick_array(path, [(n, v.shape) for n, v in variables], channel)
+            var = dict(variables)[name]
+            check_array_bytes(path, var.shape, var.data.dtype.itemsize, os.path.getsize(path), name)
+            found = stated_length_unit(path, var._attributes, name, height_units)
+            values = var[:]
+            heights = np.ma.filled(np.ma.asarray(values, dtype=float), np.nan)
+        except ReaderError:  # already names the file and the problem
+            raise
+        except _ERRORS as exc:
+            raise ReaderError(path, f"corrupt NetCDF-3 file: {exc}") from None
+    return generic_measurement(path, heights, physical_size=physical_size, file_units=file_units,
+                               height_units=height_units, found_units=found, channel=name)
+
+
+def _channels(path, **options):
+    with _open(path) as f:
+        try:
+            return channel_infos(path, [(n, v.shape) for n, v in _variables(f)], **options)
+        except ReaderError:
+            raise
+        except _ERRORS as exc:
+            raise ReaderError(path, f"corrupt NetCDF-3 file: {exc}") from None
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head[:4] in _MAGIC
+
+
+register(Format("generic-netcdf", "generic NetCDF-3 file (one 1D/2D variable)", (".nc", ".cdf"), _sniff,
+                read_generic_netcdf, channels=_channels, priority=-5, options=_OPTIONS))
