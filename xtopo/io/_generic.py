@@ -1,4 +1,4 @@
-"""Units and physical size for generic formats (text, npy, MATLAB, HDF5) that may not store them.
+"""Units and physical size for generic formats (text, npy, MATLAB, HDF5, NetCDF) that may not store them.
 
 The caller's options (see :func:`xtopo.open_topography`) fill what the file lacks:
 ``physical_size`` (in the lateral unit), ``file_units`` (lateral unit, and height unit
@@ -15,7 +15,8 @@ from ..conventions import length_factor, make_measurement, normalize_units
 from ..errors import ReaderError, UnitsError
 from ._text import length_unit
 
-__all__ = ["resolve_units", "generic_measurement", "single_channel", "stated_length_unit"]
+__all__ = ["resolve_units", "generic_measurement", "single_channel", "stated_length_unit", "read_container_array",
+           "container_channels"]
 
 
 def resolve_units(path, *, found_units=None, found_height_units=None, file_units=None, height_units=None):
@@ -67,6 +68,48 @@ def stated_length_unit(path, attrs, name: str, height_units=None) -> str | None:
                                             "if its values are lengths") from None
                 return None
     return None
+
+
+def read_container_array(path, open_file, arrays, read, errors, what: str, *, channel=None, physical_size=None,
+                         file_units=None, height_units=None):
+    """A measurement from one array of a container file (HDF5, NetCDF): open, choose, read, units.
+
+    Parameters
+    ----------
+    open_file : callable
+        ``open_file(path)``: a context manager holding the open file.
+    arrays : callable
+        ``arrays(f)``: ``[(name, array)]`` of the candidate arrays (objects with a ``shape``), in file order.
+    read : callable
+        ``read(path, array, name)``: ``(values, attrs)``, the values as a numpy array and the array's attributes.
+    errors : tuple of exception types
+        What the file library raises on a damaged file (reported as a corrupt ``what`` file).
+    channel, physical_size, file_units, height_units
+        The caller's options (:func:`pick_array`, :func:`generic_measurement`).
+    """
+    with open_file(path) as f:
+        try:
+            entries = arrays(f)
+            _, name = pick_array(path, [(n, a.shape) for n, a in entries], channel)
+            values, attrs = read(path, dict(entries)[name], name)
+            found = stated_length_unit(path, attrs, name, height_units)
+        except ReaderError:  # already names the file and the problem (a ValueError too)
+            raise
+        except errors as exc:
+            raise ReaderError(path, f"corrupt {what} file: {exc}") from None
+    return generic_measurement(path, values, physical_size=physical_size, file_units=file_units,
+                               height_units=height_units, found_units=found, channel=name)
+
+
+def container_channels(path, open_file, arrays, errors, what: str, **options):
+    """:func:`channel_infos` of a container file's arrays (arguments as in :func:`read_container_array`)."""
+    with open_file(path) as f:
+        try:
+            return channel_infos(path, [(n, a.shape) for n, a in arrays(f)], **options)
+        except ReaderError:
+            raise
+        except errors as exc:
+            raise ReaderError(path, f"corrupt {what} file: {exc}") from None
 
 
 def generic_measurement(path, heights, *, physical_size=None, found_size=None, file_units=None, height_units=None,

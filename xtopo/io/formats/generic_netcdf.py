@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from ...errors import ReaderError
-from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array, stated_length_unit
+from .._generic import check_array_bytes, container_channels, read_container_array
 from ..registry import Format, register
 
 __all__ = ["read_generic_netcdf"]
@@ -48,31 +48,18 @@ def _variables(f):
 
 def read_generic_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read one variable of a NetCDF-3 file (see the module docstring)."""
-    with _open(path) as f:
-        try:
-            variables = _variables(f)
-            _, name = pick_array(path, [(n, v.shape) for n, v in variables], channel)
-            var = dict(variables)[name]
-            check_array_bytes(path, var.shape, var.data.dtype.itemsize, os.path.getsize(path), name)
-            found = stated_length_unit(path, var._attributes, name, height_units)
-            values = var[:]
-            heights = np.ma.filled(np.ma.asarray(values, dtype=float), np.nan)
-        except ReaderError:  # already names the file and the problem
-            raise
-        except _ERRORS as exc:
-            raise ReaderError(path, f"corrupt NetCDF-3 file: {exc}") from None
-    return generic_measurement(path, heights, physical_size=physical_size, file_units=file_units,
-                               height_units=height_units, found_units=found, channel=name)
+    return read_container_array(path, _open, _variables, _read, _ERRORS, "NetCDF-3", channel=channel,
+                                physical_size=physical_size, file_units=file_units, height_units=height_units)
+
+
+def _read(path, var, name):
+    """The variable's values (fill values as NaN, scale and offset applied) and its attributes."""
+    check_array_bytes(path, var.shape, var.data.dtype.itemsize, os.path.getsize(path), name)
+    return np.ma.filled(np.ma.asarray(var[:], dtype=float), np.nan), var._attributes
 
 
 def _channels(path, **options):
-    with _open(path) as f:
-        try:
-            return channel_infos(path, [(n, v.shape) for n, v in _variables(f)], **options)
-        except ReaderError:
-            raise
-        except _ERRORS as exc:
-            raise ReaderError(path, f"corrupt NetCDF-3 file: {exc}") from None
+    return container_channels(path, _open, _variables, _ERRORS, "NetCDF-3", **options)
 
 
 def _sniff(head: bytes, path: str) -> bool:

@@ -17,7 +17,7 @@ import os
 import numpy as np
 
 from ...errors import ReaderError
-from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array, stated_length_unit
+from .._generic import check_array_bytes, container_channels, read_container_array
 from ..registry import Format, register
 
 __all__ = ["read_hdf5", "h5_datasets", "open_h5"]
@@ -75,29 +75,16 @@ def read_dataset(path, dset, what: str) -> np.ndarray:
 
 def read_hdf5(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read one dataset of an HDF5 file (see the module docstring)."""
-    with open_h5(path) as f:
-        try:
-            dsets = h5_datasets(f)
-            _, name = pick_array(path, [(n, d.shape) for n, d in dsets], channel)
-            dset = dict(dsets)[name]
-            arr = read_dataset(path, dset, name)
-            found = stated_length_unit(path, dset.attrs, name, height_units)
-        except ReaderError:  # already names the file and the problem (a ValueError too)
-            raise
-        except _H5_ERRORS as exc:
-            raise ReaderError(path, f"corrupt HDF5 file: {exc}") from None
-    return generic_measurement(path, arr, physical_size=physical_size, file_units=file_units,
-                               height_units=height_units, found_units=found, channel=name)
+    return read_container_array(path, open_h5, h5_datasets, _read, _H5_ERRORS, "HDF5", channel=channel,
+                                physical_size=physical_size, file_units=file_units, height_units=height_units)
+
+
+def _read(path, dset, name):
+    return read_dataset(path, dset, name), dset.attrs
 
 
 def _channels(path, **options):
-    with open_h5(path) as f:
-        try:
-            return channel_infos(path, [(n, d.shape) for n, d in h5_datasets(f)], **options)
-        except ReaderError:
-            raise
-        except _H5_ERRORS as exc:
-            raise ReaderError(path, f"corrupt HDF5 file: {exc}") from None
+    return container_channels(path, open_h5, h5_datasets, _H5_ERRORS, "HDF5", **options)
 
 
 def _sniff(head: bytes, path: str) -> bool:
