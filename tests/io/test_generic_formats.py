@@ -161,6 +161,16 @@ def test_hdf5_dataset_in_a_unit_that_is_no_length(tmp_path, heights, units):
     np.testing.assert_allclose(ds.height.values, heights * 1e-3)
 
 
+@pytest.mark.parametrize("size", [(1e-320, 1.0), (1.0, 5e-324)])
+def test_physical_size_too_small_for_the_pixels(tmp_path, heights, size):
+    """A size whose pixel underflows ended in "coordinate 'y' must be strictly increasing", not naming it."""
+    p = tmp_path / "m.npy"
+    np.save(p, heights)
+    with pytest.raises(ReaderError, match=r"m.npy: physical_size .* is too small for \(5, 7\) pixels"):
+        _open(p, physical_size=size, file_units="um")
+    assert _open(p, physical_size=(1e-300, 1e-300), file_units="um").height.shape == (5, 7)
+
+
 def _netcdf3(path, variables, fmt="NETCDF3_64BIT"):
     xr.Dataset(variables, coords={"col": np.arange(variables[next(iter(variables))][1].shape[-1], dtype=float)}
                ).to_netcdf(path, format=fmt, engine="scipy")

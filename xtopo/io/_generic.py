@@ -153,6 +153,9 @@ def generic_measurement(path, heights, *, physical_size=None, found_size=None, f
         raise ReaderError(path, f"physical_size {size!r} does not match a {h.ndim}D measurement") from None
     if not np.all(np.isfinite(sz)) or np.any(sz <= 0):
         raise ReaderError(path, f"physical size must be positive and finite, got {tuple(sz)}")
+    if np.any(sz / np.asarray(h.shape) < np.finfo(float).tiny):  # the pixel size underflows: no distinct positions
+        raise ReaderError(path, f"physical_size {tuple(sz.tolist())} is too small for {h.shape} pixels "
+                                f"(a pixel below {np.finfo(float).tiny:g} {lateral})")
     return make_measurement(h, size=tuple(sz), units=lateral, mask=mask,
                             height_scale=scale, **attrs)
 
