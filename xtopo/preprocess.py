@@ -200,7 +200,8 @@ STEPS = tuple(_STEPS)
 def _step_options(step: str, options, name: str) -> dict | None:
     """Every option of ``step`` (defaults filled in) from what was given for it; None: the step is left out."""
     func, check = _STEPS[step]
-    params = list(inspect.signature(func).parameters)[1:]  # after the measurement
+    signature = inspect.signature(func)
+    params = list(signature.parameters)[1:]  # after the measurement
     if options is None or (isinstance(options, (bool, np.bool_)) and not options):
         return None
     if isinstance(options, (bool, np.bool_)):
@@ -215,7 +216,7 @@ def _step_options(step: str, options, name: str) -> dict | None:
     if unknown:
         raise XtopoError(f"{name}: step {step!r} has no option {', '.join(map(repr, unknown))}; its options: "
                          f"{', '.join(params) or 'none'}")
-    bound = inspect.signature(func).bind(None, **kwargs)
+    bound = signature.bind(None, **kwargs)
     bound.apply_defaults()
     try:
         return check(**{k: v for k, v in bound.arguments.items() if k in params})
