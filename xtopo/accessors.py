@@ -16,6 +16,7 @@ from .analysis import scalars as _scalars
 from . import preprocess as _preprocess
 from .analysis import acf as _acf
 from .analysis import hurst as _hurst
+from .analysis import iso25178 as _iso25178
 from .analysis import psd as _psd
 from .analysis import reliability as _reliability
 from .analysis import sdrp as _sdrp
@@ -60,6 +61,9 @@ class _TopoAccessor:
     sdrp = _delegate(_sdrp.sdrp)
     reliability_cutoff = _delegate(_reliability.reliability_cutoff)
     hurst = _delegate(_hurst.hurst)
+    # ISO 25178-2 areal parameters (issue 22)
+    iso25178 = _delegate(_iso25178.iso25178)
+    material_ratio = _delegate(_iso25178.material_ratio)
     # figures (issue 8)
     plot = _delegate(_plot.plot)
     # contact mechanics (issue 5)
