@@ -13,7 +13,7 @@ from the cumulative counts and sums:
   areas of ISO 13565-2) — exact sums over whole classes, the class holding ``c``
   taken as uniformly filled.
 
-With ``m = min(n, 2**18)`` classes (at least 256) a class is narrower than ``Sz / m``: on a
+With ``m = min(16 n, 2**18)`` classes (at least 4096) a class is narrower than ``Sz / m``: on a
 2048² map that is 4·10⁻⁶ Sz, below any tolerance of the parameters, for the cost of one
 pass (a sort of the same heights costs ~10 times more). A few extreme spikes widen the
 classes (Sz grows): the height resolution of the curve is Sz/m, its ratios stay exact.
@@ -37,7 +37,9 @@ EQUIVALENCE_WIDTH = 40.0
 #: samples of the material ratio curve (0 to 100 % in steps of 0.01 %) on which the
 #: central region is located and the equivalent straight line fitted
 CURVE_SAMPLES = 10001
-_MIN_CLASSES = 256
+_MIN_CLASSES = 4096
+#: classes per point below the cap: a class rarely holds more than a few points
+_CLASSES_PER_POINT = 16
 _MAX_CLASSES = 2**18
 
 
@@ -107,7 +109,7 @@ class Distribution:
             self.lo = self.hi = np.nan
             return
         mean = s / n
-        m = int(min(max(n, _MIN_CLASSES), _MAX_CLASSES))
+        m = int(min(max(_CLASSES_PER_POINT * n, _MIN_CLASSES), _MAX_CLASSES))
         counts = np.zeros(m, np.int64)
         sums = np.zeros(m)
         s1, sa, s2, s3, s4 = _classes(z, mean, lo, hi, counts, sums)

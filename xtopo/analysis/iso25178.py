@@ -197,11 +197,13 @@ def _at_kernel(h, *, values, kind):
     return out
 
 
-def _evaluate(obj, values, dim, dim_attrs, kernel, kwargs, name, units, long_name, what, params):
+def _evaluate(obj, values, dim, dim_attrs, kernel, kwargs, name, units, long_name, what, params, scalar):
     h, length, _ = _area(obj, what)
     out = apply_lateral(kernel, h, output_core_dims=[[dim]], output_sizes={dim: values.size},
                         kwargs=kwargs, what=what)
     out = out.assign_coords({dim: (dim, values, dim_attrs)})
+    if scalar:
+        out = out.squeeze(dim)
     out.attrs = {"units": units.replace("L", length), "long_name": long_name, "standard": "ISO 25178-2"}
     out.name = name
     return provenance(out, obj, what, **params)
@@ -244,7 +246,7 @@ def material_ratio(obj, mr=None, *, nb_points: int = 1001) -> xr.DataArray:
         values = _ratios_argument(mr, "mr")
     return _evaluate(obj, values, "material_ratio", {"units": "%", "long_name": "areal material ratio"},
                      _curve_kernel, dict(mr=values), "height", "L", "height of the material ratio curve",
-                     "material_ratio", dict(mr=values))
+                     "material_ratio", dict(mr=values), np.ndim(mr) == 0 and mr is not None)
 
 
 def areal_material_ratio(obj, c) -> xr.DataArray:
@@ -269,7 +271,7 @@ def areal_material_ratio(obj, c) -> xr.DataArray:
     units = shared_length_unit(height_of(obj), "areal_material_ratio")
     return _evaluate(obj, values, "c", {"units": units, "long_name": "height above the mean plane"},
                      _at_kernel, dict(values=values, kind="ratio"), "Smr", "%", "areal material ratio",
-                     "areal_material_ratio", dict(c=values))
+                     "areal_material_ratio", dict(c=values), np.ndim(c) == 0)
 
 
 def material_volume(obj, p) -> xr.DataArray:
@@ -290,7 +292,7 @@ def material_volume(obj, p) -> xr.DataArray:
     values = _ratios_argument(p, "p")
     return _evaluate(obj, values, "p", {"units": "%", "long_name": "material ratio"}, _at_kernel,
                      dict(values=values, kind="material"), "Vm", "L3 L-2", "material volume", "material_volume",
-                     dict(p=values))
+                     dict(p=values), np.ndim(p) == 0)
 
 
 def void_volume(obj, p) -> xr.DataArray:
@@ -311,4 +313,4 @@ def void_volume(obj, p) -> xr.DataArray:
     values = _ratios_argument(p, "p")
     return _evaluate(obj, values, "p", {"units": "%", "long_name": "material ratio"}, _at_kernel,
                      dict(values=values, kind="void"), "Vv", "L3 L-2", "void volume", "void_volume",
-                     dict(p=values))
+                     dict(p=values), np.ndim(p) == 0)
