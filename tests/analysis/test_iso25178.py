@@ -127,7 +127,9 @@ def test_linear_ramp_material_ratio_curve():
     assert curve.dims == ("material_ratio",)
     assert curve.attrs["units"] == "um" and curve.material_ratio.attrs["units"] == "%"
     np.testing.assert_allclose(curve.values, 1.0 - 2.0 * curve.material_ratio.values / 100, atol=5e-4)
-    np.testing.assert_allclose(areal_material_ratio(ds, [-0.5, 0.0, 0.5]).values, [75.0, 50.0, 25.0], atol=0.02)
+    smr = areal_material_ratio(ds, [-0.5, 0.0, 0.5])
+    np.testing.assert_allclose(smr.values, [75.0, 50.0, 25.0], atol=0.02)
+    assert smr.attrs["units"] == "%" and smr.c.attrs["units"] == "um"
     r = values(ds.topo.iso25178())
     assert r["Sk"] == pytest.approx(2.0, rel=1e-3)
     assert r["Smr1"] == pytest.approx(0.0, abs=0.02) and r["Smr2"] == pytest.approx(100.0, abs=0.02)

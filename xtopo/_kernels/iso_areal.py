@@ -281,7 +281,7 @@ def _one(z, dy, dx, periodic, groups, s, p, q, c, mr, sxp, sdc):
         with np.errstate(invalid="ignore", divide="ignore"):
             sk = s3 / sq**3 if sq > 0 else np.nan
             ku = s4 / sq**4 if sq > 0 else np.nan
-        out.update(Sa=sa, Sq=sq, Sp=dist.hi, Sv=-dist.lo, Sz=dist.hi - dist.lo, Ssk=sk, Sku=ku)
+        out.update(Sa=sa, Sq=sq, Sp=dist.hi, Sv=0.0 - dist.lo, Sz=dist.hi - dist.lo, Ssk=sk, Sku=ku)
     if "functional" in groups:
         sk_, spk, svk, mr1, mr2 = _mr.functional(dist)
         if dist.n:

@@ -201,6 +201,7 @@ def _evaluate(obj, values, dim, dim_attrs, kernel, kwargs, name, units, long_nam
     h, length, _ = _area(obj, what)
     out = apply_lateral(kernel, h, output_core_dims=[[dim]], output_sizes={dim: values.size},
                         kwargs=kwargs, what=what)
+    dim_attrs = {**dim_attrs, "units": dim_attrs["units"].replace("L", length)}
     out = out.assign_coords({dim: (dim, values, dim_attrs)})
     if scalar:
         out = out.squeeze(dim)
@@ -262,16 +263,21 @@ def areal_material_ratio(obj, c) -> xr.DataArray:
     Returns
     -------
     xarray.DataArray
-        ``Smr`` in % on dim ``c``.
+        ``Smr`` in % on dim ``c`` (no dim for a single ``c``).
     """
     v = real_array(c)
     if v is None or v.ndim > 1 or v.size == 0 or not np.all(np.isfinite(v)):
         raise XtopoError(f"c must be finite heights (a number or 1D sequence) in the length unit, got {c!r}")
     values = np.atleast_1d(v)
-    units = shared_length_unit(height_of(obj), "areal_material_ratio")
-    return _evaluate(obj, values, "c", {"units": units, "long_name": "height above the mean plane"},
+    return _evaluate(obj, values, "c", {"units": "L", "long_name": "height above the mean plane"},
                      _at_kernel, dict(values=values, kind="ratio"), "Smr", "%", "areal material ratio",
                      "areal_material_ratio", dict(c=values), np.ndim(c) == 0)
+
+
+def _volume(obj, p, kind: str, name: str, long_name: str, what: str) -> xr.DataArray:
+    values = _ratios_argument(p, "p")
+    return _evaluate(obj, values, "p", {"units": "%", "long_name": "material ratio"}, _at_kernel,
+                     dict(values=values, kind=kind), name, "L3 L-2", long_name, what, dict(p=values), np.ndim(p) == 0)
 
 
 def material_volume(obj, p) -> xr.DataArray:
@@ -287,30 +293,14 @@ def material_volume(obj, p) -> xr.DataArray:
     Returns
     -------
     xarray.DataArray
-        ``Vm`` in ``unit3 unit-2`` on dim ``p``.
+        ``Vm`` in ``unit3 unit-2`` on dim ``p`` (no dim for a single ``p``).
     """
-    values = _ratios_argument(p, "p")
-    return _evaluate(obj, values, "p", {"units": "%", "long_name": "material ratio"}, _at_kernel,
-                     dict(values=values, kind="material"), "Vm", "L3 L-2", "material volume", "material_volume",
-                     dict(p=values), np.ndim(p) == 0)
+    return _volume(obj, p, "material", "Vm", "material volume", "material_volume")
 
 
 def void_volume(obj, p) -> xr.DataArray:
     """Vv(p): the void volume per unit area below the height at material ratio ``p`` (ISO 25178-2 §4.5.7).
 
-    Parameters
-    ----------
-    obj : xarray.Dataset or xarray.DataArray
-        An area scan (extra dims broadcast; dask stays lazy).
-    p : float or sequence of float
-        Material ratios in %.
-
-    Returns
-    -------
-    xarray.DataArray
-        ``Vv`` in ``unit3 unit-2`` on dim ``p``.
+    Arguments and result as for :func:`material_volume` (``Vv`` instead of ``Vm``); see :func:`material_volume`.
     """
-    values = _ratios_argument(p, "p")
-    return _evaluate(obj, values, "p", {"units": "%", "long_name": "material ratio"}, _at_kernel,
-                     dict(values=values, kind="void"), "Vv", "L3 L-2", "void volume", "void_volume",
-                     dict(p=values), np.ndim(p) == 0)
+    return _volume(obj, p, "void", "Vv", "void volume", "void_volume")
