@@ -11,7 +11,9 @@ their mean plane. Groups of parameters and their discretisation:
 * spatial (§4.3): Sal and Str from the normalised autocorrelation ``C(τ)/C(0)`` (linear, each
   lag divided by its number of pairs; circular for periodic maps) by casting rays from
   ``τ = 0``, Std from the angular amplitude density of the Fourier transform. Maps with
-  missing data give NaN here (fill them first).
+  missing data give NaN here (fill them first);
+* feature (§5): watershed segmentation with Wolf pruning, :mod:`xtopo._kernels.features`;
+  maps with missing data give NaN.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import scipy.fft as sfft
 from numba import njit
 
 from . import fft as _fft
+from . import features as _features
 from . import material_ratio as _mr
 from .spectra import BACKEND as _BACKEND
 from .windows import radial_hann
@@ -39,6 +42,7 @@ GROUPS = {
     "spatial": ("Sal", "Str", "Std"),
     "functional": ("Sk", "Spk", "Svk", "Smr1", "Smr2", "Sxp", "Smr", "Smc", "Sdc"),
     "volume": ("Vmp", "Vmc", "Vvv", "Vvc"),
+    "feature": _features.FEATURES,
 }
 PARAMETERS = tuple(name for names in GROUPS.values() for name in names)
 
@@ -270,7 +274,7 @@ def volumes(dist: _mr.Distribution, p: np.ndarray, kind: str) -> np.ndarray:
     return dist.excess(level) if kind == "material" else dist.deficit(level)
 
 
-def _one(z, dy, dx, periodic, groups, s, p, q, c, mr, sxp, sdc):
+def _one(z, dy, dx, periodic, groups, s, p, q, c, mr, sxp, sdc, pruning):
     out = {}
     dist = None
     if {"height", "functional", "volume"} & groups:
@@ -314,24 +318,29 @@ def _one(z, dy, dx, periodic, groups, s, p, q, c, mr, sxp, sdc):
             out["Std"] = texture_direction(d, dy, dx, periodic)
         else:
             out.update(Sal=np.nan, Str=np.nan, Std=np.nan)
+    if "feature" in groups:
+        z = np.asarray(z, dtype=float)
+        zc = z - z.mean() if np.isfinite(z).all() else z
+        out.update(zip(_features.FEATURES, _features.feature_parameters(zc, dy, dx, periodic, pruning)))
     return out
 
 
 def areal_parameters(h: np.ndarray, *, dy: float, dx: float, periodic: bool, names: tuple, s: float = 0.2,
                      p: float = 10.0, q: float = 80.0, c: float = 0.0, mr: float = 10.0,
-                     sxp=(2.5, 50.0), sdc=(10.0, 80.0)) -> np.ndarray:
+                     sxp=(2.5, 50.0), sdc=(10.0, 80.0), pruning: float = 5.0) -> np.ndarray:
     """The ISO 25178-2 parameters ``names`` (a subset of :data:`PARAMETERS`) of ``h[..., ny, nx]``, stacked last.
 
     Units: heights and lengths as ``h`` and ``dx``; Ssk, Sku, Sdq, Str dimensionless; Sdr,
     Smr1, Smr2, Smr in %; Std in degrees; volumes in length³/length² (length).
     ``s``: autocorrelation threshold; ``p``, ``q``: material ratios (%) of the volume
     parameters; ``c``: height above the mean plane of Smr(c); ``mr``: ratio (%) of Smc(mr);
-    ``sxp``, ``sdc``: the ratio pairs (%) of Sxp and Sdc.
+    ``sxp``, ``sdc``: the ratio pairs (%) of Sxp and Sdc; ``pruning``: the Wolf pruning threshold
+    of the feature parameters in % of Sz (Spd in length⁻², Spc in length⁻¹).
     """
     h = np.asarray(h, dtype=float)
     groups = {g for g, members in GROUPS.items() if set(members) & set(names)}
     out = np.empty(h.shape[:-2] + (len(names),))
     for idx in np.ndindex(h.shape[:-2]):
-        vals = _one(h[idx], dy, dx, periodic, groups, s, p, q, c, mr, sxp, sdc)
+        vals = _one(h[idx], dy, dx, periodic, groups, s, p, q, c, mr, sxp, sdc, pruning)
         out[idx] = [vals[n] for n in names]
     return out

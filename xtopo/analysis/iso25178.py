@@ -52,11 +52,16 @@ _META = {
     "Vmc": ("core material volume", "V"),
     "Vvv": ("dale void volume", "V"),
     "Vvc": ("core void volume", "V"),
+    "Spd": ("density of peaks", "L-2"),
+    "Spc": ("arithmetic mean peak curvature", "L-1"),
+    "S10z": ("ten point height", "L"),
+    "S5p": ("five point peak height", "L"),
+    "S5v": ("five point pit depth", "L"),
 }
 
 
 def _units(kind: str, length: str) -> str:
-    return {"L": length, "V": f"{length}3 {length}-2"}.get(kind, kind)
+    return {"L": length, "V": f"{length}3 {length}-2", "L-1": f"{length}-1", "L-2": f"{length}-2"}.get(kind, kind)
 
 
 def _area(obj, what: str):
@@ -100,12 +105,12 @@ def _names(parameters) -> tuple:
 
 
 def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float = 80.0, c: float = 0.0,
-             mr: float = 10.0, sxp=(2.5, 50.0), sdc=(10.0, 80.0)) -> xr.Dataset:
+             mr: float = 10.0, sxp=(2.5, 50.0), sdc=(10.0, 80.0), pruning: float = 5.0) -> xr.Dataset:
     """ISO 25178-2 field parameters of an area scan, one variable per ISO symbol.
 
     Height (Sa, Sq, Sp, Sv, Sz, Ssk, Sku), hybrid (Sdq, Sdr), spatial (Sal, Str, Std),
-    functional (Sk, Spk, Svk, Smr1, Smr2, Sxp, Smr(c), Smc(mr), Sdc) and volume (Vmp, Vmc,
-    Vvv, Vvc) parameters. Definitions and discretisations are in docs/iso.md; Sdq here uses
+    functional (Sk, Spk, Svk, Smr1, Smr2, Sxp, Smr(c), Smc(mr), Sdc), volume (Vmp, Vmc,
+    Vvv, Vvc) and feature (Spd, Spc, S10z, S5p, S5v) parameters. Definitions and discretisations are in docs/iso.md; Sdq here uses
     the standards' seven-point slope and differs from the paper's forward-difference SΔq
     of :func:`xtopo.analysis.scalars.scalars` (both are kept).
 
@@ -116,7 +121,7 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
         heights are taken about their mean plane.
     parameters : str or sequence of str, optional
         ISO symbols and/or groups (``"height"``, ``"hybrid"``, ``"spatial"``, ``"functional"``,
-        ``"volume"``) to compute; default all.
+        ``"volume"``, ``"feature"``) to compute; default all.
     s : float
         Threshold of the normalised autocorrelation for Sal and Str, 0 < s < 1 (ISO 25178-3 default 0.2).
     p, q : float
@@ -130,20 +135,23 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
         Material ratios (p, q) in % of ``Sxp = Smc(p) - Smc(q)`` (ISO 25178-3 defaults 2.5 %, 50 %).
     sdc : tuple of float
         Material ratios (p, q) in % of ``Sdc = Smc(p) - Smc(q)``.
+    pruning : float
+        Wolf pruning threshold of the feature parameters, in % of Sz (5 %, the customary default).
 
     Returns
     -------
     xarray.Dataset
         One variable per ISO symbol with ``units`` and ``long_name`` (heights and lengths in the
         measurement's unit, Sdr and material ratios in %, Std in degrees, volumes in
-        ``unit3 unit-2``); the arguments of parametrised symbols are in their attrs.
+        ``unit3 unit-2``, Spd in ``unit-2``, Spc in ``unit-1``); the arguments of parametrised symbols are in their attrs.
 
     Notes
     -----
     NaN where a parameter is undefined: Ssk and Sku of a flat map; Sdq/Sdr with fewer than
     7 samples along a direction (nonperiodic) or no complete cell; Sal, Str and Std of a map
     with missing data (fill it first); Str when the autocorrelation does not fall to ``s``
-    within the map in some direction, Sal when it does not fall in any.
+    within the map in some direction, Sal when it does not fall in any; the feature parameters
+    of a map with missing data, Spc/S5p/S5v when no complete significant hill or dale is found.
     """
     names = _names(parameters)
     s = real_number(s, "s", low=0.0, high=1.0, closed=False)
@@ -152,15 +160,17 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
     mr = _ratio(mr, "mr")
     sxp = _pair(sxp, "sxp")
     sdc = _pair(sdc, "sdc")
+    pruning = real_number(pruning, "pruning", low=0.0, high=100.0)
     h, units, periodic = _area(obj, "iso25178")
     out = apply_lateral(_k.areal_parameters, h, output_core_dims=[["parameter"]],
                         output_sizes={"parameter": len(names)},
                         kwargs=dict(dy=spacing(h, Y), dx=spacing(h, X), periodic=periodic, names=names, s=s, p=p,
-                                    q=q, c=c, mr=mr, sxp=sxp, sdc=sdc),
+                                    q=q, c=c, mr=mr, sxp=sxp, sdc=sdc, pruning=pruning),
                         what="iso25178")
     args = {"Sal": {"s": s}, "Str": {"s": s}, "Smr": {"c": c, "c_units": units}, "Smc": {"mr": mr},
             "Sxp": {"p": sxp[0], "q": sxp[1]}, "Sdc": {"p": sdc[0], "q": sdc[1]},
-            "Vmp": {"p": p}, "Vmc": {"p": p, "q": q}, "Vvv": {"q": q}, "Vvc": {"p": p, "q": q}}
+            "Vmp": {"p": p}, "Vmc": {"p": p, "q": q}, "Vvv": {"q": q}, "Vvc": {"p": p, "q": q},
+            **{name: {"pruning": pruning} for name in _k.GROUPS["feature"]}}
     data = {}
     for i, name in enumerate(names):
         long_name, kind = _META[name]
@@ -171,7 +181,7 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
     ds = xr.Dataset(data)
     ds.attrs = {"title": "ISO 25178-2 areal field parameters", "periodic": int(periodic)}
     return provenance(ds, obj, "iso25178", parameters=list(names), s=s, p=p, q=q, c=c, mr=mr, sxp=list(sxp),
-                      sdc=list(sdc))
+                      sdc=list(sdc), pruning=pruning)
 
 
 def _curve_kernel(h, *, mr):
