@@ -6,14 +6,14 @@ Usage::
     PYTHONPATH=. python benchmarks/bench_iso.py --sizes 512 2048 --repeats 7
 
 Both packages compute the same 30 parameters of the same nonperiodic random surface
-(self-affine, H = 0.8, rolled off at a tenth of the map so that the autocorrelation decays)
-(Sa Sq Sp Sv Sz Ssk Sku, Sdq Sdr, Sal Str Std, Sk Spk Svk Smr1 Smr2 Sxp Smr(c) Smc(mr)
-Sdc, Vmp Vmc Vvv Vvc, Spd Spc S10z S5p S5v with Wolf pruning at 5 % of Sz). "cold" is each package's first call in this process (numba
-cache loading, FFT plans, windows); "warm" are ``--repeats`` further calls, run in
-alternating order, each on a fresh surfalize ``Surface`` (surfalize caches results on
-the object, which would make repeated calls free) and a fresh xtopo call (xtopo keeps
-no results). The table gives min/median/max and the ratio of the medians (xtopo/surfalize,
-< 1: xtopo faster) with the machine's load average before and after.
+(self-affine, H = 0.8, rolled off at a tenth of the map so that the autocorrelation decays):
+Sa Sq Sp Sv Sz Ssk Sku, Sdq Sdr, Sal Str Std, Sk Spk Svk Smr1 Smr2 Sxp Smr(c) Smc(mr)
+Sdc, Vmp Vmc Vvv Vvc, Spd Spc S10z S5p S5v with Wolf pruning at 5 % of Sz. "cold" is each
+package's first call in this process (numba cache loading, FFT plans, windows); "warm" are
+``--repeats`` further calls, run in alternating order, each on a fresh surfalize ``Surface``
+(surfalize caches results on the object, which would make repeated calls free) and a fresh
+xtopo call (xtopo keeps no results). The table gives min/median/max and the ratio of the
+medians (xtopo/surfalize, < 1: xtopo faster) with the machine's load average before and after.
 """
 
 from __future__ import annotations

@@ -68,12 +68,14 @@ def _basins(z, periodic):
 
 
 @njit(**_JIT)
-def _saddles(z, basin, periodic):
-    """Pairs of basins that touch (as 8-neighbours) and the height ``max(z_a, z_b)`` of each touching pair."""
+def _saddle_table(z, basin, periodic, size):
+    """Open-addressing table (``size`` a power of 2) of touching basin pairs and their lowest saddle; None if too full."""
     ny, nx = z.shape
-    a = []
-    b = []
-    s = []
+    n = ny * nx
+    keys = np.full(size, -1, np.int64)
+    vals = np.empty(size)
+    used = 0
+    mask = size - 1
     for r in range(ny):
         for c in range(nx):
             i = r * nx + c
@@ -85,12 +87,36 @@ def _saddles(z, basin, periodic):
                     cc %= nx
                 elif rr < 0 or rr >= ny or cc < 0 or cc >= nx:
                     continue
-                j = rr * nx + cc
-                if basin[i] != basin[j]:
-                    a.append(basin[i])
-                    b.append(basin[j])
-                    s.append(max(z[r, c], z[rr, cc]))
-    return np.array(a, np.int64), np.array(b, np.int64), np.array(s)
+                bi = basin[i]
+                bj = basin[rr * nx + cc]
+                if bi == bj:
+                    continue
+                key = min(bi, bj) * n + max(bi, bj)
+                v = max(z[r, c], z[rr, cc])
+                h = ((key * 0x9E3779B1) >> 7) & mask
+                while keys[h] != -1 and keys[h] != key:
+                    h = (h + 1) & mask
+                if keys[h] == -1:
+                    used += 1
+                    if 2 * used > size:
+                        return None
+                    keys[h] = key
+                    vals[h] = v
+                elif v < vals[h]:
+                    vals[h] = v
+    keep = keys != -1
+    return keys[keep] // n, keys[keep] % n, vals[keep]
+
+
+def _saddles(z, basin, periodic):
+    """Pairs of basins that touch (as 8-neighbours) and their saddle: the lowest ``max(z_a, z_b)`` of their touching pixels."""
+    basins = int(np.count_nonzero(basin == np.arange(basin.size)))
+    size = 1 << max(10, int(np.ceil(np.log2(16 * basins))))  # about 6 neighbours a basin: rarely refilled
+    while True:
+        out = _saddle_table(z, basin, periodic, size)
+        if out is not None:
+            return out
+        size *= 4
 
 
 @njit(**_JIT)
