@@ -23,8 +23,6 @@ import os
 import statistics
 import time
 
-import numpy as np
-
 import xtopo  # noqa: F401
 from xtopo.datasets import fractal_surface
 

@@ -8,8 +8,7 @@ from scipy.special import ellipe
 
 import xtopo
 from xtopo._kernels import iso_areal
-from xtopo.analysis.iso25178 import (PARAMETERS, areal_material_ratio, iso25178, material_ratio, material_volume,
-                                     void_volume)
+from xtopo.analysis.iso25178 import PARAMETERS, areal_material_ratio, material_volume, void_volume
 from xtopo.conventions import make_measurement
 from xtopo.datasets import sinusoid
 

@@ -69,7 +69,10 @@ def _basins(z, periodic):
 
 @njit(**_JIT)
 def _saddle_table(z, basin, periodic, size):
-    """Open-addressing table (``size`` a power of 2) of touching basin pairs and their lowest saddle; None if too full."""
+    """Open-addressing table (``size``: a power of 2) of touching basin pairs and their lowest saddle.
+
+    None if the table fills beyond half (call again with a larger ``size``).
+    """
     ny, nx = z.shape
     n = ny * nx
     keys = np.full(size, -1, np.int64)
@@ -109,7 +112,7 @@ def _saddle_table(z, basin, periodic, size):
 
 
 def _saddles(z, basin, periodic):
-    """Pairs of basins that touch (as 8-neighbours) and their saddle: the lowest ``max(z_a, z_b)`` of their touching pixels."""
+    """Pairs of basins that touch (as 8-neighbours) and their saddle, the lowest ``max(z_a, z_b)`` of their pixels."""
     basins = int(np.count_nonzero(basin == np.arange(basin.size)))
     size = 1 << max(10, int(np.ceil(np.log2(16 * basins))))  # about 6 neighbours a basin: rarely refilled
     while True:
@@ -129,7 +132,7 @@ def _find(parent, i):
 
 @njit(**_JIT)
 def _prune(zflat, basin, a, b, s, order, threshold, edge):
-    """Wolf pruning (elder rule) over the saddles in ``order``; returns the minima of the significant complete motifs."""
+    """Wolf pruning (elder rule) over the saddles in ``order``; the minima of the significant complete motifs."""
     n = zflat.size
     parent = np.arange(n)
     closed = np.zeros(n, np.bool_)

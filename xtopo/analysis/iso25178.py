@@ -110,9 +110,10 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
 
     Height (Sa, Sq, Sp, Sv, Sz, Ssk, Sku), hybrid (Sdq, Sdr), spatial (Sal, Str, Std),
     functional (Sk, Spk, Svk, Smr1, Smr2, Sxp, Smr(c), Smc(mr), Sdc), volume (Vmp, Vmc,
-    Vvv, Vvc) and feature (Spd, Spc, S10z, S5p, S5v) parameters. Definitions and discretisations are in docs/iso.md; Sdq here uses
-    the standards' seven-point slope and differs from the paper's forward-difference SΔq
-    of :func:`xtopo.analysis.scalars.scalars` (both are kept).
+    Vvv, Vvc) and feature (Spd, Spc, S10z, S5p, S5v) parameters. Definitions and
+    discretisations are in docs/iso.md; Sdq here uses the standards' seven-point slope and
+    differs from the paper's forward-difference SΔq of :func:`xtopo.analysis.scalars.scalars`
+    (both are kept).
 
     Parameters
     ----------
@@ -143,7 +144,8 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
     xarray.Dataset
         One variable per ISO symbol with ``units`` and ``long_name`` (heights and lengths in the
         measurement's unit, Sdr and material ratios in %, Std in degrees, volumes in
-        ``unit3 unit-2``, Spd in ``unit-2``, Spc in ``unit-1``); the arguments of parametrised symbols are in their attrs.
+        ``unit3 unit-2``, Spd in ``unit-2``, Spc in ``unit-1``); the arguments of parametrised
+        symbols are in their attrs.
 
     Notes
     -----
@@ -184,15 +186,6 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
                       sdc=list(sdc), pruning=pruning)
 
 
-def _curve_kernel(h, *, mr):
-    h = np.asarray(h, dtype=float)
-    out = np.empty(h.shape[:-2] + (mr.size,))
-    for idx in np.ndindex(h.shape[:-2]):
-        dist = _mr.distribution(h[idx])
-        out[idx] = _k.curve(dist, mr) if dist.n else np.nan
-    return out
-
-
 def _at_kernel(h, *, values, kind):
     h = np.asarray(h, dtype=float)
     out = np.empty(h.shape[:-2] + (values.size,))
@@ -200,6 +193,8 @@ def _at_kernel(h, *, values, kind):
         dist = _mr.distribution(h[idx])
         if not dist.n:
             out[idx] = np.nan
+        elif kind == "height":
+            out[idx] = _k.curve(dist, values)
         elif kind == "ratio":
             out[idx] = _k.ratios(dist, values)
         else:
@@ -256,8 +251,9 @@ def material_ratio(obj, mr=None, *, nb_points: int = 1001) -> xr.DataArray:
     else:
         values = _ratios_argument(mr, "mr")
     return _evaluate(obj, values, "material_ratio", {"units": "%", "long_name": "areal material ratio"},
-                     _curve_kernel, dict(mr=values), "height", "L", "height of the material ratio curve",
-                     "material_ratio", dict(mr=values), np.ndim(mr) == 0 and mr is not None)
+                     _at_kernel, dict(values=values, kind="height"), "height", "L",
+                     "height of the material ratio curve", "material_ratio", dict(mr=values),
+                     np.ndim(mr) == 0 and mr is not None)
 
 
 def areal_material_ratio(obj, c) -> xr.DataArray:
