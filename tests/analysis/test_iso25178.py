@@ -145,15 +145,19 @@ def test_linear_ramp_material_ratio_curve():
 
 
 @pytest.mark.parametrize("periodic", [True, False])
-@pytest.mark.parametrize("kx,ky", [(20, 35), (30, -17), (0, 12), (25, 0)])
-def test_grooves_texture_direction(kx, ky, periodic):
-    """Std is the direction of the wavevector of the lay's profile, from +x towards +y, in [0, 180)."""
-    n, L = 256, 100.0
-    x = np.arange(n) * L / n
-    z = np.sin(2 * np.pi * (kx * x[None, :] + ky * x[:, None]) / L)
-    ds = make_measurement(z, spacing=L / n, units="um", periodic=periodic)
+@pytest.mark.parametrize("kx,ky,square", [(20, 35, True), (30, -17, True), (0, 12, True), (25, 0, True),
+                                          (10, 7, False), (20, 3, False), (15, -11, False)])
+def test_grooves_texture_direction(kx, ky, square, periodic):
+    """Std is the direction of the wavevector of the lay's profile, from +x towards +y, in [0, 180).
+
+    ``kx``, ``ky``: periods over the map's width and height; non-square maps have 0.39 × 0.25 µm pixels.
+    """
+    ny, nx, Ly, Lx = (256, 256, 100.0, 100.0) if square else (200, 256, 50.0, 100.0)
+    y, x = np.arange(ny) * Ly / ny, np.arange(nx) * Lx / nx
+    z = np.sin(2 * np.pi * (kx * x[None, :] / Lx + ky * y[:, None] / Ly))
+    ds = make_measurement(z, spacing=(Ly / ny, Lx / nx), units="um", periodic=periodic)
     std = float(ds.topo.iso25178("Std").Std)
-    expected = np.degrees(np.arctan2(ky, kx)) % 180
+    expected = np.degrees(np.arctan2(ky / Ly, kx / Lx)) % 180
     assert abs((std - expected + 90) % 180 - 90) <= 2.0
 
 
@@ -334,7 +338,8 @@ def test_real_measurements_side_by_side_with_surfalize(real_data, name):
             assert np.isnan(ours[key]), key
         else:
             assert ours[key] == pytest.approx(ref[key], rel=tol, abs=1e-9), key
-    assert ours["Std"] == ref["Std"]
+    # surfalize leaves the map unwindowed; its edges pull towards the axes (docs/iso.md): 0° there, 1.5° here
+    assert abs((ours["Std"] - ref["Std"] + 90) % 180 - 90) <= 2.0
 
 
 # --- the ISO 5436-2 sample ---------------------------------------------------------------------------------------

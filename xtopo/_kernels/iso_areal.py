@@ -222,10 +222,18 @@ def decay_lengths(z: np.ndarray, dy: float, dx: float, periodic: bool, s: float)
 
 @njit(**_JIT)
 def _angular(amp, ny, nx, dy, dx, nbins):
-    """Angular amplitude density: Σ|F| per direction bin (centred on multiples of 180°/nbins) of a rfft2 half plane."""
+    """Angular amplitude density of a rfft2 half plane: Σ|F| per direction bin (centred on multiples of 180°/nbins).
+
+    A Fourier sample stands for a cell of the frequency lattice, which a direction sees under the
+    angle ``δ = √(Δf_x Δf_y)/|f|``: its amplitude is spread over the bins by a tent of half-width
+    ``max(δ, bin width)`` centred on its direction. A sample right on a direction still gives
+    that direction its largest share, and a spectral peak spread over several samples (windowed
+    or off-lattice) is not out-voted by bins that happen to catch more samples.
+    """
     out = np.zeros(nbins)
     step = 180.0 / nbins
     nxr = amp.shape[1]
+    cell = math.degrees(math.sqrt(1.0 / (ny * dy) / (nx * dx)))
     for i in range(ny):
         ky = i if i < (ny + 1) // 2 else i - ny
         fy = ky / (ny * dy)
@@ -233,10 +241,21 @@ def _angular(amp, ny, nx, dy, dx, nbins):
             if i == 0 and j == 0:
                 continue
             fx = j / (nx * dx)
-            w = 1.0 if (j == 0 or (nx % 2 == 0 and j == nx // 2)) else 2.0
-            th = math.degrees(math.atan2(fy, fx))
-            b = int(math.floor(th / step + 0.5)) % nbins
-            out[b] += w * amp[i, j]
+            w = (1.0 if (j == 0 or (nx % 2 == 0 and j == nx // 2)) else 2.0) * amp[i, j]
+            th = math.degrees(math.atan2(fy, fx)) / step  # in bins
+            half = max(cell / math.hypot(fx, fy) / step, 1.0)
+            if half >= nbins / 2:
+                for b in range(nbins):
+                    out[b] += w / nbins
+                continue
+            lo = int(math.ceil(th - half))
+            hi = int(math.floor(th + half))
+            total = 0.0
+            for b in range(lo, hi + 1):
+                total += 1.0 - abs(b - th) / half
+            if total > 0:
+                for b in range(lo, hi + 1):
+                    out[b % nbins] += w * (1.0 - abs(b - th) / half) / total
     return out
 
 
