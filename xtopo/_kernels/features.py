@@ -31,28 +31,37 @@ FEATURES = ("Spd", "Spc", "S10z", "S5p", "S5v")
 _OFFSETS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)], np.int64)
 
 
+@njit(inline="always")
+def _neighbour(r, c, k, ny, nx, periodic):
+    """Flat index of the ``k``-th 8-neighbour of pixel (r, c), wrapped on periodic maps; -1 off a nonperiodic map."""
+    rr = r + _OFFSETS[k, 0]
+    cc = c + _OFFSETS[k, 1]
+    if periodic:
+        return (rr % ny) * nx + cc % nx
+    if rr < 0 or rr >= ny or cc < 0 or cc >= nx:
+        return -1
+    return rr * nx + cc
+
+
 @njit(**_JIT)
 def _basins(z, periodic):
     """Flat index of the local minimum every pixel flows down to (steepest descent over 8 neighbours)."""
     ny, nx = z.shape
     n = ny * nx
+    zf = z.ravel()
     down = np.empty(n, np.int64)
     for r in range(ny):
         for c in range(nx):
             best = z[r, c]
             to = r * nx + c
             for k in range(8):
-                rr = r + _OFFSETS[k, 0]
-                cc = c + _OFFSETS[k, 1]
-                if periodic:
-                    rr %= ny
-                    cc %= nx
-                elif rr < 0 or rr >= ny or cc < 0 or cc >= nx:
+                j = _neighbour(r, c, k, ny, nx, periodic)
+                if j < 0:
                     continue
-                v = z[rr, cc]
+                v = zf[j]
                 if v < best:
                     best = v
-                    to = rr * nx + cc
+                    to = j
             down[r * nx + c] = to
     # pointer jumping: follow the flow to its end, compressing the paths
     for i in range(n):
@@ -75,6 +84,7 @@ def _saddle_table(z, basin, periodic, size):
     """
     ny, nx = z.shape
     n = ny * nx
+    zf = z.ravel()
     keys = np.full(size, -1, np.int64)
     vals = np.empty(size)
     used = 0
@@ -83,19 +93,15 @@ def _saddle_table(z, basin, periodic, size):
         for c in range(nx):
             i = r * nx + c
             for k in range(4, 8):  # each unordered pair once: right, down-left, down, down-right
-                rr = r + _OFFSETS[k, 0]
-                cc = c + _OFFSETS[k, 1]
-                if periodic:
-                    rr %= ny
-                    cc %= nx
-                elif rr < 0 or rr >= ny or cc < 0 or cc >= nx:
+                j = _neighbour(r, c, k, ny, nx, periodic)
+                if j < 0:
                     continue
                 bi = basin[i]
-                bj = basin[rr * nx + cc]
+                bj = basin[j]
                 if bi == bj:
                     continue
                 key = min(bi, bj) * n + max(bi, bj)
-                v = max(z[r, c], z[rr, cc])
+                v = max(zf[i], zf[j])
                 h = ((key * 0x9E3779B1) >> 7) & mask
                 while keys[h] != -1 and keys[h] != key:
                     h = (h + 1) & mask

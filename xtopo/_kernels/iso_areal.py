@@ -31,7 +31,7 @@ from .spectra import BACKEND as _BACKEND
 from .windows import radial_hann
 
 __all__ = ["PARAMETERS", "GROUPS", "areal_parameters", "slope_sums", "decay_lengths", "texture_direction",
-           "curve", "volumes", "ratios", "SEVEN_POINT"]
+           "curve", "volumes", "ratios"]
 
 _JIT = dict(nogil=True, cache=True)
 
@@ -46,8 +46,6 @@ GROUPS = {
 }
 PARAMETERS = tuple(name for names in GROUPS.values() for name in names)
 
-#: weights of the seven-point first derivative (ISO 21920-2 / ISO 4287 local slope), offsets -3..3, over 60 Δx
-SEVEN_POINT = (-1.0, 9.0, -45.0, 0.0, 45.0, -9.0, 1.0)
 #: angular resolution of the texture direction, degrees
 STD_STEP = 0.5
 #: number of directions (over 180°) along which the autocorrelation decay is found
