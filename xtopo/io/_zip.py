@@ -10,6 +10,8 @@ archive (``..``) are refused before they are used.
 from __future__ import annotations
 
 import re
+import zipfile
+import zlib
 
 from ..errors import ReaderError
 
@@ -21,6 +23,8 @@ MAX_RATIO = 1100
 MAX_MEMBER = 1 << 30
 _DRIVE = re.compile(r"^[A-Za-z]:")
 _BLOCK = 1 << 20
+#: what decompressing a damaged member raises (a bad CRC, a truncated or invalid stream)
+_CORRUPT = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, RuntimeError)
 
 
 def unsafe_name(name: str) -> bool:
@@ -52,8 +56,11 @@ def read_member(path, zf, info, what: str, expected: int | None = None, limit: i
     if expected is not None and declared != expected:
         raise ReaderError(path, f"{what} member {info.filename!r} has {declared} bytes but {expected_from} "
                                 f"implies {expected}")
-    with zf.open(info) as f:
-        data = f.read(declared + 1)
+    try:
+        with zf.open(info) as f:
+            data = f.read(declared + 1)
+    except _CORRUPT as exc:
+        raise ReaderError(path, f"{what} member {info.filename!r} is corrupt: {exc}") from None
     if len(data) != declared:
         raise ReaderError(path, f"{what} member {info.filename!r} decompresses to {len(data)} bytes, "
                                 f"not the declared {declared}")
@@ -67,13 +74,17 @@ def copy_member(path, zf, info, target: str, what: str, limit: int = MAX_MEMBER)
     """
     declared = check_declared(path, info, what, limit)
     written = 0
-    with zf.open(info) as src, open(target, "xb") as dst:
-        while written <= declared:
-            block = src.read(min(_BLOCK, declared + 1 - written))
-            if not block:
-                break
-            dst.write(block)
-            written += len(block)
+    with open(target, "xb") as dst:
+        try:
+            with zf.open(info) as src:
+                while written <= declared:
+                    block = src.read(min(_BLOCK, declared + 1 - written))
+                    if not block:
+                        break
+                    dst.write(block)
+                    written += len(block)
+        except _CORRUPT as exc:
+            raise ReaderError(path, f"{what} member {info.filename!r} is corrupt: {exc}") from None
     if written != declared:
         raise ReaderError(path, f"{what} member {info.filename!r} decompresses to {'more than ' if written > declared else ''}"
                                 f"{written} bytes, not the declared {declared}")

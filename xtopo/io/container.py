@@ -551,7 +551,7 @@ def _topography_meta(name: str, ds: xr.Dataset, member: str) -> dict:
     h = height_of(ds)
     unit = h.attrs["units"]
     dims = lateral_dims(h)
-    meta = {"name": str(ds.attrs.get("title") or name), "datafile": {"squeezed-netcdf": member}}
+    meta = {"name": name, "datafile": {"squeezed-netcdf": member}}  # the node name comes back as the node name
     if not is_nonuniform(ds):  # SurfaceTopography refuses a size for a nonuniform scan (its positions say it)
         meta["size"] = [physical_size(ds, d) for d in dims[::-1]]  # contact.engineering: [Lx, Ly]
     meta.update({"unit": unit, "is_periodic": bool(is_periodic(ds)), "data_source": 0,
