@@ -401,14 +401,18 @@ def _measurement(archive: _Archive, meta: dict, where: str):
         notes.append(f"the squeezed NetCDF is used: xtopo cannot apply {why}")
         keys = ["squeezed-netcdf"]
     for n, key in enumerate(keys):
+        file = archive.extract(infos[key])
         try:
-            ds, given = _read_file(archive.extract(infos[key]), meta, where, path)
+            ds, given = _read_file(file, meta, where, path)
+            ds = ds.load()  # before its file goes
             break
         except XtopoError as exc:
             reason = exc.reason if isinstance(exc, ReaderError) else str(exc)  # not the temporary file's name
             if n + 1 == len(keys):
                 raise ReaderError(path, f"{where}: data file {datafile[key]!r}: {reason}") from exc
             notes.append(f"the squeezed NetCDF is used: the original {datafile[key]!r} cannot be read ({reason})")
+        finally:
+            os.unlink(file)  # the readers loaded it: keep at most one extracted file on disk
     ds.attrs.update(source_file=posixpath.basename(datafile[key]), source_container=os.path.basename(path),
                     container_datafile=key)
     if given:
