@@ -186,7 +186,50 @@ def run(path: str, label: str, repeats: int) -> list:
               f"{ratio:6.2f}")
     ok = bool(rows) and all(r["covered"] >= 0.9 and r["median_dev"] <= 0.25 for r in rows)
     print(f"   acceptance (covered >= 90 %, median deviation <= 25 %): {'met' if ok else 'NOT met'}")
+    per_measurement(st_topos, twin)
     return rows
+
+
+def per_measurement(st_topos, twin) -> None:
+    """Each measurement's own curve, both packages (reliable part): where the averages differ, is it the curves
+    or the averaging? Median |xtopo/SurfaceTopography - 1| at SurfaceTopography's points inside xtopo's range."""
+    from xtopo.analysis.acf import acf
+    from xtopo.analysis.psd import psd
+    from xtopo.analysis.vbm import vbm
+
+    funcs = (("PSD", "power_spectrum_from_profile", lambda ds: psd(ds, kind="1d", **({"dim": "x"} if ds.height.ndim
+                                                                                       == 2 else {}))),
+             ("ACF", "autocorrelation_from_profile", lambda ds: acf(ds, kind="1d", **({"dim": "x"} if ds.height.ndim
+                                                                                        == 2 else {}))),
+             ("VBM", "variable_bandwidth_from_profile", vbm))
+    print("   per measurement (reliable parts; median |xtopo/ST - 1| on common points, decades ST / xtopo):")
+    for t, (name, node) in zip(st_topos, twin.children.items()):
+        ds = node.to_dataset()
+        cells = []
+        for label, st_fn, x_fn in funcs:
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    xs, ys = getattr(t.to_unit("m"), st_fn)(reliable=True, resampling_method=None)
+                xs, ys = (np.ma.filled(np.ma.asarray(a, dtype=float), np.nan) for a in (xs, ys))
+            except Exception as exc:  # noqa: BLE001
+                cells.append(f"{label} ST: {type(exc).__name__}")
+                continue
+            c = x_fn(ds)
+            dim, = c.dims
+            xx, yx = np.asarray(c[dim].values, float), np.asarray(c.values, float)
+            okx = np.isfinite(yx) & (xx > 0) & (yx > 0)
+            oks = np.isfinite(ys) & (xs > 0) & (ys > 0)
+            xx, yx, xs, ys = xx[okx], yx[okx], xs[oks], ys[oks]
+            if xx.size < 2 or xs.size < 1:
+                cells.append(f"{label} ST {xs.size} / xtopo {xx.size} points")
+                continue
+            inside = (xs >= xx.min()) & (xs <= xx.max())
+            dev = np.abs(np.exp(np.interp(np.log(xs[inside]), np.log(xx), np.log(yx))) / ys[inside] - 1)
+            span = lambda v: np.log10(v.max() / v.min())  # noqa: E731
+            cells.append(f"{label} {100 * np.median(dev) if dev.size else float('nan'):5.1f}% "
+                         f"({span(xs):.1f}/{span(xx):.1f})")
+        print(f"     {name[:28]:28} " + "  ".join(cells))
 
 
 def main(argv=None) -> None:

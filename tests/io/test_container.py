@@ -90,6 +90,18 @@ def test_container_written_by_surfacetopography_opens_as_twin(tmp_path):
     assert tree.attrs["source_container"] == "st.zip" and tree.attrs["title"] == "surface0"
 
 
+@pytest.mark.parametrize("drop", ["meta.yml", "index.json"])
+def test_either_metadata_file_is_enough(tmp_path, drop):
+    """The newer layout (index.json) alone, or an older download's meta.yml alone."""
+    src = tmp_path / "st.zip"
+    write_containers([InMemorySurfaceContainer(_st_surfaces(1)[:2])], str(src))
+    with zipfile.ZipFile(src) as zf:
+        members = {n: zf.read(n) for n in zf.namelist() if n != drop}
+    tree = xtopo.open_twin(_zip(tmp_path / "one.zip", members))
+    assert list(tree.children) == ["afm", "stylus"]
+    assert tree["stylus"].attrs["instrument"] == "Dektak"
+
+
 def _ce_layout(tmp_path, real_data) -> tuple:
     """The CE layout of an older contact.engineering download, built from real files: original files,
     meta.yml with !!python/tuple sizes, height scale, filling, detrending and instrument parameters."""
