@@ -423,6 +423,11 @@ def test_not_a_container_zip_is_not_taken_for_one(tmp_path):
     path = _zip(tmp_path / "other.zip", {"readme.txt": b"hello"})
     with pytest.raises(ReaderError):
         xtopo.open_twin(path)
+    with pytest.raises(ReaderError, match="neither index.json nor meta.yml"):
+        xtopo.io.open_container(path)
+    (tmp_path / "junk.zip").write_bytes(b"PK\x03\x04 not really")
+    with pytest.raises(ReaderError, match="junk.zip"):
+        xtopo.io.open_container(tmp_path / "junk.zip")
 
 
 def test_real_download_layout_from_the_surfacetopography_repository(tmp_path):

@@ -126,6 +126,9 @@ def _plain(value, path, budget: list, depth: int = 0):
 
 def _metadata(path, zf) -> dict:
     names = set(zf.namelist())
+    if INDEX not in names and YAML not in names:
+        raise ReaderError(path, f"not a contact.engineering container: the ZIP archive holds neither {INDEX} nor "
+                                f"{YAML}")
     name = INDEX if INDEX in names else YAML
     raw = read_member(path, zf, zf.getinfo(name), "container", limit=MAX_METADATA)
     try:
