@@ -86,6 +86,7 @@ def copy_member(path, zf, info, target: str, what: str, limit: int = MAX_MEMBER)
         except _CORRUPT as exc:
             raise ReaderError(path, f"{what} member {info.filename!r} is corrupt: {exc}") from None
     if written != declared:
-        raise ReaderError(path, f"{what} member {info.filename!r} decompresses to {'more than ' if written > declared else ''}"
-                                f"{written} bytes, not the declared {declared}")
+        more = "more than " if written > declared else ""
+        raise ReaderError(path, f"{what} member {info.filename!r} decompresses to {more}{written} bytes, not the "
+                                f"declared {declared}")
     return written
