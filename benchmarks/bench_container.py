@@ -215,7 +215,11 @@ def per_measurement(st_topos, twin) -> None:
             except Exception as exc:  # noqa: BLE001
                 cells.append(f"{label} ST: {type(exc).__name__}")
                 continue
-            c = x_fn(ds)
+            try:
+                c = x_fn(ds)
+            except xtopo.XtopoError as exc:
+                cells.append(f"{label} xtopo: {str(exc)[:40]}")
+                continue
             dim, = c.dims
             xx, yx = np.asarray(c[dim].values, float), np.asarray(c.values, float)
             okx = np.isfinite(yx) & (xx > 0) & (yx > 0)
