@@ -473,7 +473,8 @@ def _open(path):
     path = checked_path(path, "path", kind="file path")
     if not os.path.isfile(path):
         raise ReaderError(path, "no such file")
-    return _Archive(path), sha256(path)
+    sha = sha256(path)
+    return _Archive(path), sha
 
 
 def open_container(path) -> dict[str, xr.DataTree]:
