@@ -1,10 +1,16 @@
 """Formats checked against files built from their published layout (no real sample committed)."""
 
+import io
+import struct
+import zipfile
+
 import numpy as np
 import pytest
 
 import xtopo
-from xtopo.conventions import spacing
+from xtopo.conventions import physical_size, spacing, validate
+from xtopo.errors import XtopoError
+from xtopo.io.registry import detect
 
 
 def _bcrf(path, z, xlength, ylength, unicode=True):
@@ -36,3 +42,115 @@ def test_bcrf_size_differs_from_surfacetopography_by_n_over_n_minus_1(tmp_path):
     assert (sx, sy) == pytest.approx((900.0, 500.0))  # SurfaceTopography: size = xlength
     assert spacing(ds, "x") * 10 == pytest.approx(sx * 10 / 9)  # xtopo: xlength spans 9 steps of 10 pixels
     np.testing.assert_allclose(ds.height.values, t.to_unit("nm").heights().T, rtol=1e-6)
+
+
+# --------------------------------------------------------------------------- Keyence VK4 / VK6 / VK7
+
+def _vk_image(values, depth):
+    ny, nx = values.shape
+    dt = {8: "<u1", 16: "<u2", 32: "<u4"}[depth]
+    return (struct.pack("<7I", nx, ny, depth, 0, nx * ny * depth // 8, 0, 1000) + bytes(768)
+            + values.astype(dt).tobytes())
+
+
+def _vk4_bytes(height, light=None, dx=694000, dy=695000, dz=1000, depth=32, title="sample", lens="50x"):
+    """A VK4 file as the published layout describes it (offset table, conditions, images, strings)."""
+    head = b"VK4_" + bytes([1, 0, 0, 0]) + bytes(4)
+    cond = [0] * 45
+    cond[0] = 45 * 4
+    cond[1:7] = [2024, 3, 14, 15, 9, 26]
+    cond[24] = 500  # lens magnification x 10
+    cond[42], cond[43], cond[44] = dx, dy, dz
+    cond_b = struct.pack("<45I", *cond)
+    strings = b"".join(struct.pack("<I", len(s)) + s.encode("utf-16-le") for s in (title, lens))
+    table_size = 18 * 4
+    pos = 12 + table_size
+    blobs, offsets = [], dict.fromkeys(range(18), 0)
+    for slot, blob in ((0, cond_b), (6, _vk_image(height, depth)), (3, None if light is None else
+                                                                    _vk_image(light, 8)), (16, strings)):
+        if blob is None:
+            continue
+        offsets[slot] = pos
+        blobs.append(blob)
+        pos += len(blob)
+    return head + struct.pack("<18I", *(offsets[i] for i in range(18))) + b"".join(blobs)
+
+
+def _vk_heights():
+    rng = np.random.default_rng(4)
+    return rng.integers(0, 2**20, size=(6, 9)), rng.integers(0, 255, size=(6, 9))
+
+
+def test_keyence_vk4_from_layout(tmp_path):
+    digits, light = _vk_heights()
+    p = tmp_path / "a.vk4"
+    p.write_bytes(_vk4_bytes(digits, light))
+    assert detect(p)[0].name == "vk4"
+    names = [c.name for c in xtopo.io.channels(p)]
+    assert names == ["Height", "Light"]
+    ds = xtopo.open_topography(p, units="um")
+    assert ds.height.shape == (6, 9) and ds.height.attrs["units"] == "um"
+    assert spacing(ds, "x") == pytest.approx(0.694) and spacing(ds, "y") == pytest.approx(0.695)
+    np.testing.assert_allclose(ds.height.values, digits * 1e-3)  # 1000 pm per digit
+    assert ds.attrs["vendor"] == "Keyence" and ds.attrs["objective"] == "50x"
+    assert ds.attrs["objective_magnification"] == 50 and ds.attrs["acquisition_time"] == "2024-03-14T15:09:26"
+    light_ds = xtopo.io.list_formats()["vk4"].read(p, channel="Light")
+    np.testing.assert_array_equal(light_ds.height.values, light)
+    with pytest.raises(xtopo.UnsupportedFormatError, match="not heights"):
+        xtopo.open_topography(p, channel="Light")
+
+
+@pytest.mark.parametrize("magic", [b"VK6", b"VK7"])
+def test_keyence_vk6_vk7_wrap_vk4_content(tmp_path, magic):
+    digits, _ = _vk_heights()
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("Vk4File", _vk4_bytes(digits, depth=16 if magic == b"VK6" else 32, dz=10))
+        zf.writestr("Properties", "<xml/>")
+    p = tmp_path / ("a" + magic.decode().lower())
+    p.write_bytes(magic + bytes(16) + buf.getvalue())
+    assert detect(p)[0].name == "vk6"
+    ds = xtopo.open_topography(p, units="nm")
+    np.testing.assert_allclose(ds.height.values, digits.astype("u2" if magic == b"VK6" else "u4") * 1e-2)
+    assert spacing(ds, "x") == pytest.approx(694.0)
+
+
+def test_keyence_vk4_agrees_with_surfacetopography(tmp_path):
+    st = pytest.importorskip("SurfaceTopography")
+    digits, light = _vk_heights()
+    p = tmp_path / "b.vk4"
+    p.write_bytes(_vk4_bytes(digits, light))
+    t = st.read_topography(str(p)).to_unit("um")
+    ds = xtopo.open_topography(p, units="um")
+    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-12)
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+
+
+def _fuzz(tmp_path, raw, fmt, name, n=60):
+    """Truncations and random corruptions of ``raw`` end in a Dataset or an XtopoError naming the file."""
+    rng = np.random.default_rng(len(raw))
+    variants = [raw[:int(f * len(raw))] for f in np.linspace(0, 0.999, 15)]
+    for _ in range(n):
+        buf = bytearray(raw)
+        pos = int(rng.integers(0, min(len(raw), 600))) if rng.random() < 0.6 else int(rng.integers(0, len(raw)))
+        buf[pos:pos + 4] = rng.integers(0, 256, size=len(buf[pos:pos + 4]), dtype=np.uint8).tobytes()
+        variants.append(bytes(buf))
+    for i, data in enumerate(variants):
+        path = tmp_path / f"v{i}_{name}"
+        path.write_bytes(data)
+        try:
+            ds = xtopo.io.list_formats()[fmt].read(path)
+        except XtopoError as exc:
+            assert path.name in str(exc)
+        else:
+            validate(ds)
+
+
+def test_keyence_fuzz(tmp_path):
+    digits, light = _vk_heights()
+    raw = _vk4_bytes(digits, light)
+    _fuzz(tmp_path, raw, "vk4", "f.vk4")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("Vk4File", raw)
+    _fuzz(tmp_path, b"VK6" + buf.getvalue(), "vk6", "f.vk6")
