@@ -154,3 +154,48 @@ def test_keyence_fuzz(tmp_path):
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("Vk4File", raw)
     _fuzz(tmp_path, b"VK6" + buf.getvalue(), "vk6", "f.vk6")
+
+
+# --------------------------------------------------------------------------- Zygo DATX
+
+def _datx(path, z, dx=1.2e-6, dy=1.3e-6, unit="nm", no_data=None):
+    h5py = pytest.importorskip("h5py")
+    conv = np.dtype([("Category", "S16"), ("BaseUnit", "S16"), ("Unit", "S16"), ("Parameters", "<f8", (4,))])
+    with h5py.File(path, "w") as f:
+        rows = [("Root", "Measurement", "{m}"), ("{m}", "Surface", "{s}"), ("{s}", "Path", "/Measurement/Surface")]
+        f.create_dataset("MetaData", data=np.array(rows, dtype=[("Source", "S32"), ("Link", "S32"),
+                                                                  ("Destination", "S32")]))
+        d = f.create_dataset("Measurement/Surface", data=z)
+        d.attrs["Unit"] = np.array([unit.encode()])
+        d.attrs["X Converter"] = np.array([(b"LateralCat", b"Pixels", b"m", (0, dx, 0, 0))], dtype=conv)
+        d.attrs["Y Converter"] = np.array([(b"LateralCat", b"Pixels", b"m", (0, dy, 0, 0))], dtype=conv)
+        d.attrs["Z Converter"] = np.array([(b"HeightCat", unit.encode(), b"", (0, 0, 0, 0))], dtype=conv)
+        if no_data is not None:
+            d.attrs["No Data"] = np.array([no_data])
+        f["Measurement"].attrs["Data Context.Data Attributes.System Type"] = np.array([b"NewView 9000"])
+
+
+def test_zygo_datx_from_layout(tmp_path):
+    z = np.random.default_rng(5).normal(size=(7, 11))
+    z[2, 3] = 1e38
+    p = tmp_path / "a.datx"
+    _datx(p, z, no_data=1e38)
+    assert detect(p)[0].name == "datx"
+    (info,) = xtopo.io.channels(p)
+    assert info.shape == (7, 11)
+    ds = xtopo.open_topography(p, units="um")
+    assert spacing(ds, "x") == pytest.approx(1.2) and spacing(ds, "y") == pytest.approx(1.3)
+    assert bool(ds.mask[2, 3]) and int(ds.mask.sum()) == 1
+    ok = ~ds.mask.values
+    np.testing.assert_allclose(ds.height.values[ok], z[ok] * 1e-3)
+    assert ds.attrs["vendor"] == "Zygo" and ds.attrs["instrument"] == "NewView 9000"
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(p)).to_unit("um")
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+
+
+def test_zygo_datx_fuzz(tmp_path):
+    p = tmp_path / "src.datx"
+    _datx(p, np.arange(12.0).reshape(3, 4))
+    _fuzz(tmp_path, p.read_bytes(), "datx", "f.datx", n=40)
