@@ -199,3 +199,59 @@ def test_zygo_datx_fuzz(tmp_path):
     p = tmp_path / "src.datx"
     _datx(p, np.arange(12.0).reshape(3, 4))
     _fuzz(tmp_path, p.read_bytes(), "datx", "f.datx", n=40)
+
+
+# --------------------------------------------------------------------------- Sensofar PLUX
+
+def _plux_bytes(layers, dx=0.69, dy=0.7, device="S neox", date="2023-03-10T12:34:56"):
+    ny, nx = layers[0].shape
+    xml = (f"<xml><GENERAL><IMAGE_SIZE_X>{nx}</IMAGE_SIZE_X><IMAGE_SIZE_Y>{ny}</IMAGE_SIZE_Y>"
+           f"<FOV_X>{dx}</FOV_X><FOV_Y>{dy}</FOV_Y><DATE>{date}</DATE></GENERAL>"
+           f"<INFO><ITEM_0><NAME>Device</NAME><VALUE>{device}</VALUE></ITEM_0>"
+           "<ITEM_1><NAME>Objective</NAME><VALUE>Nikon 50X</VALUE></ITEM_1></INFO>"
+           + "".join(f"<LAYER_{i}><FILENAME_Z>LAYER_{i}.raw</FILENAME_Z></LAYER_{i}>" for i in range(len(layers)))
+           + "</xml>")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("index.xml", xml)
+        for i, z in enumerate(layers):
+            zf.writestr(f"LAYER_{i}.raw", z.astype("<f4").tobytes())
+        zf.writestr("recipe.txt", "<recipe/>")
+    return buf.getvalue()
+
+
+def test_sensofar_plux_from_layout(tmp_path):
+    rng = np.random.default_rng(6)
+    a, b = rng.normal(size=(5, 8)).astype("f4"), rng.normal(size=(5, 8)).astype("f4")
+    a[1, 1] = np.nan
+    p = tmp_path / "a.plux"
+    p.write_bytes(_plux_bytes([a, b]))
+    assert detect(p)[0].name == "plux"
+    assert [c.name for c in xtopo.io.channels(p)] == ["Layer 0", "Layer 1"]
+    ds = xtopo.open_topography(p, units="um")
+    assert spacing(ds, "x") == pytest.approx(0.69) and spacing(ds, "y") == pytest.approx(0.7)
+    np.testing.assert_array_equal(ds.height.values, a.astype(float))
+    assert bool(ds.mask[1, 1]) and int(ds.mask.sum()) == 1
+    assert ds.attrs["instrument"] == "S neox" and ds.attrs["objective"] == "Nikon 50X"
+    assert ds.attrs["acquisition_time"] == "2023-03-10T12:34:56"
+    np.testing.assert_array_equal(xtopo.open_topography(p, channel=1, units="um").height.values, b.astype(float))
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(p)).to_unit("um")
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    ok = ~ds.mask.values
+    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+
+
+def test_sensofar_plux_refuses_entity_declarations(tmp_path):
+    p = tmp_path / "x.plux"
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        zf.writestr("index.xml", '<!DOCTYPE x [<!ENTITY e SYSTEM "file:///etc/passwd">]><xml>&e;</xml>')
+    p.write_bytes(buf.getvalue())
+    with pytest.raises(xtopo.ReaderError, match="DTD or entity"):
+        xtopo.io.list_formats()["plux"].read(p)
+
+
+def test_sensofar_plux_fuzz(tmp_path):
+    raw = _plux_bytes([np.arange(12.0).reshape(3, 4)])
+    _fuzz(tmp_path, raw, "plux", "f.plux")
