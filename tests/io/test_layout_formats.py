@@ -255,3 +255,107 @@ def test_sensofar_plux_refuses_entity_declarations(tmp_path):
 def test_sensofar_plux_fuzz(tmp_path):
     raw = _plux_bytes([np.arange(12.0).reshape(3, 4)])
     _fuzz(tmp_path, raw, "plux", "f.plux")
+
+
+# --------------------------------------------------------------------------- Olympus LEXT (TIFF)
+
+def _tiff(pages, exif=None):
+    """A little-endian TIFF: ``pages`` are ``(tags, image bytes)`` with tags ``{tag: (type, values)}``;
+    ``exif`` (tags) becomes an EXIF directory that the first page points to (tag 34665)."""
+    sizes = {1: 1, 2: 1, 3: 2, 4: 4, 7: 1, 11: 4}
+    codes = {1: "B", 3: "H", 4: "I", 11: "f"}
+
+    def enc(typ, val):
+        if typ in (2, 7):
+            return val
+        return struct.pack("<" + codes[typ] * len(val), *val)
+
+    out = bytearray(b"II*\x00" + bytes(4))
+    dirs = [dict(tags) for tags, _ in pages]
+    if exif is not None:
+        dirs[0][34665] = (4, [0])
+    data_offsets = []
+    for _, img in pages:
+        data_offsets.append(len(out))
+        out += img
+    for d, (_, img), off in zip(dirs, pages, data_offsets):
+        d[273], d[279] = (4, [off]), (4, [len(img)])
+
+    def write_dir(tags, link):
+        while len(out) % 2:
+            out.append(0)
+        pos = len(out)
+        items = sorted(tags.items())
+        extra = pos + 2 + 12 * len(items) + 4
+        entries, blobs = b"", b""
+        for tag, (typ, val) in items:
+            raw = enc(typ, val)
+            count = len(raw) // sizes[typ]
+            if len(raw) <= 4:
+                entries += struct.pack("<HHI", tag, typ, count) + raw.ljust(4, b"\0")
+            else:
+                entries += struct.pack("<HHII", tag, typ, count, extra + len(blobs))
+                blobs += raw + (b"\0" if len(raw) % 2 else b"")
+        out.extend(struct.pack("<H", len(items)) + entries + struct.pack("<I", link) + blobs)
+        return pos
+
+    exif_pos = write_dir(exif, 0) if exif is not None else None
+    if exif is not None:
+        dirs[0][34665] = (4, [exif_pos])
+    # directories are written last to first so that each knows the next one's offset
+    link = 0
+    for d in reversed(dirs):
+        link = write_dir(d, link)
+    out[4:8] = struct.pack("<I", link)
+    return bytes(out)
+
+
+def _lext_bytes(height, per=(125000.0, 126000.0, 1.0), cal=(1e6, 1e6, 0.5e6), invalid=None):
+    ny, nx = height.shape
+    xml = (f"<TiffTagDescData><HeightInfo><HeightDataPerPixelX>{per[0]}</HeightDataPerPixelX>"
+           f"<HeightDataPerPixelY>{per[1]}</HeightDataPerPixelY><HeightDataPerPixelZ>{per[2]}"
+           "</HeightDataPerPixelZ><HeightDataUnitX>1</HeightDataUnitX><HeightDataUnitY>1</HeightDataUnitY>"
+           "<HeightDataUnitZ>1</HeightDataUnitZ></HeightInfo></TiffTagDescData>\0").encode()
+    exif = {41995: (2, ("<ExifTagDescData><ImageCommonSettingsInfo>" + "".join(
+        f"<MakerCalibrationValue{a}>{c:.0f}</MakerCalibrationValue{a}>" for a, c in zip("XYZ", cal))
+        + "</ImageCommonSettingsInfo></ExifTagDescData>\0").encode())}  # ASCII, as the peers read it
+
+    def image_tags(w, h, bits, desc, spp=1):
+        return {256: (4, [w]), 257: (4, [h]), 258: (3, [bits] * spp), 259: (3, [1]), 262: (3, [1 if spp == 1 else 2]),
+                270: (2, desc.encode() + b"\0"), 277: (3, [spp]), 278: (4, [h])}
+
+    color = image_tags(nx, ny, 8, "x", spp=3)
+    color[270] = (2, xml)
+    color[306] = (2, b"2021:06:01 10:20:30\0")
+    pages = [(color, bytes(3 * nx * ny)),
+             (image_tags(nx, ny, 32, "HEIGHT"), height.astype("<u4").tobytes()),
+             (image_tags(nx, ny, 16, "INTENSITY"), (height % 4096).astype("<u2").tobytes())]
+    if invalid is not None:
+        pages.append((image_tags(nx, ny, 1, "INVALID"), np.packbits(invalid, axis=1).tobytes()))
+    return _tiff(pages, exif)
+
+
+def test_olympus_lext_from_layout(tmp_path):
+    rng = np.random.default_rng(8)
+    digits = rng.integers(0, 2**24, size=(6, 10))
+    invalid = np.zeros((6, 10), bool)
+    invalid[2, 7] = True
+    p = tmp_path / "a.lext"
+    p.write_bytes(_lext_bytes(digits, invalid=invalid))
+    assert detect(p)[0].name == "lext"
+    assert [c.name for c in xtopo.io.channels(p)] == ["Height", "Intensity"]
+    ds = xtopo.open_topography(p, units="um")
+    assert spacing(ds, "x") == pytest.approx(0.125) and spacing(ds, "y") == pytest.approx(0.126)
+    np.testing.assert_allclose(ds.height.values[~invalid], digits[~invalid] * 0.5e-6)  # 1 pm/digit x 0.5
+    assert bool(ds.mask[2, 7]) and int(ds.mask.sum()) == 1
+    assert ds.attrs["vendor"] == "Olympus" and ds.attrs["acquisition_time"] == "2021-06-01T10:20:30"
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(p)).to_unit("um")
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    ok = ~invalid
+    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+
+
+def test_olympus_lext_fuzz(tmp_path):
+    raw = _lext_bytes(np.arange(24).reshape(4, 6))
+    _fuzz(tmp_path, raw, "lext", "f.lext")
