@@ -359,3 +359,39 @@ def test_olympus_lext_from_layout(tmp_path):
 def test_olympus_lext_fuzz(tmp_path):
     raw = _lext_bytes(np.arange(24).reshape(4, 6))
     _fuzz(tmp_path, raw, "lext", "f.lext")
+
+
+# --------------------------------------------------------------------------- OmniSurf3D (OS3D)
+
+def _os3d_bytes(z, dx=0.5, dy=0.25, when="2022-05-04 11:12:13"):
+    ny, nx = z.shape
+    s = b"OmniSurf3D" + struct.pack("<2i", 1, 2)
+    for text in (b"instrument X", when.encode()):
+        s += struct.pack("<i", len(text)) + text
+    s += struct.pack("<2i4d", nx, ny, dx, dy, 0.0, 0.0) + z.astype("<f4").tobytes() + b"\0"
+    return s
+
+
+def test_os3d_from_layout(tmp_path):
+    z = np.random.default_rng(9).normal(size=(5, 7)).astype("f4")
+    z[3, 4] = np.finfo("f4").min
+    p = tmp_path / "a.os3d"
+    p.write_bytes(_os3d_bytes(z))
+    assert detect(p)[0].name == "os3d"
+    (info,) = xtopo.io.channels(p)
+    assert info.shape == (5, 7) and info.size == pytest.approx((1.25, 3.5))
+    ds = xtopo.open_topography(p, units="um")
+    assert spacing(ds, "x") == pytest.approx(0.5) and spacing(ds, "y") == pytest.approx(0.25)
+    ok = np.ones(z.shape, bool)
+    ok[3, 4] = False
+    assert bool(ds.mask[3, 4]) and int(ds.mask.sum()) == 1
+    np.testing.assert_array_equal(ds.height.values[ok], z[ok].astype(float))
+    assert ds.attrs["acquisition_time"] == "2022-05-04T11:12:13"
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(p)).to_unit("um")
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+
+
+def test_os3d_fuzz(tmp_path):
+    _fuzz(tmp_path, _os3d_bytes(np.arange(12.0).reshape(3, 4)), "os3d", "f.os3d")
