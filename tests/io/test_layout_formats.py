@@ -395,3 +395,45 @@ def test_os3d_from_layout(tmp_path):
 
 def test_os3d_fuzz(tmp_path):
     _fuzz(tmp_path, _os3d_bytes(np.arange(12.0).reshape(3, 4)), "os3d", "f.os3d")
+
+
+# --------------------------------------------------------------------------- NT-MDT
+
+def _mdt_frame(raw, adc=0, steps=(10.0, 12.0, 0.5), units=(-1, -1, -1), zoff=3.0, var_size=40, typ=0, dots=0):
+    ny, nx = raw.shape
+    body = struct.pack("<ffhffhffh", 0.0, steps[0], units[0], 0.0, steps[1], units[1], zoff, steps[2], units[2])
+    body += struct.pack("<BBHH", adc, 0, nx, ny) + bytes(var_size - 36)
+    body += struct.pack("<4H", 0, nx, ny, dots) + (bytes(14 + 16 * dots) if dots else b"")
+    body += raw.astype("<i2").tobytes()
+    head = struct.pack("<IH", 22 + len(body), typ) + struct.pack(">H", 1) + struct.pack("<7H", 2020, 2, 3, 4, 5, 6,
+                                                                                        var_size)
+    return head + body
+
+
+def _mdt_bytes(frames):
+    return b"\x01\xb0\x93\xff" + struct.pack("<I", 0) + bytes(4) + struct.pack("<H", len(frames) - 1) + bytes(19) \
+        + b"".join(frames)
+
+
+def test_nt_mdt_from_layout(tmp_path):
+    rng = np.random.default_rng(10)
+    h, phase = rng.integers(-3000, 3000, size=(4, 6)), rng.integers(-3000, 3000, size=(4, 6))
+    text = struct.pack("<IH", 30, 3) + bytes(24)  # a text frame (type 3): skipped
+    p = tmp_path / "a.mdt"
+    p.write_bytes(_mdt_bytes([_mdt_frame(h), text, _mdt_frame(phase, adc=11, units=(-1, -1, 5), dots=1)]))
+    assert detect(p)[0].name == "mdt"
+    chans = xtopo.io.channels(p)
+    assert [c.name for c in chans] == ["Height"]  # the phase frame has no length unit in z
+    ds = xtopo.open_topography(p, units="nm")
+    assert spacing(ds, "x") == pytest.approx(10.0) and spacing(ds, "y") == pytest.approx(12.0)
+    np.testing.assert_allclose(ds.height.values, h[::-1] * 0.5 + 3.0)  # bottom line first in the file
+    assert ds.attrs["acquisition_time"] == "2020-02-03T04:05:06"
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(p)).to_unit("nm")
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-6)
+
+
+def test_nt_mdt_fuzz(tmp_path):
+    raw = _mdt_bytes([_mdt_frame(np.arange(12).reshape(3, 4)), _mdt_frame(np.arange(6).reshape(2, 3), adc=1)])
+    _fuzz(tmp_path, raw, "mdt", "f.mdt")
