@@ -437,3 +437,35 @@ def test_nt_mdt_from_layout(tmp_path):
 def test_nt_mdt_fuzz(tmp_path):
     raw = _mdt_bytes([_mdt_frame(np.arange(12).reshape(3, 4)), _mdt_frame(np.arange(6).reshape(2, 3), adc=1)])
     _fuzz(tmp_path, raw, "mdt", "f.mdt")
+
+
+# --------------------------------------------------------------------------- KLA Zeta ZMG
+
+def _zmg_bytes(digits, dx=0.4, dy=0.5, dz=0.002, comment=b"a comment"):
+    ny, nx = digits.shape
+    head = bytearray(b"Zeta-Instruments".ljust(85, b"\0"))
+    head += struct.pack("<2I", nx, ny) + bytes(4) + struct.pack("<3f", dx, dy, dz) + bytes(8)
+    head += struct.pack("<I", len(comment)) + bytes(10) + b"recipe 1".ljust(68, b"\0") + bytes(6)
+    assert len(head) == 205
+    return bytes(head) + comment + digits.astype("<u2").tobytes()
+
+
+def test_zeta_zmg_from_layout(tmp_path):
+    digits = np.random.default_rng(11).integers(0, 65535, size=(5, 9))
+    p = tmp_path / "a.zmg"
+    p.write_bytes(_zmg_bytes(digits))
+    assert detect(p)[0].name == "zmg"
+    (info,) = xtopo.io.channels(p)
+    assert info.shape == (5, 9)
+    ds = xtopo.open_topography(p, units="um")
+    assert spacing(ds, "x") == pytest.approx(0.4) and spacing(ds, "y") == pytest.approx(0.5)
+    np.testing.assert_allclose(ds.height.values, digits * np.float32(0.002), rtol=1e-12)
+    assert ds.attrs["recipe"] == "recipe 1" and ds.attrs["comment"] == "a comment"
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(p)).to_unit("um")
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-6)
+
+
+def test_zeta_zmg_fuzz(tmp_path):
+    _fuzz(tmp_path, _zmg_bytes(np.arange(12).reshape(3, 4)), "zmg", "f.zmg")
