@@ -469,3 +469,67 @@ def test_zeta_zmg_from_layout(tmp_path):
 
 def test_zeta_zmg_fuzz(tmp_path):
     _fuzz(tmp_path, _zmg_bytes(np.arange(12).reshape(3, 4)), "zmg", "f.zmg")
+
+
+# --------------------------------------------------------------------------- Keyence ZON
+
+def _zon_bytes(digits, valid=None, dxy=2.5e-6, dz=1e-7, zstd=False, pad=3):
+    ny, nx = digits.shape
+
+    def raster(a, dtype, itemsize):
+        stride = nx * itemsize + pad * itemsize
+        rows = np.zeros((ny, stride // itemsize), dtype=dtype)
+        rows[:, :nx] = a
+        return struct.pack("<4I", nx, ny, itemsize, stride) + rows.tobytes()
+
+    members = {
+        "686613b8-27b5-4a29-8ffc-438c2780873e": (
+            f"<Calibration><XYCalibration><MeterPerPixel>{dxy}</MeterPerPixel></XYCalibration>"
+            f"<ZCalibration><MeterPerUnit>{dz}</MeterPerUnit></ZCalibration></Calibration>").encode(),
+        "cbc1d39b-215f-4d56-a20e-cf8e5f570755": (b"\xef\xbb\xbf<DeviceInformations><DeviceModelName>VR-5000"
+                                                 b"</DeviceModelName><DeviceSerialId>123</DeviceSerialId>"
+                                                 b"</DeviceInformations>"),
+        "1d35862b-3b48-4df2-9235-833ef590b043": b"<ScanInformations><ScanDateTime>2022-11-03T08:09:10.1234567"
+                                                b"+01:00</ScanDateTime></ScanInformations>",
+        "4cdb0c75-5706-48cc-a9a1-adf395d609ae": raster(digits, "<i4", 4),
+    }
+    if valid is not None:
+        members["9e7ca6dd-0e6a-4d7b-8986-f0a7b773c916"] = raster(valid, "u1", 1)
+    if zstd:
+        zstandard = pytest.importorskip("zstandard")
+        members = {k: zstandard.ZstdCompressor().compress(v) for k, v in members.items()}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for k, v in members.items():
+            zf.writestr(k, v)
+    bmp = b"BM" + struct.pack("<I", 20) + bytes(14)
+    return b"KPK0" + bytes(4) + bmp + buf.getvalue()
+
+
+@pytest.mark.parametrize("zstd", [False, True])
+def test_keyence_zon_from_layout(tmp_path, zstd):
+    rng = np.random.default_rng(12)
+    digits = rng.integers(-10**6, 10**6, size=(4, 7))
+    valid = np.zeros((4, 7), np.uint8)
+    valid[1, 5] = 2
+    valid[2, 2] = 4  # not one of the two low bits: a valid point
+    p = tmp_path / "a.zon"
+    p.write_bytes(_zon_bytes(digits, valid, zstd=zstd))
+    assert detect(p)[0].name == "zon"
+    (info,) = xtopo.io.channels(p)
+    assert info.shape == (4, 7)
+    ds = xtopo.open_topography(p, units="um")
+    assert spacing(ds, "x") == pytest.approx(2.5) and spacing(ds, "y") == pytest.approx(2.5)
+    assert bool(ds.mask[1, 5]) and int(ds.mask.sum()) == 1
+    ok = ~ds.mask.values
+    np.testing.assert_allclose(ds.height.values[ok], digits[ok] * 0.1)
+    assert ds.attrs["instrument"] == "VR-5000" and ds.attrs["acquisition_time"] == "2022-11-03T08:09:10"
+    if not zstd:
+        st = pytest.importorskip("SurfaceTopography")
+        t = st.read_topography(str(p)).to_unit("um")
+        assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+        np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+
+
+def test_keyence_zon_fuzz(tmp_path):
+    _fuzz(tmp_path, _zon_bytes(np.arange(12).reshape(3, 4), np.zeros((3, 4), np.uint8)), "zon", "f.zon")
