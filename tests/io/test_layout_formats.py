@@ -533,3 +533,100 @@ def test_keyence_zon_from_layout(tmp_path, zstd):
 
 def test_keyence_zon_fuzz(tmp_path):
     _fuzz(tmp_path, _zon_bytes(np.arange(12).reshape(3, 4), np.zeros((3, 4), np.uint8)), "zon", "f.zon")
+
+
+# --------------------------------------------------------------------------- Olympus OIR / POIR
+
+_OIR_NS = ('xmlns:lsmimage="urn:l" xmlns:commonimage="urn:ci" xmlns:base="urn:b" xmlns:commonphase="urn:cp" '
+           'xmlns:commonparam="urn:cpa"')
+
+
+def _oir_properties(nx, ny, channels, cal=(1.0, 1.0, 0.5)):
+    chans = "".join(
+        f'<commonphase:channel id="{uuid}"><commonphase:imageDefinition><commonphase:imageType>{kind}'
+        f"</commonphase:imageType><commonphase:depth>2</commonphase:depth></commonphase:imageDefinition>"
+        "<commonphase:length><commonparam:x>0.125</commonparam:x><commonparam:y>0.13</commonparam:y>"
+        "<commonparam:z>0.002</commonparam:z></commonphase:length><commonphase:pixelUnit><commonphase:x>um"
+        "</commonphase:x><commonphase:y>um</commonphase:y><commonphase:z>um</commonphase:z></commonphase:pixelUnit>"
+        "</commonphase:channel>" for uuid, kind in channels)
+    return (f'<?xml version="1.0" encoding="UTF-8"?><lsmimage:imageProperties {_OIR_NS}>'
+            "<commonimage:general><base:creationDateTime>2023-01-02T03:04:05.678+01:00</base:creationDateTime>"
+            "</commonimage:general><commonimage:microscope><base:name>OLS5000</base:name></commonimage:microscope>"
+            f"<commonimage:imageInfo><commonimage:width>{nx}</commonimage:width><commonimage:height>{ny}"
+            f"</commonimage:height><commonimage:phase><commonphase:group>{chans}</commonphase:group>"
+            "</commonimage:phase></commonimage:imageInfo><commonimage:acquisition>"
+            "<commonimage:microscopeConfiguration><commonimage:pixelCalibration>"
+            + "".join(f"<commonparam:{a}>{c}</commonparam:{a}>" for a, c in zip("xyz", cal))
+            + "</commonimage:pixelCalibration></commonimage:microscopeConfiguration></commonimage:acquisition>"
+            "</lsmimage:imageProperties>")
+
+
+def _oir_bytes(images, prefix="t001_0_1"):
+    """An OIR file with one HEIGHT channel per image (uint16), and an INTENSITY channel named but not stored."""
+    def s(text):
+        b = text.encode()
+        return struct.pack("<I", len(b)) + b
+
+    def block(typ, body, first=1):
+        return struct.pack("<9I", typ, first, 1, 0, 0, 1, 1, 1, 1) + body
+
+    ny, nx = images[0].shape
+    uuids = [f"{i:08d}-aaaa-bbbb-cccc-dddddddddddd" for i in range(len(images))]
+    props = _oir_properties(nx, ny, [(u, "HEIGHT") for u in uuids] + [("int-0", "INTENSITY")])
+    blocks = (block(1, s("<version/>")) + block(2, s(props)) + block(3, s("<annotations/>"))
+              + block(4, s("<overlays/>")) + block(5, struct.pack("<I", 1) + s("lut") + s("<lut/>"))
+              + block(6, struct.pack("<I", 1) + s(prefix) + struct.pack("<I", 0))
+              + block(7, struct.pack("<I", 1) + s(prefix) + struct.pack("<I", 0))
+              + block(8, struct.pack("<I", len(uuids)) + b"".join(s(u) + struct.pack("<I", 0) for u in uuids))
+              + block(14, s("<events/>")))
+    out = bytearray(b"OLYMPUSRAWFORMAT" + struct.pack("<14I", 12, 0, 1, 2, 0, 0, 0, 0, 17, 0, 1, 0, 0, 0)
+                    + b"UNKNOWN\0" + struct.pack("<4I", 1, 1, 0xFFFFFFFF, 0xFFFFFFFF))
+    out += struct.pack("<ii", len(blocks), 0) + blocks
+    for u, img in zip(uuids, images):
+        raw = img.astype("<u2").tobytes()
+        head = struct.pack("<2I", 0, len(raw)) + s(f"{prefix}_{u}_0")
+        out += struct.pack("<ii", len(head), 3) + head + struct.pack("<2I", len(raw), 4) + raw
+    out += struct.pack("<i", -1)
+    return bytes(out)
+
+
+def test_olympus_oir_from_layout(tmp_path):
+    rng = np.random.default_rng(13)
+    a, b = rng.integers(0, 65535, size=(5, 8)), rng.integers(0, 65535, size=(5, 8))
+    p = tmp_path / "a.oir"
+    p.write_bytes(_oir_bytes([a, b]))
+    assert detect(p)[0].name == "oir"
+    assert [c.name for c in xtopo.io.channels(p)] == ["Height", "Height 2"]
+    ds = xtopo.open_topography(p, units="um")
+    assert spacing(ds, "x") == pytest.approx(0.125) and spacing(ds, "y") == pytest.approx(0.13)
+    np.testing.assert_allclose(ds.height.values, a * 0.001)  # 0.002 um per digit x calibration 0.5
+    np.testing.assert_allclose(xtopo.open_topography(p, channel=1, units="um").height.values, b * 0.001)
+    assert ds.attrs["instrument"] == "OLS5000" and ds.attrs["acquisition_time"] == "2023-01-02T03:04:05"
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(p)).to_unit("um")
+    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-12)
+
+
+def test_olympus_poir_lists_the_heights_of_every_member(tmp_path):
+    rng = np.random.default_rng(14)
+    a, b = rng.integers(0, 65535, size=(4, 6)), rng.integers(0, 65535, size=(4, 6))
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("first.oir", _oir_bytes([a]))
+        zf.writestr("second.oir", _oir_bytes([b]))
+        zf.writestr("readme.txt", "not an OIR file")
+    p = tmp_path / "a.poir"
+    p.write_bytes(buf.getvalue())
+    assert detect(p)[0].name == "poir"
+    assert [c.name for c in xtopo.io.channels(p)] == ["first.oir: Height", "second.oir: Height"]
+    np.testing.assert_allclose(xtopo.open_topography(p, channel=1, units="um").height.values, b * 0.001)
+
+
+def test_olympus_oir_fuzz(tmp_path):
+    raw = _oir_bytes([np.arange(12).reshape(3, 4)])
+    _fuzz(tmp_path, raw, "oir", "f.oir")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("x.oir", raw)
+    _fuzz(tmp_path, buf.getvalue(), "poir", "f.poir", n=30)
