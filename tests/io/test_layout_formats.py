@@ -116,14 +116,19 @@ def test_keyence_vk6_vk7_wrap_vk4_content(tmp_path, magic):
 
 
 def test_keyence_vk4_agrees_with_surfacetopography(tmp_path):
-    st = pytest.importorskip("SurfaceTopography")
     digits, light = _vk_heights()
     p = tmp_path / "b.vk4"
     p.write_bytes(_vk4_bytes(digits, light))
-    t = st.read_topography(str(p)).to_unit("um")
-    ds = xtopo.open_topography(p, units="um")
-    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-12)
+    _same_as_surfacetopography(p, xtopo.open_topography(p, units="um"), "um")
+
+
+def _same_as_surfacetopography(path, ds, unit, valid=None, rtol=1e-12):
+    """SurfaceTopography reads ``path`` with the sizes and (where ``valid``) the heights of ``ds`` (in ``unit``)."""
+    st = pytest.importorskip("SurfaceTopography")
+    t = st.read_topography(str(path)).to_unit(unit)
     assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
+    ok = np.ones(ds.height.shape, bool) if valid is None else valid
+    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=rtol)
 
 
 def _fuzz(tmp_path, raw, fmt, name, n=60):
@@ -189,10 +194,7 @@ def test_zygo_datx_from_layout(tmp_path):
     ok = ~ds.mask.values
     np.testing.assert_allclose(ds.height.values[ok], z[ok] * 1e-3)
     assert ds.attrs["vendor"] == "Zygo" and ds.attrs["instrument"] == "NewView 9000"
-    st = pytest.importorskip("SurfaceTopography")
-    t = st.read_topography(str(p)).to_unit("um")
-    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+    _same_as_surfacetopography(p, ds, "um", valid=ok)
 
 
 def test_zygo_datx_fuzz(tmp_path):
@@ -235,11 +237,7 @@ def test_sensofar_plux_from_layout(tmp_path):
     assert ds.attrs["instrument"] == "S neox" and ds.attrs["objective"] == "Nikon 50X"
     assert ds.attrs["acquisition_time"] == "2023-03-10T12:34:56"
     np.testing.assert_array_equal(xtopo.open_topography(p, channel=1, units="um").height.values, b.astype(float))
-    st = pytest.importorskip("SurfaceTopography")
-    t = st.read_topography(str(p)).to_unit("um")
-    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-    ok = ~ds.mask.values
-    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+    _same_as_surfacetopography(p, ds, "um", valid=~ds.mask.values)
 
 
 def test_sensofar_plux_refuses_entity_declarations(tmp_path):
@@ -349,11 +347,7 @@ def test_olympus_lext_from_layout(tmp_path):
     np.testing.assert_allclose(ds.height.values[~invalid], digits[~invalid] * 0.5e-6)  # 1 pm/digit x 0.5
     assert bool(ds.mask[2, 7]) and int(ds.mask.sum()) == 1
     assert ds.attrs["vendor"] == "Olympus" and ds.attrs["acquisition_time"] == "2021-06-01T10:20:30"
-    st = pytest.importorskip("SurfaceTopography")
-    t = st.read_topography(str(p)).to_unit("um")
-    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-    ok = ~invalid
-    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+    _same_as_surfacetopography(p, ds, "um", valid=~invalid)
 
 
 def test_olympus_lext_fuzz(tmp_path):
@@ -387,10 +381,7 @@ def test_os3d_from_layout(tmp_path):
     assert bool(ds.mask[3, 4]) and int(ds.mask.sum()) == 1
     np.testing.assert_array_equal(ds.height.values[ok], z[ok].astype(float))
     assert ds.attrs["acquisition_time"] == "2022-05-04T11:12:13"
-    st = pytest.importorskip("SurfaceTopography")
-    t = st.read_topography(str(p)).to_unit("um")
-    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-    np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+    _same_as_surfacetopography(p, ds, "um", valid=ok)
 
 
 def test_os3d_fuzz(tmp_path):
@@ -428,10 +419,7 @@ def test_nt_mdt_from_layout(tmp_path):
     assert spacing(ds, "x") == pytest.approx(10.0) and spacing(ds, "y") == pytest.approx(12.0)
     np.testing.assert_allclose(ds.height.values, h[::-1] * 0.5 + 3.0)  # bottom line first in the file
     assert ds.attrs["acquisition_time"] == "2020-02-03T04:05:06"
-    st = pytest.importorskip("SurfaceTopography")
-    t = st.read_topography(str(p)).to_unit("nm")
-    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-6)
+    _same_as_surfacetopography(p, ds, "nm", rtol=1e-6)
 
 
 def test_nt_mdt_fuzz(tmp_path):
@@ -461,10 +449,7 @@ def test_zeta_zmg_from_layout(tmp_path):
     assert spacing(ds, "x") == pytest.approx(0.4) and spacing(ds, "y") == pytest.approx(0.5)
     np.testing.assert_allclose(ds.height.values, digits * np.float32(0.002), rtol=1e-12)
     assert ds.attrs["recipe"] == "recipe 1" and ds.attrs["comment"] == "a comment"
-    st = pytest.importorskip("SurfaceTopography")
-    t = st.read_topography(str(p)).to_unit("um")
-    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-6)
+    _same_as_surfacetopography(p, ds, "um", rtol=1e-6)
 
 
 def test_zeta_zmg_fuzz(tmp_path):
@@ -525,10 +510,7 @@ def test_keyence_zon_from_layout(tmp_path, zstd):
     np.testing.assert_allclose(ds.height.values[ok], digits[ok] * 0.1)
     assert ds.attrs["instrument"] == "VR-5000" and ds.attrs["acquisition_time"] == "2022-11-03T08:09:10"
     if not zstd:
-        st = pytest.importorskip("SurfaceTopography")
-        t = st.read_topography(str(p)).to_unit("um")
-        assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-        np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=1e-12)
+        _same_as_surfacetopography(p, ds, "um", valid=ok)
 
 
 def test_keyence_zon_fuzz(tmp_path):
@@ -602,10 +584,7 @@ def test_olympus_oir_from_layout(tmp_path):
     np.testing.assert_allclose(ds.height.values, a * 0.001)  # 0.002 um per digit x calibration 0.5
     np.testing.assert_allclose(xtopo.open_topography(p, channel=1, units="um").height.values, b * 0.001)
     assert ds.attrs["instrument"] == "OLS5000" and ds.attrs["acquisition_time"] == "2023-01-02T03:04:05"
-    st = pytest.importorskip("SurfaceTopography")
-    t = st.read_topography(str(p)).to_unit("um")
-    assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
-    np.testing.assert_allclose(ds.height.values, t.heights().T, rtol=1e-12)
+    _same_as_surfacetopography(p, ds, "um")
 
 
 def test_olympus_poir_lists_the_heights_of_every_member(tmp_path):
