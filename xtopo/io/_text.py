@@ -210,13 +210,29 @@ def token_ulp(tok: str) -> float:
     return 10.0 ** (exp - decimals)
 
 
+_TOKENS = re.compile(r"^\s*[-+]?\d*(?:\.(\d*))?(?:[eE]([-+]?\d+))?\s*$", re.M)
+
+
 def column_precision(tokens) -> float:
     """The coarsest printed precision among number ``tokens``: the largest :func:`token_ulp`.
 
     Positions printed with different numbers of decimals (``0.5``, ``0.25``) are only as precise
-    as the coarsest of them.
+    as the coarsest of them. Tokens that are not plain numbers count as 0 (unknown).
     """
-    return max((token_ulp(t) for t in set(tokens)), default=0.0)
+    text = "\n".join(t.strip() for t in tokens)
+    raw = text.encode("utf-8", "replace")
+    if not raw.strip():
+        return 0.0
+    if not raw.translate(None, b"0123456789+-.\n"):  # the common case, vectorised: no exponent, no name
+        b = np.frombuffer(raw, dtype=np.uint8)
+        ends = np.append(np.flatnonzero(b == 10), b.size)
+        dots = np.flatnonzero(b == 46)
+        decimals = np.zeros(ends.size, dtype=np.int64)
+        decimals[np.searchsorted(ends, dots)] = ends[np.searchsorted(ends, dots)] - dots - 1
+        return 10.0 ** -int(decimals.min())
+    shapes = set(_TOKENS.findall(text))  # (decimals, exponent) of each number: one regex pass
+    ulps = [10.0 ** (int(exp or 0) - len(dec)) for dec, exp in shapes if abs(int(exp or 0)) <= 300]
+    return max(ulps, default=0.0)
 
 
 #: A grid is never accepted when positions stray from it by this fraction of a step or more.
