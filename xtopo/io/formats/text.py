@@ -31,8 +31,8 @@ Three formats share one parser:
     ``key = value`` pairs; ``Width``/``Height``/``Value units`` are understood as in Gwyddion's
     export. A header line of length units only (``µm µm``, one per column) gives the unit of
     each column; column titles stating units (``x in µm``, ``X (nm)``, ``z [um]``) do too when
-    every column used states one. A line holding a lone integer above a table of several columns (a count) is skipped. Size
-    and units the file lacks come from ``physical_size=``/``file_units=``.
+    every column used states one. A line holding a lone integer above a table of several columns (a count) is
+    skipped. Size and units the file lacks come from ``physical_size=``/``file_units=``.
 """
 
 from __future__ import annotations
