@@ -67,6 +67,10 @@ LAYOUTS = [
      "0.0e-007\t0.0e-007\t0.0e-007\t0.0e-007\t0.0e-007\t0.0e-007", {}, {}),
     ("single_column.txt", "\n".join(str(i) for i in range(1, 10)), {"file_units": "um", "physical_size": 3.0},
      {"unit": "um", "physical_sizes": (3.0,)}),
+    ("memory-example.txt", "\n            0 0\n            1 2\n            2 4\n            3 6\n            ",
+     {"file_units": "um"}, {"unit": "um"}),  # ST's in-memory text example
+    ("matrix-2.txt", "h=4 w=5\npixel size=3.69862e-007 m\ndata unit=rad\nheight conversion factor (-> m)=6.30079e-008\n"
+     + "".join(" ".join(f"{v:.6f}" for v in row) + "\n" for row in _RNG.normal(size=(4, 5))), {}, {}),
 ]
 
 
