@@ -112,6 +112,7 @@ def test_xyz_grid_with_uneven_axis_is_refused(tmp_path):
 
 _GWY = {"en": ("Channel", "Width", "Height", "Value units"), "de": ("Kanal", "Breite", "Höhe", "Value units"),
         "fr": ("Canal ", "Largeur ", "Hauteur ", "Unités "), "cs": ("Kanál", "Šířka", "Výška", "Jednotky hodnot"),
+        "ja": ("チャネル", "幅", "高さ", "値の単位"),
         "xx": ("Chan", "W", "H", "Units")}  # an unknown translation: recognised by the lines' place and form
 
 
@@ -119,7 +120,8 @@ _GWY = {"en": ("Channel", "Width", "Height", "Value units"), "de": ("Kanal", "Br
 def test_gwyddion_export_in_any_language(tmp_path, lang):
     c, w, h, v = _GWY[lang]
     p = tmp_path / f"gwy-{lang}.txt"
-    p.write_text(f"# {c}: My Channel\n# {w}: 12.34 µm\n# {h}: 5678.9 nm\n# {v}: m\n"
+    colon = "：" if lang == "ja" else ":"
+    p.write_text(f"# {c}{colon} My Channel\n# {w}{colon} 12.34 µm\n# {h}{colon} 5678.9 nm\n# {v}{colon} m\n"
                  "1 1.5 3\n-2 -3 -6\n0 0 0\n9 9 9\n", encoding="utf-8")
     assert detect(p)[0].name == "gwyddion-text"
     ds = _open(p, units="m")

@@ -130,15 +130,17 @@ def _read_table(path, data_lines):
     return parse_table(path, data_lines, sep=sep), sep
 
 
-#: Gwyddion's export keys as its translations spell them (cs, de, es, fr, it, ko, ru message catalogues).
+#: Gwyddion's export keys as its translations spell them (its cs, de, es, fr, it, ko, ru catalogues; ja, pt as
+#: SurfaceTopography's text reader lists them).
 _GWYDDION_KEYS = {
-    "Channel": ("channel", "kanál", "kanal", "canal", "canale", "채널", "канал"),
-    "Width": ("width", "šířka", "breite", "anchura", "largeur", "larghezza", "폭", "ширина"),
-    "Height": ("height", "výška", "höhe", "altura", "hauteur", "altezza", "높이", "высота"),
-    "Value units": ("value units", "jednotky hodnot", "unités", "unità valore", "값 단위", "единицы измерения"),
+    "Channel": ("channel", "kanál", "kanal", "canal", "canale", "チャネル", "채널", "канал"),
+    "Width": ("width", "šířka", "breite", "anchura", "largeur", "larghezza", "幅", "폭", "largura", "ширина"),
+    "Height": ("height", "výška", "höhe", "altura", "hauteur", "altezza", "高さ", "높이", "высота"),
+    "Value units": ("value units", "jednotky hodnot", "einheiten", "unités", "unità valore", "値の単位", "값 단위",
+                    "unidades de valor", "единицы измерения"),
 }
 _GWYDDION_LOOKUP = {k: canonical for canonical, keys in _GWYDDION_KEYS.items() for k in keys}
-_COMMENT_PAIR = re.compile(r"^\s*#\s*([^:]{1,40}?)\s*:\s*(.*?)\s*$")
+_COMMENT_PAIR = re.compile(r"^\s*#\s*([^:：]{1,40}?)\s*[:：]\s*(.*?)\s*$")  # Japanese: a full-width colon
 #: a unit stated in a column title: "x in µm", "X_(microns)", "z [nm]", "Height (um)"
 _TITLE_UNIT = re.compile(r"(?:\bin\s+|[\[(])\s*([^\[\]()\s]+)\s*[\])]?\s*$")
 
