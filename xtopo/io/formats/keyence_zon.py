@@ -39,20 +39,21 @@ _DEVICE = "cbc1d39b-215f-4d56-a20e-cf8e5f570755"
 _SCAN = "1d35862b-3b48-4df2-9235-833ef590b043"
 _ZSTD = b"\x28\xb5\x2f\xfd"
 _INVALID_BITS = 0x03
+_MAX_XML = 16 << 20
 
 
 def _sniff(head: bytes, path: str) -> bool:
     return head[:3] == b"KPK" and head[8:10] == b"BM"
 
 
-def _member(path, zf, name, optional=False):
+def _member(path, zf, name, optional=False, limit=MAX_MEMBER):
     try:
         info = zf.getinfo(name)
     except KeyError:
         if optional:
             return None
         raise ReaderError(path, f"the ZON archive lacks the member {name} (not a Keyence ZON measurement)") from None
-    data = read_member(path, zf, info, _WHAT)
+    data = read_member(path, zf, info, _WHAT, limit=limit)
     if data.startswith(_ZSTD):
         try:
             import zstandard
@@ -61,16 +62,16 @@ def _member(path, zf, name, optional=False):
                                     "package (pip install zstandard)") from None
         try:
             with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data)) as reader:
-                data = reader.read(MAX_MEMBER + 1)
+                data = reader.read(limit + 1)
         except zstandard.ZstdError as exc:
             raise ReaderError(path, f"ZON member {name} is not valid zstd data: {exc}") from None
-        if len(data) > MAX_MEMBER:
-            raise ReaderError(path, f"ZON member {name} decompresses to more than {MAX_MEMBER} bytes (zip bomb?)")
+        if len(data) > limit:
+            raise ReaderError(path, f"ZON member {name} decompresses to more than {limit} bytes (zip bomb?)")
     return data.removeprefix(b"\xef\xbb\xbf")
 
 
 def _xml(path, zf, name, optional=False):
-    data = _member(path, zf, name, optional)
+    data = _member(path, zf, name, optional, limit=_MAX_XML)
     return None if data is None else parse_xml(data, path, f"ZON member {name}")
 
 
