@@ -609,3 +609,14 @@ def test_olympus_oir_fuzz(tmp_path):
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("x.oir", raw)
     _fuzz(tmp_path, buf.getvalue(), "poir", "f.poir", n=30)
+
+
+def test_keyence_zon_refuses_a_zstd_bomb(tmp_path):
+    zstandard = pytest.importorskip("zstandard")
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:  # 17 MiB of XML from a few hundred compressed bytes
+        zf.writestr("686613b8-27b5-4a29-8ffc-438c2780873e", zstandard.ZstdCompressor().compress(b" " * (17 << 20)))
+    p = tmp_path / "bomb.zon"
+    p.write_bytes(b"KPK0" + bytes(4) + b"BM" + struct.pack("<I", 20) + bytes(14) + buf.getvalue())
+    with pytest.raises(xtopo.ReaderError, match="decompresses to more than"):
+        xtopo.io.list_formats()["zon"].read(p)
