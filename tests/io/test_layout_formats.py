@@ -1,7 +1,13 @@
-"""Formats checked against files built from their published layout (no real sample committed)."""
+"""Formats checked against files built from their published layout (no real sample is available to commit).
+
+Each file is built as the published readers describe the format (Gwyddion, SurfaceTopography, surfalize); the
+same file is read by SurfaceTopography and, where it reads the format, surfalize: the three readings agree on
+sizes and heights, which checks xtopo's reading of the layout against two independent implementations.
+"""
 
 import io
 import struct
+import warnings
 import zipfile
 
 import numpy as np
@@ -120,6 +126,7 @@ def test_keyence_vk4_agrees_with_surfacetopography(tmp_path):
     p = tmp_path / "b.vk4"
     p.write_bytes(_vk4_bytes(digits, light))
     _same_as_surfacetopography(p, xtopo.open_topography(p, units="um"), "um")
+    _same_as_surfalize(p, xtopo.open_topography(p, units="um"))
 
 
 def _same_as_surfacetopography(path, ds, unit, valid=None, rtol=1e-12):
@@ -129,6 +136,17 @@ def _same_as_surfacetopography(path, ds, unit, valid=None, rtol=1e-12):
     assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
     ok = np.ones(ds.height.shape, bool) if valid is None else valid
     np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=rtol)
+
+
+def _same_as_surfalize(path, ds, valid=None):
+    """surfalize (which reads in µm) reads ``path`` with the steps and (where ``valid``) heights of ``ds`` (in µm)."""
+    surfalize = pytest.importorskip("surfalize")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # surfalize's note on non-square pixels
+        s = surfalize.Surface.load(str(path))
+    assert (s.step_x, s.step_y) == pytest.approx((spacing(ds, "x"), spacing(ds, "y")), rel=1e-6)
+    ok = np.ones(ds.height.shape, bool) if valid is None else valid
+    np.testing.assert_allclose(ds.height.values[ok], s.data[ok], rtol=1e-6)
 
 
 def _fuzz(tmp_path, raw, fmt, name, n=60):
@@ -238,6 +256,7 @@ def test_sensofar_plux_from_layout(tmp_path):
     assert ds.attrs["acquisition_time"] == "2023-03-10T12:34:56"
     np.testing.assert_array_equal(xtopo.open_topography(p, channel=1, units="um").height.values, b.astype(float))
     _same_as_surfacetopography(p, ds, "um", valid=~ds.mask.values)
+    _same_as_surfalize(p, ds, valid=~ds.mask.values)
 
 
 def test_sensofar_plux_refuses_entity_declarations(tmp_path):
@@ -348,6 +367,7 @@ def test_olympus_lext_from_layout(tmp_path):
     assert bool(ds.mask[2, 7]) and int(ds.mask.sum()) == 1
     assert ds.attrs["vendor"] == "Olympus" and ds.attrs["acquisition_time"] == "2021-06-01T10:20:30"
     _same_as_surfacetopography(p, ds, "um", valid=~invalid)
+    _same_as_surfalize(p, ds, valid=~invalid)
 
 
 def test_olympus_lext_fuzz(tmp_path):
@@ -382,6 +402,7 @@ def test_os3d_from_layout(tmp_path):
     np.testing.assert_array_equal(ds.height.values[ok], z[ok].astype(float))
     assert ds.attrs["acquisition_time"] == "2022-05-04T11:12:13"
     _same_as_surfacetopography(p, ds, "um", valid=ok)
+    _same_as_surfalize(p, ds, valid=ok)
 
 
 def test_os3d_fuzz(tmp_path):
@@ -450,6 +471,7 @@ def test_zeta_zmg_from_layout(tmp_path):
     np.testing.assert_allclose(ds.height.values, digits * np.float32(0.002), rtol=1e-12)
     assert ds.attrs["recipe"] == "recipe 1" and ds.attrs["comment"] == "a comment"
     _same_as_surfacetopography(p, ds, "um", rtol=1e-6)
+    _same_as_surfalize(p, ds, valid=digits < 32768)  # surfalize reads int16: equal below 2^15
 
 
 def test_zeta_zmg_fuzz(tmp_path):
@@ -511,6 +533,7 @@ def test_keyence_zon_from_layout(tmp_path, zstd):
     assert ds.attrs["instrument"] == "VR-5000" and ds.attrs["acquisition_time"] == "2022-11-03T08:09:10"
     if not zstd:
         _same_as_surfacetopography(p, ds, "um", valid=ok)
+        _same_as_surfalize(p, ds, valid=valid == 0)  # surfalize also drops points with only higher bits set
 
 
 def test_keyence_zon_fuzz(tmp_path):
@@ -544,7 +567,9 @@ def _oir_properties(nx, ny, channels, cal=(1.0, 1.0, 0.5)):
 
 
 def _oir_bytes(images, prefix="t001_0_1"):
-    """An OIR file with one HEIGHT channel per image (uint16), and an INTENSITY channel named but not stored."""
+    """An OIR file with one HEIGHT channel per image (uint16): a frame chunk (type 1) followed by three data blocks
+    (the heights, then INTENSITY/INVALID planes to make three), then the metadata list (type 0), as the two
+    published readers expect them (SurfaceTopography walks all chunks, surfalize the frame and its three blocks)."""
     def s(text):
         b = text.encode()
         return struct.pack("<I", len(b)) + b
@@ -554,7 +579,10 @@ def _oir_bytes(images, prefix="t001_0_1"):
 
     ny, nx = images[0].shape
     uuids = [f"{i:08d}-aaaa-bbbb-cccc-dddddddddddd" for i in range(len(images))]
-    props = _oir_properties(nx, ny, [(u, "HEIGHT") for u in uuids] + [("int-0", "INTENSITY")])
+    others = [("int-0", "INTENSITY"), ("inv-0", "INVALID")][:max(0, 3 - len(images))]
+    props = _oir_properties(nx, ny, [(u, "HEIGHT") for u in uuids] + others)
+    frame = block(2, s(f"<frameProperties><imageDefinition><width>{nx}</width><height>{ny}</height><depth>2</depth>"
+                       "</imageDefinition></frameProperties>"))
     blocks = (block(1, s("<version/>")) + block(2, s(props)) + block(3, s("<annotations/>"))
               + block(4, s("<overlays/>")) + block(5, struct.pack("<I", 1) + s("lut") + s("<lut/>"))
               + block(6, struct.pack("<I", 1) + s(prefix) + struct.pack("<I", 0))
@@ -563,12 +591,13 @@ def _oir_bytes(images, prefix="t001_0_1"):
               + block(14, s("<events/>")))
     out = bytearray(b"OLYMPUSRAWFORMAT" + struct.pack("<14I", 12, 0, 1, 2, 0, 0, 0, 0, 17, 0, 1, 0, 0, 0)
                     + b"UNKNOWN\0" + struct.pack("<4I", 1, 1, 0xFFFFFFFF, 0xFFFFFFFF))
-    out += struct.pack("<ii", len(blocks), 0) + blocks
-    for u, img in zip(uuids, images):
+    out += struct.pack("<ii", len(frame), 1) + frame
+    planes = list(zip(uuids, images)) + [(u, np.full((ny, nx), 7)) for u, _ in others]
+    for u, img in planes:
         raw = img.astype("<u2").tobytes()
         head = struct.pack("<2I", 0, len(raw)) + s(f"{prefix}_{u}_0")
         out += struct.pack("<ii", len(head), 3) + head + struct.pack("<2I", len(raw), 4) + raw
-    out += struct.pack("<i", -1)
+    out += struct.pack("<ii", len(blocks), 0) + blocks + struct.pack("<i", -1)
     return bytes(out)
 
 
@@ -585,6 +614,7 @@ def test_olympus_oir_from_layout(tmp_path):
     np.testing.assert_allclose(xtopo.open_topography(p, channel=1, units="um").height.values, b * 0.001)
     assert ds.attrs["instrument"] == "OLS5000" and ds.attrs["acquisition_time"] == "2023-01-02T03:04:05"
     _same_as_surfacetopography(p, ds, "um")
+    _same_as_surfalize(p, ds)
 
 
 def test_olympus_poir_lists_the_heights_of_every_member(tmp_path):
