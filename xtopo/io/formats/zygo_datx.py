@@ -18,10 +18,12 @@ import numpy as np
 from ...errors import ReaderError
 from ..registry import Format, register
 from ._common import channel_info, guarded, length_unit, measurement, pick_channel
-from .hdf5 import _H5_ERRORS, _MAGIC, open_h5, read_dataset
+from .hdf5 import open_h5, read_dataset
 
+_MAGIC = b"\x89HDF\r\n\x1a\n"
+#: what h5py raises on a damaged file (reported as a corrupt DATX file)
+_H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
 _MAX_META_ROWS = 100_000
-_MAX_DEPTH = 16
 
 
 def _text(value) -> str:
