@@ -1,4 +1,5 @@
-"""Reading members of untrusted ZIP archives (X3P files, contact.engineering containers).
+"""Reading members of untrusted ZIP archives (X3P, Keyence VK6/VK7/ZON, Sensofar PLUX, Olympus POIR files,
+contact.engineering containers).
 
 A member's declared size is checked before anything is decompressed: against a limit, and
 against its compressed size (deflate cannot compress better than about 1032:1, so a member
@@ -15,7 +16,7 @@ import zlib
 
 from ..errors import ReaderError
 
-__all__ = ["MAX_RATIO", "MAX_MEMBER", "unsafe_name", "check_declared", "read_member", "copy_member"]
+__all__ = ["MAX_RATIO", "MAX_MEMBER", "unsafe_name", "open_zip", "check_declared", "read_member", "copy_member"]
 
 #: deflate cannot compress better than about 1032:1; a member claiming more is a bomb
 MAX_RATIO = 1100
@@ -24,13 +25,28 @@ MAX_MEMBER = 1 << 30
 _DRIVE = re.compile(r"^[A-Za-z]:")
 _BLOCK = 1 << 20
 #: what decompressing a damaged member raises (a bad CRC, a truncated or invalid stream)
-_CORRUPT = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, RuntimeError)
+_CORRUPT = (zipfile.BadZipFile, zlib.error, OSError, ValueError, EOFError, NotImplementedError, RuntimeError)
 
 
 def unsafe_name(name: str) -> bool:
     """True for a member name that is absolute, names a drive, climbs out (``..``) or holds a NUL."""
     n = name.replace("\\", "/")
     return n.startswith("/") or bool(_DRIVE.match(n)) or ".." in n.split("/") or "\0" in n
+
+
+def open_zip(path, what: str) -> zipfile.ZipFile:
+    """The zip archive ``path``; a :class:`ReaderError` naming ``what`` if it is none, or if a member name is
+    unsafe."""
+    try:
+        zf = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError, EOFError) as exc:
+        raise ReaderError(path, f"not a readable {what} (zip) archive: {exc}") from None
+    bad = [n for n in zf.namelist() if unsafe_name(n)]
+    if bad:
+        zf.close()
+        raise ReaderError(path, f"{what} archive member name {bad[0]!r} is absolute or leaves the archive "
+                                "(path traversal); refused")
+    return zf
 
 
 def check_declared(path, info, what: str, limit: int = MAX_MEMBER) -> int:

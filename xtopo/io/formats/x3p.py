@@ -29,8 +29,8 @@ import numpy as np
 from ...conventions import make_measurement
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS, check_count
-from .._zip import MAX_MEMBER, read_member, unsafe_name
 from .._xml import child, child_text, local_name, parse_xml
+from .._zip import MAX_MEMBER, open_zip, read_member, unsafe_name
 from ..registry import ChannelInfo, Format, register
 from ._common import pick_channel, reading
 
@@ -63,16 +63,8 @@ def _read_member(path, zf, info, expected=None, limit=MAX_MEMBER):
 
 
 def _open(path):
-    try:
-        zf = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError) as exc:
-        raise ReaderError(path, f"not a readable X3P (zip) archive: {exc}") from None
+    zf = open_zip(path, "X3P")
     names = zf.namelist()
-    bad = [n for n in names if unsafe_name(n)]
-    if bad:
-        zf.close()
-        raise ReaderError(path, f"X3P archive member name {bad[0]!r} is absolute or leaves the archive "
-                                "(path traversal); refused")
     mains = sorted((n for n in names if posixpath.basename(n) == "main.xml" and not n.startswith("__MACOSX/")),
                    key=lambda n: (n.count("/"), n))
     if not mains:
