@@ -8,11 +8,11 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._checks import integer, option, real_number
 from .._kernels import profile_iso as _k
-from ..conventions import X, height_of, is_nonuniform, lateral_dims, shared_length_unit, spacing
+from ..conventions import height_of, spacing
 from ..errors import GridError
 from ..filtration import filter as _filter
 from ..filtration import filter_options
-from ._scale import provenance
+from ._scale import prepare, provenance
 
 __all__ = ["iso21920", "PARAMETERS"]
 
@@ -48,7 +48,8 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
     Parameters
     ----------
     obj : xarray.Dataset or xarray.DataArray
-        A measurement on a uniform grid.
+        A measurement; a nonuniform line scan is linearly interpolated onto a uniform grid with
+        as many points (attribute ``resampled`` says so).
     dim : {"x", "y"}
         Direction of the profiles (for a map, every line along ``dim`` is one profile).
     lambda_s : float, str, "auto" or None
@@ -97,13 +98,11 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
     sections = integer(sections, "sections")
     c = real_number(c, "c")
     convention = option(convention, _k.CONVENTIONS, "convention")
-    h = height_of(obj)
-    if is_nonuniform(h) or (isinstance(obj, xr.Dataset) and is_nonuniform(obj)):
-        raise GridError("iso21920 needs a uniform grid; this is a nonuniform line scan (interpolate it first)")
-    if dim not in lateral_dims(h):
-        raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {lateral_dims(h)})")
-    units = shared_length_unit(h, "iso21920")
-    filtered = _filter(obj, lambda_s=lambda_s, lambda_c=lambda_c, form=form, dim=dim,
+    prepared = prepare(obj)  # a nonuniform line scan interpolated onto a uniform grid of as many points
+    h, units = prepared.h, prepared.units
+    if dim not in prepared.lat:
+        raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {prepared.lat})")
+    filtered = _filter(h if prepared.resampled else obj, lambda_s=lambda_s, lambda_c=lambda_c, form=form, dim=dim,
                        component="primary" if lambda_c is None else "roughness")
     profile = height_of(filtered)
     ls, lc = float(filtered.attrs["lambda_s"]), float(filtered.attrs["lambda_c"])  # NaN: filter not applied
@@ -127,9 +126,8 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
         out[name] = res.isel(parameter=i, drop=True).assign_attrs(
             units=units if kind == "length" else kind, long_name=long_name)
     ds = xr.Dataset(out)
-    ds.attrs = {"title": "ISO 21920-2 profile parameters", "direction": dim, "lambda_s": ls,
-                "lambda_c": lc, "sampling_length": per * dx, "evaluation_length": per * sections * dx,
-                "sections": sections, "c": c, "convention": convention, "length_units": units,
-                "form": str(form)}
+    ds.attrs = prepared.attrs(title="ISO 21920-2 profile parameters", direction=dim, lambda_s=ls, lambda_c=lc,
+                              sampling_length=per * dx, evaluation_length=per * sections * dx, sections=sections,
+                              c=c, convention=convention, length_units=units, form=str(form))
     return provenance(ds, obj, "iso21920")
 
