@@ -77,17 +77,18 @@ def _cmd_analyze(args) -> int:
     print(format_table(results.to_dataset()))
     for name in ("psd", "acf", "vbm", "sdrp"):
         print(_average_line(name, results[name].to_dataset()))
-    iso = iso_report(measurements, args)
+    iso, iso_errors = iso_report(measurements, args)
     if iso is not None:
         results["iso"] = xr.DataTree(iso)
     tree_to_netcdf(results, args.output)
-    print(f"\nwrote {args.output} (groups: summary at the root, psd, acf, vbm, sdrp{', iso' if iso is not None else ''})")
+    groups = "psd, acf, vbm, sdrp" + (", iso" if iso is not None else "")
+    print(f"\nwrote {args.output} (groups: summary at the root, {groups})")
     if args.report:
         from .report import report
 
         report(measurements, args.report, title=f"xtopo analysis: {what}", iso=iso_options(args))
         print(f"wrote {args.report}")
-    return 1 if failed else 0
+    return 1 if failed or iso_errors else 0
 
 
 def _cmd_report(args) -> int:

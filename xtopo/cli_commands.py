@@ -102,20 +102,24 @@ def iso_options(args) -> dict | None:
 
 
 def iso_report(measurements: dict, args):
-    """The ISO table of ``measurements`` (:func:`xtopo.analysis._iso_sets.iso_table`), printed; None without ``--iso``."""
+    """The ISO table of ``measurements`` (:func:`xtopo.analysis._iso_sets.iso_table`), printed.
+
+    Returns ``(table, errors)``: ``(None, {})`` without ``--iso``; ``errors`` names the
+    measurements whose ISO parameters failed (printed to stderr).
+    """
     from .analysis._iso_sets import format_iso_table, iso_table
     from .summary import text_table
 
     options = iso_options(args)
     if options is None:
-        return None
+        return None, {}
     table, errors = iso_table(measurements, **options)
     print(f"\nISO parameters (lambda_s={args.lambda_s or 'none'}, lambda_c={args.lambda_c or 'none'}):")
     if table.data_vars:
         print(text_table(*format_iso_table(table)))
     for name, msg in errors.items():
         print(f"xtopo: error: ISO parameters of {name}: {msg}", file=sys.stderr)
-    return table
+    return table, errors
 
 
 def _err(msg: str) -> None:
@@ -167,8 +171,8 @@ def _cmd_info(args) -> int:
             continue
         val = str(ds.attrs[key])
         print(f"  {key}: {val if len(val) <= 100 else val[:97] + '...'}")
-    iso_report({os.path.basename(path): ds}, args)
-    return 0
+    _, iso_errors = iso_report({os.path.basename(path): ds}, args)
+    return 1 if iso_errors else 0
 
 
 # --------------------------------------------------------------------------- contact
