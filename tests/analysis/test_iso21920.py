@@ -6,7 +6,7 @@ import pytest
 import xarray as xr
 
 import xtopo
-from xtopo._kernels.material_ratio import functional_parameters
+from xtopo._kernels.material_ratio_rows import functional_parameters
 from xtopo.analysis.iso21920 import PARAMETERS
 from xtopo.conventions import make_measurement
 from xtopo.errors import GridError, XtopoError

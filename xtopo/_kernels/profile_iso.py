@@ -12,7 +12,7 @@ import warnings
 
 import numpy as np
 
-from .material_ratio import descending, functional_of_sorted, material_ratio_at
+from .material_ratio_rows import descending, functional_of_sorted, material_ratio_at
 
 __all__ = ["PARAMETERS", "CONVENTIONS", "profile_parameters", "slope_7point", "mean_width"]
 

@@ -1,8 +1,9 @@
-"""The material ratio (Abbott–Firestone) curve and its functional parameters, pure numpy.
+"""The material ratio (Abbott–Firestone) curve and its functional parameters of many rows at once, pure numpy.
 
-Shared by the profile (ISO 21920-2 / ISO 13565-2: Rk, Rpk, Rvk, Rmr1, Rmr2, Rmr(c)) and the
-areal (ISO 25178-2: Sk, Spk, Svk, Smr1, Smr2, Smr(c)) sets: the construction is the same, on
-the heights of a profile or of a surface flattened to one axis.
+For the profile set (ISO 21920-2 / ISO 13565-2: Rk, Rpk, Rvk, Rmr1, Rmr2, Rmr(c)) of every
+line of a map: each row is sorted and the whole batch of rows is evaluated without a Python
+loop. (The areal set classes the heights of one surface in a single pass instead, which is
+faster for one large array; the construction of the equivalent straight line is the same.)
 
 The curve: the ``n`` valid heights sorted in descending order, the ``i``-th (from 0) at material
 ratio ``100 i / (n - 1)`` %, linear in between (the highest point at 0 %, the lowest at 100 %;
