@@ -30,7 +30,8 @@ SEE = re.compile(r"see :(?:func|meth):`~?([\w.]+)`")
 MODULES = ["xtopo.conventions", "xtopo.datasets", "xtopo.io", "xtopo.preprocess", "xtopo.batch", "xtopo.cache",
            "xtopo.twins", "xtopo.stitching", "xtopo.contact", "xtopo.plot", "xtopo.presets",
            "xtopo.analysis.scalars", "xtopo.analysis.distribution", "xtopo.analysis.psd", "xtopo.analysis.acf",
-           "xtopo.analysis.vbm", "xtopo.analysis.sdrp", "xtopo.analysis.hurst", "xtopo.analysis.reliability"]
+           "xtopo.analysis.vbm", "xtopo.analysis.sdrp", "xtopo.analysis.hurst", "xtopo.analysis.reliability",
+           "xtopo.filtration", "xtopo.analysis.iso21920"]
 
 
 def parameters_section(doc: str | None) -> dict[str, tuple[str, str, bool]] | None:

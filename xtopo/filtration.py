@@ -89,7 +89,7 @@ def _mm(units: str) -> float:
 
 
 def iso_cutoffs(ra: float, units: str) -> tuple[float, float]:
-    """``(λs, λc)`` of ISO 4288 / ISO 3274 (also ISO 21920-3) for a nonperiodic profile of arithmetic mean height ``ra``.
+    """``(λs, λc)`` of ISO 4288 / ISO 3274 (also ISO 21920-3) for a nonperiodic profile of mean height ``ra``.
 
     Parameters
     ----------
@@ -220,7 +220,8 @@ def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str =
         The filtered heights (same units, float64). Attributes ``lambda_s`` and ``lambda_c`` (in
         the measurement's length unit, ``nan`` for a filter not applied) record the nesting
         indices, and ``history`` the step. A periodic measurement is filtered circularly and
-        stays periodic unless the form removal (degree ≥ 1) breaks its periodicity.
+        stays periodic unless the form removal (degree ≥ 1) breaks its periodicity; with
+        missing points it is filtered with the end correction instead.
 
     Raises
     ------
