@@ -86,3 +86,19 @@ def test_batch_preprocess_filter_step_then_profile_set(cosine_file):
     res = analyze({"wavy": wavy}, analyses="iso21920", scheduler="sync", progress=False,
                   preprocess={"filter": {"lambda_s": None, "lambda_c": "0.5 mm", "form": "line"}})
     assert float(res.Ra.sel(measurement="wavy")) == pytest.approx(2 * A / np.pi, rel=1e-2)  # waviness filtered out
+
+
+def test_iso_table_keeps_every_measurement_and_says_what_failed():
+    from xtopo.analysis._iso_sets import format_iso_table, iso_table
+
+    area = xtopo.datasets.fractal_surface((32, 64), (32e-6, 64e-6), hurst=0.8, rms_height=1e-8, seed=1)
+    x = np.arange(6000) * 1e-6
+    line = make_measurement(A * np.cos(2 * np.pi * x / LAM), spacing=1e-6, units="m")
+    table, errors = iso_table({"area": area, "line": line}, lambda_c=1e-3)  # λc = 10 λ: transmission ≈ 1
+    assert list(errors) == ["area"] and "longer than the measurement" in errors["area"]
+    assert np.isnan(float(table.Ra.sel(measurement="area")))
+    assert float(table.Ra.sel(measurement="line")) == pytest.approx(2 * A / np.pi, rel=2e-3)
+    header, rows = format_iso_table(table)
+    assert header[:3] == ["measurement", "Ra", "Rq"] and rows[0][1] == "-" and rows[1][1] in ("636 nm", "637 nm")
+    every_line, _ = iso_table({"area": area})
+    assert "mean over the profiles" in every_line.Ra.attrs["long_name"]

@@ -43,13 +43,15 @@ def _scalar_vars(res: xr.Dataset, profiles: str | None) -> dict:
     return out
 
 
-def iso_values(ds: xr.Dataset, *, lambda_s=None, lambda_c=None) -> xr.Dataset:
-    """The ISO parameters of one measurement as 0-d variables (every available set that applies).
+def iso_values(ds: xr.Dataset, name: str, *, lambda_s=None, lambda_c=None) -> xr.Dataset:
+    """The parameters of the ISO set ``name`` of one measurement as 0-d variables (empty if it does not apply).
 
     Parameters
     ----------
     ds : xarray.Dataset
         One measurement (no batch dims).
+    name : str
+        A set of :data:`ISO_SETS`.
     lambda_s, lambda_c : float, str or None
         Nesting indices for the profile set (see :func:`xtopo.analysis.iso21920.iso21920`).
 
@@ -59,17 +61,13 @@ def iso_values(ds: xr.Dataset, *, lambda_s=None, lambda_c=None) -> xr.Dataset:
         One variable per parameter, with ``units`` and ``long_name``.
     """
     kind = "area" if len(lateral_dims(ds[HEIGHT])) == 2 else "line"
-    out = {}
-    for name in available_sets():
-        if kind not in ISO_SETS[name][1]:
-            continue
-        func = getattr(importlib.import_module(f"xtopo.analysis.{name}"), name)
-        if name == "iso21920":
-            res = func(ds, dim=X, lambda_s=lambda_s, lambda_c=lambda_c)
-            out.update(_scalar_vars(res, "y" if kind == "area" else None))
-        else:
-            out.update(_scalar_vars(func(ds), None))
-    return xr.Dataset(out)
+    if kind not in ISO_SETS[name][1]:
+        return xr.Dataset()
+    func = getattr(importlib.import_module(f"xtopo.analysis.{name}"), name)
+    if name == "iso21920":
+        res = func(ds, dim=X, lambda_s=lambda_s, lambda_c=lambda_c)
+        return xr.Dataset(_scalar_vars(res, "y" if kind == "area" else None))
+    return xr.Dataset(_scalar_vars(func(ds), None))
 
 
 def iso_table(measurements: dict, *, lambda_s=None, lambda_c=None) -> tuple[xr.Dataset, dict]:
@@ -86,16 +84,22 @@ def iso_table(measurements: dict, *, lambda_s=None, lambda_c=None) -> tuple[xr.D
     -------
     tuple
         The table (NaN where a parameter does not apply or could not be computed) and
-        ``{name: message}`` for the measurements whose parameters failed (e.g. a cut-off longer
-        than the measurement).
+        ``{name: message}`` for each measurement and set that failed (e.g. a cut-off longer
+        than the measurement); the other sets of that measurement are still in the table.
     """
     rows, errors = {}, {}
     for name, ds in measurements.items():
-        try:
-            rows[name] = iso_values(convert_length(ds, "m"), lambda_s=lambda_s, lambda_c=lambda_c)
-        except XtopoError as exc:
-            errors[name] = str(exc)
-            rows[name] = xr.Dataset()
+        ds = convert_length(ds, "m")
+        parts = []
+        for iso in available_sets():
+            try:
+                parts.append(iso_values(ds, iso, lambda_s=lambda_s, lambda_c=lambda_c))
+            except XtopoError as exc:
+                errors[name] = f"{errors[name]}; {exc}" if name in errors else str(exc)
+        rows[name] = xr.merge(parts, combine_attrs="drop") if parts else xr.Dataset()
+        for part in parts:  # merge keeps variable attrs, but be explicit: units and long_name travel
+            for v in part.data_vars:
+                rows[name][v].attrs = part[v].attrs
     names = list(rows)
     table = xr.concat([rows[n].expand_dims(measurement=[n]) for n in names], dim="measurement", join="outer",
                       combine_attrs="drop") if names else xr.Dataset()
