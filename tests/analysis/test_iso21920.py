@@ -157,3 +157,16 @@ def test_bad_arguments():
         ds.topo.iso21920(sections=0)
     with pytest.raises(XtopoError, match="convention must be one of"):
         ds.topo.iso21920(convention="din")
+
+
+def test_rsm_height_and_width_discrimination():
+    """Elements alternate 30 and 4 points wide: RSm is their mean, 17; with a width discrimination of 10 points
+    the narrow ones join the next element (34); ripples below the height discrimination are no elements."""
+    from xtopo._kernels.profile_iso import mean_width
+
+    z = np.concatenate([np.r_[np.ones(w // 2), -np.ones(w // 2)] for w in [30, 4] * 20])
+    z = z + 0.01  # no sample exactly on the mean line
+    assert float(mean_width(z, 1.0, 0.5)) == pytest.approx(17.0)
+    assert float(mean_width(z, 1.0, 0.5, min_width=10)) == pytest.approx(34.0)
+    ripple = 0.3 * np.sin(2 * np.pi * np.arange(4000) / 10) + np.sin(2 * np.pi * np.arange(4000) / 400)
+    assert float(mean_width(ripple, 1.0, 0.35)) == pytest.approx(400.0, rel=1e-2)

@@ -24,6 +24,8 @@ PARAMETERS = ("Ra", "Rq", "Rp", "Rv", "Rz", "Rt", "Rsk", "Rku", "Rdq", "RSm", "R
 CONVENTIONS = ("iso21920", "iso4287")
 #: height discrimination of the profile elements (RSm), a fraction of Rz (ISO 4287 §3.1.9, ISO 21920-2)
 HEIGHT_DISCRIMINATION = 0.1
+#: width discrimination of the profile elements, a fraction of the sampling length (ISO 4287 §3.1.9)
+WIDTH_DISCRIMINATION = 0.01
 
 
 def slope_7point(z: np.ndarray, dx: float) -> np.ndarray:
@@ -45,15 +47,16 @@ def slope_7point(z: np.ndarray, dx: float) -> np.ndarray:
     return out
 
 
-def mean_width(z: np.ndarray, dx: float, discrimination: np.ndarray) -> np.ndarray:
+def mean_width(z: np.ndarray, dx: float, discrimination: np.ndarray, min_width: float = 0.0) -> np.ndarray:
     """Mean width of the profile elements (RSm) of rows ``z``, in the unit of ``dx``.
 
     A profile element is a peak (above the mean line) and the valley after it; peaks lower and
     valleys shallower than ``discrimination`` (one value per row) belong to their neighbours:
     the profile enters a peak when it rises above ``+discrimination`` and a valley when it falls
     below ``-discrimination`` (hysteresis). Elements are delimited by the upward crossings of
-    the mean line (interpolated linearly) at which a valley turns into a peak; RSm is the mean
-    distance between consecutive such crossings. NaN where a row has fewer than two.
+    the mean line (interpolated linearly) at which a valley turns into a peak; an element
+    narrower than ``min_width`` (in points: the width discrimination) joins the next one. RSm is
+    the mean distance between consecutive delimiters; NaN where a row has fewer than two.
     """
     z = np.asarray(z, dtype=float)
     hd = np.asarray(discrimination, dtype=float)[..., None]
@@ -76,7 +79,31 @@ def mean_width(z: np.ndarray, dx: float, discrimination: np.ndarray) -> np.ndarr
         warnings.simplefilter("ignore", RuntimeWarning)
         first = np.min(np.where(turn, crossing, np.inf), axis=-1)
         lastc = np.max(np.where(turn, crossing, -np.inf), axis=-1)
+    if min_width > 0:
+        count, first, lastc = _width_discrimination(turn, crossing, min_width, count, first, lastc)
+    with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(count >= 2, (lastc - first) / (count - 1) * dx, np.nan)
+
+
+def _width_discrimination(turn, crossing, min_width, count, first, last):
+    """``(count, first, last)`` per row after dropping the delimiters closer than ``min_width`` to the previous one kept.
+
+    Only rows with such a pair are walked through (a short loop over their few delimiters).
+    """
+    shape = np.shape(count)
+    rows = turn.reshape(-1, turn.shape[-1])
+    cross = crossing.reshape(rows.shape)
+    count, first, last = (np.array(a, dtype=float).reshape(-1) for a in (count, first, last))
+    r, c = np.nonzero(rows)
+    b = cross[r, c]
+    close = (np.diff(b) < min_width) & (r[1:] == r[:-1])
+    for row in np.unique(r[1:][close]):
+        kept = []
+        for v in b[r == row]:
+            if not kept or v - kept[-1] >= min_width:
+                kept.append(v)
+        count[row], first[row], last[row] = len(kept), kept[0], kept[-1]
+    return count.reshape(shape), first.reshape(shape), last.reshape(shape)
 
 
 def _nan(func, *args, **kwargs):
@@ -85,8 +112,8 @@ def _nan(func, *args, **kwargs):
         return func(*args, **kwargs)
 
 
-def _amplitude(z, dx, rz):
-    """Ra, Rq, Rsk, Rku, Rdq, RSm of rows ``z`` (reduced over the last axis)."""
+def _amplitude(z, dx, rz, sampling):
+    """Ra, Rq, Rsk, Rku, Rdq, RSm of rows ``z`` (reduced over the last axis); ``sampling``: points per section."""
     mean = functools.partial(_nan, np.nanmean) if np.isnan(z).any() else np.mean  # nanmean copies: only if needed
     z2 = z * z
     ra = mean(np.abs(z), -1)
@@ -95,7 +122,7 @@ def _amplitude(z, dx, rz):
         rsk = np.where(rq > 0, mean(z2 * z, -1) / rq**3, np.nan)
         rku = np.where(rq > 0, mean(z2 * z2, -1) / rq**4, np.nan)
     rdq = np.sqrt(mean(slope_7point(z, dx) ** 2, -1))
-    rsm = mean_width(z, dx, HEIGHT_DISCRIMINATION * rz)
+    rsm = mean_width(z, dx, HEIGHT_DISCRIMINATION * rz, WIDTH_DISCRIMINATION * sampling)
     return ra, rq, rsk, rku, rdq, rsm
 
 
@@ -131,10 +158,10 @@ def profile_parameters(z: np.ndarray, dx: float, sections: int, c: float, conven
     rp, rv, rz = (_nan(np.nanmean, v, -1) for v in (rp_i, rv_i, rp_i + rv_i))
     rt = _nan(np.nanmax, z, -1) - _nan(np.nanmin, z, -1)
     if convention == "iso4287":
-        parts = _amplitude(sec, dx, rz[..., None])
+        parts = _amplitude(sec, dx, rz[..., None], sec.shape[-1])
         ra, rq, rsk, rku, rdq, rsm = (_nan(np.nanmean, p, -1) for p in parts)
     else:
-        ra, rq, rsk, rku, rdq, rsm = _amplitude(z, dx, rz)
+        ra, rq, rsk, rku, rdq, rsm = _amplitude(z, dx, rz, sec.shape[-1])
     d, n = descending(z)
     rmr = material_ratio_at(d, n, c)
     k, pk, vk, mr1, mr2 = np.moveaxis(functional_of_sorted(d, n), -1, 0)

@@ -89,8 +89,8 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
     -----
     The evaluation length is centred in the profile when the profile is longer (the filters
     need no run-in: their end correction keeps the full length). RSm counts profile elements with
-    a height discrimination of 10 % of Rz (hysteresis about the mean line); the width
-    discrimination of 1 % of the sampling length is not applied. The material ratio curve: the
+    a height discrimination of 10 % of Rz (hysteresis about the mean line) and a width
+    discrimination of 1 % of the sampling length (a narrower element joins the next one). The material ratio curve: the
     heights sorted, the ``i``-th of ``n`` at ``100 i/(n-1)`` %, linear in between.
     """
     filter_options(lambda_s, lambda_c, form, "roughness", dim)
