@@ -36,6 +36,7 @@ def test_analyze_iso_prints_and_stores_the_profile_set(cosine_file, tmp_path):
     r = _xtopo("analyze", cosine_file, "--iso", "--lambda-c", "1.2 mm", "--lambda-s", "auto", "-o", out)
     assert r.returncode == 0, r.stderr
     assert "ISO parameters (lambda_s=auto, lambda_c=1.2 mm)" in r.stdout
+    assert "3.75 µm   1.2 mm" in r.stdout  # the cut-offs used: λs by the ISO 3274 ratio (1.2 mm/320)
     line = [ln for ln in r.stdout.splitlines() if ln.startswith("cosine")][-1]  # the ISO table, after the summary
     assert "637 nm" in line  # Ra = 2A/π (the table's row), λs = 1.2 mm / 320 = 3.75 µm passes λ = 0.1 mm
     assert "groups: summary at the root, psd, acf, vbm, sdrp, iso" in r.stdout
@@ -99,6 +100,8 @@ def test_iso_table_keeps_every_measurement_and_says_what_failed():
     assert np.isnan(float(table.Ra.sel(measurement="area")))
     assert float(table.Ra.sel(measurement="line")) == pytest.approx(2 * A / np.pi, rel=2e-3)
     header, rows = format_iso_table(table)
-    assert header[:3] == ["measurement", "Ra", "Rq"] and rows[0][1] == "-" and rows[1][1] in ("636 nm", "637 nm")
+    assert header[:5] == ["measurement", "lambda_s", "lambda_c", "Ra", "Rq"]
+    assert rows[0][3] == "-" and rows[1][3] in ("636 nm", "637 nm") and rows[1][2] == "1 mm"
+    assert np.isnan(float(table.lambda_s.sel(measurement="line")))  # no S-filter asked for
     every_line, _ = iso_table({"area": area})
     assert "mean over the profiles" in every_line.Ra.attrs["long_name"]

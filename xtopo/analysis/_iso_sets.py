@@ -66,7 +66,10 @@ def iso_values(ds: xr.Dataset, name: str, *, lambda_s=None, lambda_c=None) -> xr
     func = getattr(importlib.import_module(f"xtopo.analysis.{name}"), name)
     if name == "iso21920":
         res = func(ds, dim=X, lambda_s=lambda_s, lambda_c=lambda_c)
-        return xr.Dataset(_scalar_vars(res, "y" if kind == "area" else None))
+        used = {k: xr.DataArray(float(res.attrs[k]), attrs={"units": res.attrs["length_units"], "long_name": text})
+                for k, text in (("lambda_s", "S-filter nesting index used (NaN: none)"),
+                                ("lambda_c", "L-filter cut-off used (NaN: none)"))}  # "auto" says which
+        return xr.Dataset({**used, **_scalar_vars(res, "y" if kind == "area" else None)})
     return xr.Dataset(_scalar_vars(func(ds), None))
 
 
