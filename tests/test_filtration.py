@@ -185,3 +185,17 @@ def test_bad_arguments_name_the_parameter():
     nonuniform = make_measurement(np.zeros(5), x=[0, 1, 3, 4, 7], units="um")
     with pytest.raises(GridError, match="uniform grid"):
         nonuniform.topo.filter(lambda_c=2)
+
+
+@pytest.mark.parametrize("dim", [None, "x"])
+def test_roughness_plus_waviness_is_the_sf_surface(dim):
+    """The L-filter splits the S-F surface: roughness + waviness = primary, missing points included."""
+    ds = xtopo.datasets.fractal_surface((48, 96), (0.48, 0.96), hurst=0.8, rms_height=1e-3, seed=6, units="mm")
+    ds["mask"] = (ds.height.dims, np.zeros(ds.height.shape, bool))
+    ds["mask"][5:9, 10:30] = True
+    kw = dict(lambda_s=0.01, form=2, dim=dim)
+    r = ds.topo.filter(lambda_c=0.16, component="roughness", **kw).height
+    w = ds.topo.filter(lambda_c=0.16, component="waviness", **kw).height
+    p = ds.topo.filter(lambda_c=None, component="primary", **kw).height
+    xr.testing.assert_allclose(r + w, p, atol=1e-15)
+    assert int(np.isnan(p).sum()) == 4 * 20
