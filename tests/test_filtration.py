@@ -199,3 +199,30 @@ def test_roughness_plus_waviness_is_the_sf_surface(dim):
     p = ds.topo.filter(lambda_c=None, component="primary", **kw).height
     xr.testing.assert_allclose(r + w, p, atol=1e-15)
     assert int(np.isnan(p).sum()) == 4 * 20
+
+
+def test_linear_end_correction_keeps_lines_and_planes_to_the_ends():
+    """Order-1 regression (end="linear"): a tilted line or plane is its own mean line/surface up to the edges
+    (the renormalised order-0 correction bends there); inside, both are the plain Gaussian filter."""
+    x = np.arange(600) * 0.01
+    ramp = make_measurement(0.3 * x + 2, spacing=0.01, units="mm")
+    kw = dict(lambda_s=None, lambda_c=0.8, form=None, component="waviness")
+    lin = ramp.topo.filter(end="linear", **kw).height.values
+    norm = ramp.topo.filter(**kw).height.values
+    np.testing.assert_allclose(lin, 0.3 * x + 2, atol=1e-11)
+    assert np.abs(norm - (0.3 * x + 2)).max() > 0.01
+    y, xx = np.meshgrid(np.arange(80) * 0.01, np.arange(120) * 0.01, indexing="ij")
+    plane = 0.2 * xx - 0.1 * y + 1
+    h = plane.copy()
+    h[30:40, 50:70] = np.nan
+    ds = make_measurement(h, spacing=0.01, units="mm")
+    w = ds.topo.filter(end="linear", **{**kw, "lambda_c": 0.25}).height.values
+    np.testing.assert_allclose(w[np.isfinite(h)], plane[np.isfinite(h)], atol=1e-11)
+    rng = np.random.default_rng(2)
+    rough = make_measurement(rng.normal(size=3000), spacing=0.01, units="mm")
+    a = rough.topo.filter(end="linear", **kw).height.values
+    b = rough.topo.filter(**kw).height.values
+    np.testing.assert_allclose(a[80:-80], b[80:-80], atol=1e-12)  # one λc from the ends: the same filter
+    assert "end='linear'" in rough.topo.filter(end="linear", **kw).attrs["history"]
+    with pytest.raises(XtopoError, match="end must be one of"):
+        rough.topo.filter(end="spline", **kw)

@@ -13,7 +13,8 @@ are defined on:
 Profiles (line scans, or every line of a map along ``dim``) use the profile Gaussian filter of
 ISO 16610-21, maps the areal Gaussian filter of ISO 16610-61 (isotropic: the same nesting index
 along ``x`` and ``y``). Both keep the full length: near the ends the weights outside the data are
-left out and the rest renormalised (:mod:`xtopo._kernels.gaussian_filter`). Periodic data are
+left out and the rest renormalised, or (``end="linear"``) a weighted line/plane is fitted at each
+point (:mod:`xtopo._kernels.gaussian_filter`). Periodic data are
 filtered circularly.
 
 Default nesting indices (``"auto"``): ``λc`` from the ISO 4288 / ISO 21920-3 table for
@@ -36,7 +37,7 @@ from .conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_di
     shared_length_unit, spacing
 from .errors import GridError, UnitsError, XtopoError
 
-__all__ = ["filter", "iso_cutoffs", "CUTOFFS_MM", "COMPONENTS"]
+__all__ = ["filter", "iso_cutoffs", "CUTOFFS_MM", "COMPONENTS", "END_CORRECTIONS"]
 
 #: what :func:`filter` returns: the S-L surface (roughness), the L-filter's output (waviness) or the S-F surface
 COMPONENTS = ("roughness", "waviness", "primary")
@@ -45,6 +46,8 @@ CUTOFFS_MM = (0.08, 0.25, 0.8, 2.5, 8.0)
 _RA_UPPER_UM = (0.02, 0.1, 2.0, 10.0)
 #: λs (µm) that goes with each λc of :data:`CUTOFFS_MM` (ISO 3274 Table 1, ISO 21920-3)
 _LAMBDA_S_UM = (2.5, 2.5, 2.5, 8.0, 25.0)
+#: end corrections: name → order of the Gaussian regression filter (ISO 16610-31) that is used near the ends
+END_CORRECTIONS = {"normalized": 0, "linear": 1}
 #: the F-operator named by a word: polynomial degree
 _FORMS = {"mean": 0, "line": 1, "plane": 1, "curvature": 2}
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d].*?)\s*$")
@@ -118,11 +121,11 @@ def _filter_dims(h, dim):
     return (dim,)
 
 
-def _lowpass(h, dims, cutoff, periodic):
+def _lowpass(h, dims, cutoff, periodic, end="normalized"):
     """The Gaussian low-pass of ``h`` over ``dims`` (lazy on dask)."""
     return apply_lateral(_gauss.gaussian_lowpass, h, core_dims=dims, output_core_dims=[dims], what="filter",
                          kwargs={"cutoffs": [cutoff] * len(dims), "spacings": [spacing(h, d) for d in dims],
-                                 "periodic": periodic}).transpose(*h.dims)
+                                 "periodic": periodic, "order": END_CORRECTIONS[end]}).transpose(*h.dims)
 
 
 def _form_removed(h, dims, degree):
@@ -167,7 +170,8 @@ def _auto_lambda_s(lc, units: str) -> float:
     return lc * _LAMBDA_S_UM[k] * length_factor("um", units) / series[k]
 
 
-def filter_options(lambda_s="auto", lambda_c="auto", form="plane", component="roughness", dim=None) -> dict:
+def filter_options(lambda_s="auto", lambda_c="auto", form="plane", component="roughness", dim=None,
+                   end="normalized") -> dict:
     """:func:`filter`'s options, checked where they do not depend on the data (an XtopoError names the bad one)."""
     for name, value in (("lambda_s", lambda_s), ("lambda_c", lambda_c)):
         if not (value is None or isinstance(value, (str, numbers.Real)) and not isinstance(value, (bool, np.bool_))):
@@ -179,10 +183,12 @@ def filter_options(lambda_s="auto", lambda_c="auto", form="plane", component="ro
     if dim is not None and dim not in (X, Y):
         raise GridError(f"dim must be None (areal filter for maps), 'x' or 'y', got {dim!r}")
     return {"lambda_s": lambda_s, "lambda_c": lambda_c, "form": form,
-            "component": option(component, COMPONENTS, "component"), "dim": dim}
+            "component": option(component, COMPONENTS, "component"), "dim": dim,
+            "end": option(end, tuple(END_CORRECTIONS), "end")}
 
 
-def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str = "roughness", dim=None):
+def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str = "roughness", dim=None,
+           end: str = "normalized"):
     """ISO 16610 filtration: S-filter, F-operator and L-filter; the roughness, waviness or S-F surface.
 
     Parameters
@@ -213,6 +219,13 @@ def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str =
         None: profiles are filtered as profiles (ISO 16610-21) and maps with the areal filter
         (ISO 16610-61). ``"x"`` or ``"y"``: every line of a map along ``dim`` is filtered as a
         profile, with its own form removal.
+    end : {"normalized", "linear"}
+        End correction (ISO 16610-28/-31), where the kernel reaches past an end or a missing
+        point: ``"normalized"`` leaves those weights out and renormalises the rest (the Gaussian
+        regression filter of order 0); ``"linear"`` fits a line (a plane for the areal filter)
+        by Gaussian-weighted least squares at each point (order 1), which keeps a sloped
+        profile or plane straight up to the ends, at about twice the cost. Both are the plain
+        Gaussian filter where the whole kernel lies on data.
 
     Returns
     -------
@@ -236,7 +249,7 @@ def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str =
     """
     from .preprocess import _finish
 
-    opts = filter_options(lambda_s, lambda_c, form, component, dim)
+    opts = filter_options(lambda_s, lambda_c, form, component, dim, end)
     h = height_of(obj)
     if is_nonuniform(h) or (isinstance(obj, xr.Dataset) and is_nonuniform(obj)):
         raise GridError("filter needs a uniform grid; this is a nonuniform line scan (interpolate it first)")
@@ -264,15 +277,15 @@ def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str =
         raise GridError(f"lambda_s={ls:.4g} {units} must be shorter than lambda_c={lc:.4g} {units}")
     out = h.astype(float)
     if ls is not None:
-        out = _lowpass(out, dims, ls, periodic)
+        out = _lowpass(out, dims, ls, periodic, end)
     breaks = degree is not None and degree > 0
     if degree is not None:
         out = _form_removed(out, dims, degree)
     if lc is not None:
-        mean = _lowpass(out, dims, lc, periodic and not breaks)
+        mean = _lowpass(out, dims, lc, periodic and not breaks, end)
         out = out - mean if component == "roughness" else mean
     line = (f"filter(lambda_s={_fmt(ls)}, lambda_c={_fmt(lc)} {units}, form={form!r}, component={component!r}, "
-            f"{'areal ISO 16610-61' if len(dims) == 2 else f'profiles along {dims[0]} ISO 16610-21'})")
+            f"end={end!r}, {'areal ISO 16610-61' if len(dims) == 2 else f'profiles along {dims[0]} ISO 16610-21'})")
     nonperiodic = breaks and periodic
     if nonperiodic:
         line += "; periodic set to 0"

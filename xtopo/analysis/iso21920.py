@@ -37,7 +37,7 @@ PARAMETERS = {
 
 
 def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sections: int = 5, c: float = 0.0,
-             convention: str = "iso21920") -> xr.Dataset:
+             convention: str = "iso21920", end: str = "normalized") -> xr.Dataset:
     """ISO 21920-2 profile parameters of a line scan or of every line of a map along ``dim``.
 
     The profile is made as ISO 21920-3 says (S-filter ``λs``, F-operator ``form``, L-filter
@@ -69,6 +69,8 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
         parameters are evaluated over the evaluation length. ``"iso4287"`` (ISO 4287:1997): Ra, Rq,
         Rsk, Rku, RΔq and RSm too are means of their values per sampling length. Rt, Rmr(c) and
         the Rk family (ISO 13565-2) are over the evaluation length in both.
+    end : {"normalized", "linear"}
+        End correction of the filters (see :func:`xtopo.filtration.filter`).
 
     Returns
     -------
@@ -93,7 +95,7 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
     discrimination of 1 % of the sampling length (a narrower element joins the next one). The material ratio curve: the
     heights sorted, the ``i``-th of ``n`` at ``100 i/(n-1)`` %, linear in between.
     """
-    filter_options(lambda_s, lambda_c, form, "roughness", dim)
+    filter_options(lambda_s, lambda_c, form, "roughness", dim, end)
     sections = integer(sections, "sections")
     c = real_number(c, "c")
     convention = option(convention, _k.CONVENTIONS, "convention")
@@ -102,7 +104,7 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
     if dim not in prepared.lat:
         raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {prepared.lat})")
     filtered = _filter(h if prepared.resampled else obj, lambda_s=lambda_s, lambda_c=lambda_c, form=form, dim=dim,
-                       component="primary" if lambda_c is None else "roughness")
+                       component="primary" if lambda_c is None else "roughness", end=end)
     profile = height_of(filtered)
     ls, lc = float(filtered.attrs["lambda_s"]), float(filtered.attrs["lambda_c"])  # NaN: filter not applied
     dx = spacing(h, dim)
@@ -127,6 +129,6 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
     ds = xr.Dataset(out)
     ds.attrs = prepared.attrs(title="ISO 21920-2 profile parameters", direction=dim, lambda_s=ls, lambda_c=lc,
                               sampling_length=per * dx, evaluation_length=per * sections * dx, sections=sections,
-                              c=c, convention=convention, length_units=units, form=str(form))
+                              c=c, convention=convention, length_units=units, form=str(form), end=end)
     return provenance(ds, obj, "iso21920")
 
