@@ -91,12 +91,14 @@ def iso_table(measurements: dict, *, lambda_s=None, lambda_c=None) -> tuple[xr.D
         than the measurement); the other sets of that measurement are still in the table.
     """
     rows, errors = {}, {}
+    columns = {iso: {} for iso in available_sets()}  # per set, its variables in order (a dict as ordered set)
     for name, ds in measurements.items():
         ds = convert_length(ds, "m")
         parts = []
-        for iso in available_sets():
+        for iso in columns:
             try:
                 parts.append(iso_values(ds, iso, lambda_s=lambda_s, lambda_c=lambda_c))
+                columns[iso].update(dict.fromkeys(parts[-1].data_vars))
             except XtopoError as exc:
                 errors[name] = f"{errors[name]}; {exc}" if name in errors else str(exc)
         rows[name] = xr.merge(parts, combine_attrs="drop") if parts else xr.Dataset()
@@ -106,6 +108,8 @@ def iso_table(measurements: dict, *, lambda_s=None, lambda_c=None) -> tuple[xr.D
     names = list(rows)
     table = xr.concat([rows[n].expand_dims(measurement=[n]) for n in names], dim="measurement", join="outer",
                       combine_attrs="drop") if names else xr.Dataset()
+    # columns set by set, whichever measurement a set failed for (the first row decides concat's order)
+    table = table[[v for cols in columns.values() for v in cols if v in table.data_vars]] if names else table
     for n in table.data_vars:  # concat keeps the attrs of the first; take them from any row that has the variable
         table[n].attrs = next(rows[m][n].attrs for m in names if n in rows[m].data_vars)
     table.attrs = {"title": "ISO parameters", "lambda_s": str(lambda_s), "lambda_c": str(lambda_c)}
