@@ -222,6 +222,22 @@ def test_numpy_and_dask_agree_and_stay_lazy():
     xr.testing.assert_allclose(curve.compute(), ds.topo.material_ratio(nb_points=11))
 
 
+def test_lateral_chunks_are_refused_with_advice():
+    ds = random_surface(64).chunk({"x": 16})
+    with pytest.raises(xtopo.errors.ChunkError, match="rechunk"):
+        ds.topo.iso25178()
+
+
+def test_material_ratio_curve_moments():
+    """The curve is the height distribution turned on its side: its mean square over 0-100 % is Sq²."""
+    ds = stratified_surface(128)
+    r = values(ds.topo.iso25178("height"))
+    curve = ds.topo.material_ratio(nb_points=20001)
+    assert float((curve**2).mean()) == pytest.approx(r["Sq"] ** 2, rel=1e-3)
+    assert float(curve.mean()) == pytest.approx(0.0, abs=1e-3 * r["Sq"])
+    assert np.all(np.diff(curve.values) <= 0)  # heights fall as the material ratio grows
+
+
 def test_missing_data():
     ds = random_surface(64, seed=5)
     full = values(ds.topo.iso25178())
