@@ -440,6 +440,12 @@ def _groups(names, groups) -> dict:
     return {n: str(groups.get(n, n)) for n in names}
 
 
+def group_colours(groups: dict) -> dict:
+    """Colour of each group of ``groups`` (measurement name → group), in order of first appearance:
+    the colours :func:`twin_curves` draws the groups in."""
+    return {g: PALETTE[k % len(PALETTE)] for k, g in enumerate(dict.fromkeys(groups.values()))}
+
+
 def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None = None, groups: dict | None = None,
                 legend: bool = True):
     """A twin average as in the paper's Figure 5: thin coloured measurements, the thick black average.
@@ -481,7 +487,7 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
     x = np.asarray(ds[coord].values, dtype=float)
     names = [str(n) for n in np.asarray(curves["measurement"].values)]
     group_of = _groups(names, groups)
-    colours = {g: PALETTE[k % len(PALETTE)] for k, g in enumerate(dict.fromkeys(group_of.values()))}
+    colours = group_colours(group_of)
     elements, shown = [], set()
     values = _values(curves)
     avg = _values(ds["average"]).astype(float)
