@@ -104,8 +104,11 @@ def collocate(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, method: str = "bin
     ``"interp"``: log-log interpolation (smooth or sparse curves); ``"bin"``: mean of the
     samples in the log bin of each point (:func:`bin_mean`), and between samples sparser than
     the bins log-log interpolation (:func:`fill_inside`). Either way every point inside the
-    range of a row's finite samples gets a value; points outside it are NaN.
+    range of a row's finite samples gets a value; points outside it are NaN. Samples that are not
+    positive have no place on log-log axes (a degenerate window's zero RMS height) and are ignored.
     """
+    y = np.asarray(y, dtype=float)
+    y = np.where(y > 0, y, np.nan)
     if method == "interp":
         return interp_loglog(y, x, xnew)
     return fill_inside(bin_mean(y, x, xnew), y, x, xnew)
@@ -120,11 +123,11 @@ def collocate_error(err: np.ndarray, y: np.ndarray, x: np.ndarray, xnew: np.ndar
     has ``1/√N`` (:func:`bin_error`); otherwise a bin has the mean error of its samples (neighbouring
     samples are correlated). Interpolated points have the interpolated error of their neighbours.
     """
-    err = np.where(np.isfinite(y), np.broadcast_to(np.asarray(err, dtype=float), np.shape(y)), np.nan)
+    err = np.where(np.isfinite(y) & (np.asarray(y) > 0), np.broadcast_to(np.asarray(err, dtype=float), np.shape(y)), np.nan)
     if method == "interp":
         return interp_loglog(err, x, xnew)
     if modes is not None:
-        binned = bin_error(y, x, xnew, modes)
+        binned = bin_error(np.where(np.asarray(y) > 0, y, np.nan), x, xnew, modes)
         binned = np.where(np.isfinite(binned), binned, np.nan)
     else:
         binned = bin_mean(err, x, xnew)
