@@ -103,13 +103,24 @@ def main(argv=None) -> None:
         print(f"{label:24s} min {min(ts):7.2f} s  median {statistics.median(ts):7.2f} s  max {max(ts):7.2f} s")
     ratio = statistics.median(times["xtopo psd+acf+vbm"]) / statistics.median(times["ST psd+acf+vbm"])
     print(f"ratio of medians xtopo / ST (psd+acf+vbm): {ratio:.2f}")
-    for name in common:  # what each covers, side by side
-        x_st = theirs[name][0]
+    truth = xtopo.datasets.prescribed_psd(tree)
+    refs = {"psd": truth.c1d, "acf": truth.acf}
+    for name in common:  # what each covers, and how far from the ground truth, side by side
         avg = ours[name]
         coord = avg.average.dims[0]
-        x_ours = avg[coord].values[avg["count"].values > 0]
-        print(f"{name}: xtopo {x_ours.size} points over {_decades(x_ours):.2f} decades; "
-              f"ST {np.isfinite(np.asarray(theirs[name][1], dtype=float)).sum()} points over {_decades(x_st):.2f} decades")
+        ok = avg["count"].values > 0
+        x_ours, y_ours = avg[coord].values[ok], avg.average.values[ok]
+        x_st = np.ma.filled(np.ma.asarray(theirs[name][0], dtype=float), np.nan)
+        y_st = np.ma.filled(np.ma.asarray(theirs[name][1], dtype=float), np.nan)
+        keep = np.isfinite(x_st) & np.isfinite(y_st) & (x_st > 0)
+        x_st, y_st = x_st[keep], y_st[keep]
+        line = (f"{name}: xtopo {x_ours.size} points over {_decades(x_ours):.2f} decades; "
+                f"ST {x_st.size} points over {_decades(x_st):.2f} decades")
+        if name in refs:
+            for who, x, y in (("xtopo", x_ours, y_ours), ("ST", x_st, y_st)):
+                dev = np.abs(y / refs[name](x) - 1)
+                line += f"; {who} |avg/truth-1| median {np.median(dev):.3f} max {dev.max():.3f}"
+        print(line)
 
 
 if __name__ == "__main__":
