@@ -528,7 +528,7 @@ def twin_figure(tree, *, analyses=None, groups: dict | None = None, labels: dict
     One log-log panel per analysis of :data:`xtopo.stitching.ANALYSES` (with units): each
     measurement a thin curve over its reliable range, coloured by instrument (its
     ``instrument`` attr, else its name), the average thick black with its uncertainty band.
-    One legend, outside the first panel in one column, with one entry per instrument.
+    One legend, outside the first row's last panel in one column, with one entry per instrument.
 
     Parameters
     ----------
@@ -560,9 +560,11 @@ def twin_figure(tree, *, analyses=None, groups: dict | None = None, labels: dict
         raise XtopoError(f"unknown analysis {unknown[0]!r} in analyses; choose from {tuple(ANALYSES)}")
     groups = {n: str(ds.attrs.get("instrument") or n) for n, ds in ms.items()} if groups is None else groups
     per_decade = PER_DECADE if per_decade is None else per_decade
+    cols = integer(cols, "cols")
+    # the one legend sits right of the last panel of the first row, where it covers no other panel
     panels = [twin_curves(ANALYSES[a](tree, per_decade=per_decade).compute(), groups=groups, labels=labels,
-                          title=ANALYSES[a].title, legend=k == 0) for k, a in enumerate(names)]
-    return _style(hv.Layout(panels).cols(integer(cols, "cols")), common=dict(shared_axes=False))
+                          title=ANALYSES[a].title, legend=k == min(cols, len(names)) - 1) for k, a in enumerate(names)]
+    return _style(hv.Layout(panels).cols(cols), common=dict(shared_axes=False))
 
 
 # --------------------------------------------------------------------------- contact
