@@ -14,6 +14,8 @@ from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
 from . import preprocess as _preprocess
+from . import filtration as _filtration
+from .analysis import iso21920 as _iso21920
 from .analysis import acf as _acf
 from .analysis import hurst as _hurst
 from .analysis import psd as _psd
@@ -52,6 +54,9 @@ class _TopoAccessor:
     # io and preprocessing (issue 4)
     detrend = _delegate(_preprocess.detrend)
     fill_missing = _delegate(_preprocess.fill_missing)
+    # ISO filtration and profile parameters (issue 22)
+    filter = _delegate(_filtration.filter)
+    iso21920 = _delegate(_iso21920.iso21920)
     to_surfacetopography_netcdf = _delegate(_st_netcdf.to_surfacetopography_netcdf)
     # scale-dependent analyses (issue 3)
     psd = _delegate(_psd.psd)

@@ -15,7 +15,7 @@ import os
 
 import xarray as xr
 
-from ._checks import flag, option
+from ._checks import flag, mapping, option
 from .errors import XtopoError
 from .stitching import ANALYSES as _REGISTRY
 
@@ -71,8 +71,25 @@ def _as_twin(source) -> xr.DataTree:
     return twin(source)
 
 
-def _table_html(header, rows) -> str:
-    """An HTML table (in a box that scrolls rather than overflow the page)."""
+def _table_html(table: xr.Dataset) -> str:
+    from .summary import table_rows
+
+    return _cells_html(*table_rows(table))
+
+
+def _iso_html(ms: dict, options: dict) -> str:
+    """The ISO parameters section (:mod:`xtopo.analysis._iso_sets`), errors per measurement included."""
+    from .analysis._iso_sets import format_iso_table, iso_table
+
+    table, errors = iso_table(ms, **options)
+    cut = ", ".join(f"{k} = {v}" for k, v in options.items() if v is not None) or "no filter, form removed"
+    out = f"<h2>ISO parameters</h2><p>{html.escape(cut)}</p>"
+    if table.data_vars:
+        out += _cells_html(*format_iso_table(table))
+    return out + "".join(f'<p class="error">{html.escape(n)}: {html.escape(m)}</p>' for n, m in errors.items())
+
+
+def _cells_html(header, rows) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
     return f'<div class="table"><table class="summary"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
@@ -172,7 +189,7 @@ def _html_page(title: str, blocks: list) -> str:
 
 
 def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
-           maps: bool = True) -> str:
+           maps: bool = True, iso: dict | None = None) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters
@@ -192,6 +209,10 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
         Largest number of pixels per side of a map in the page.
     maps : bool
         Include one map/profile per measurement.
+    iso : dict, optional
+        Add a table of the ISO parameters (ISO 21920-2 profiles, and the areal set where it is
+        installed) with these options: ``{}`` for the defaults, or ``lambda_s``/``lambda_c``
+        (see :func:`xtopo.analysis.iso21920.iso21920`; a bare number is in metres). None: no table.
 
     Returns
     -------
@@ -203,7 +224,7 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
 
     from . import plot as _plot
     from ._version import __version__
-    from .summary import summary_table, table_rows
+    from .summary import summary_table
     from .twins import measurements
 
     analyses = _analyses(analyses)
@@ -220,10 +241,12 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     # the page: sections of HTML snippets and bokeh models, in order (a new section is one more entry)
     sections = [("", [f"<h1>{html.escape(title)}</h1>"
                       f'<p class="meta">{len(ms)} measurement(s) · xtopo {html.escape(__version__)} · {stamp}</p>']),
-                ("Measurements", [_table_html(*table_rows(table))]),
+                ("Measurements", [_table_html(table)]),
                 ("Preprocessing and reliability (paper §3.2, §4.9)",
-                 [_table_html(["measurement", "instrument", "preprocessing", "short reliability cutoff", "cause"],
+                 [_cells_html(["measurement", "instrument", "preprocessing", "short reliability cutoff", "cause"],
                               _reliability_rows(ms))])]
+    if iso is not None:
+        sections.append(("", [_iso_html(ms, mapping(iso, "iso"))]))
     if analyses:
         figures, errors = [], []
         for name in analyses:
