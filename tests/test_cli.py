@@ -124,9 +124,9 @@ def test_analyze_says_how_many_measurements_each_average_holds(tmp_path, capsys)
     blurred = tmp_path / "blurred.nc"
     xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-6, hurst=0.8, seed=1), fine)
     xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-2, hurst=0.8, seed=2), coarse)
-    # a resolution as large as the scan: nothing of it is reliable
+    # a resolution larger than the scan: nothing of it is reliable
     xtopo.to_netcdf(xtopo.datasets.fractal_surface((64, 64), 1e-4, hurst=0.8, seed=3)
-                    .assign_attrs(resolution=1e-4, resolution_units="m"), blurred)
+                    .assign_attrs(resolution=2e-4, resolution_units="m"), blurred)
     assert main(["analyze", str(fine), str(coarse), str(blurred), "-o", str(tmp_path / "out.nc")]) == 0
     lines = capsys.readouterr().out.splitlines()
     vbm = lines.index(next(ln for ln in lines if ln.startswith("vbm ")))

@@ -280,11 +280,36 @@ def test_batch_of_curves_gives_one_line_each():
     assert len(overlay) == 3
 
 
-def test_twin_tree_plot_has_one_panel_per_measurement(area):
+def test_twin_plot_measurements_has_one_panel_per_measurement(area):
     tree = xtopo.twin({"a": area, "b": area.isel(y=0, drop=True)})
-    layout = tree.topo.plot()
+    layout = tree.topo.plot_measurements()
     assert len(layout) == 2
     assert axes_of(layout, "bokeh")
+
+
+def test_twin_plot_is_the_papers_figure_5():
+    """twin.topo.plot() drew 24 topography panels; it draws PSD, ACF, VBM and curvature averages on log-log
+    axes with units, thin curves coloured by instrument, the average thick black on top, and one legend
+    entry per instrument (12 measurements of 3 instruments: 3 entries, not 12)."""
+    ms = {}
+    for k, (size, inst) in enumerate([(1e-4, "stylus"), (1e-5, "AFM"), (1e-6, "TEM")]):
+        for r in range(4):
+            s = fractal_surface((32, 32), size, hurst=0.8, rms_height=size / 100, seed=4 * k + r, periodic=False)
+            s.attrs.update(instrument=inst, resolution=size / 16, resolution_units="m")
+            ms[f"{inst}-{r}"] = s
+    layout = xtopo.twin(ms).topo.plot()
+    assert len(layout) == 4
+    panels = axes_of(layout, "bokeh")
+    assert [p[2:] for p in panels] == [(True, True)] * 4
+    assert "m⁻¹" in panels[0][0] and "m³" in panels[0][1] and all("(m" in p[0] for p in panels[1:])
+    fig = hv.render(layout, backend="bokeh")
+    figures = list(_bokeh_figures(fig))
+    legends = [item.label["value"] for f in figures for leg in f.legend for item in leg.items]
+    assert sorted(legends) == sorted(["stylus", "AFM", "TEM", "average", "average ± standard error"])
+    for f in figures:
+        lines = [r.glyph for r in f.renderers if type(r.glyph).__name__ == "Line" and r.glyph.line_color == "black"]
+        assert len(lines) == 1 and lines[0].line_width == 4
+        assert f.renderers[-1].glyph.line_color == "black"  # the average is drawn on top
 
 
 @pytest.mark.parametrize("units,label", [("um", "µm"), ("m-1", "m⁻¹"), ("m3", "m³"), ("E* m2", "E* m²"),

@@ -183,3 +183,51 @@ def test_chromium_check_catches_page_errors(tmp_path):
     assert r.returncode == 1
     assert any("undefinedFunction" in e for e in result["errors"])
     assert result["canvases"] == 0
+
+
+def _many():
+    """A twin of 25 measurements (5 instruments × 5 replicates, long names): the legend and tables that
+    overflowed onto each other and past a 1400 px window."""
+    out = {}
+    for k, (size, instrument) in enumerate([(1e-3, "stylus profilometer Dektak XT"), (1e-4, "white-light optical"),
+                                            (1e-5, "AFM tapping mode 10 µm"), (1e-6, "AFM 1 µm, sharp tip"),
+                                            (1e-7, "TEM cross-section")]):
+        for r in range(5):
+            s = fractal_surface((48, 48), size, hurst=0.8, rms_height=size / 100, seed=10 * k + r, periodic=False)
+            s.attrs.update(instrument=instrument, resolution=4 * size / 48, resolution_units="m")
+            out[f"{instrument.split()[0].lower()}-{k}-measurement-with-a-long-name-{r + 1}"] = s
+    return xtopo.twin(out, name="25 measurements")
+
+
+@needs_chromium
+@needs_analyses
+def test_report_of_25_measurements_fits_a_1400_px_window(tmp_path):
+    """Layout measured in Chromium: no block (heading, table, figure grid, legend) wider than the window,
+    none overlapping another, every canvas inside its block; the page states preprocessing and cutoffs."""
+    from xtopo.report import report
+
+    html = report(_many(), tmp_path / "many.html", max_pixels=32)
+    page = pathlib.Path(html).read_text(encoding="utf-8")
+    assert "Preprocessing and reliability" in page and "instrument resolution" in page
+    assert page.count('class="swatch"') == 6  # one legend entry per instrument and the average, not 25
+    r = subprocess.run([sys.executable, str(SCREENSHOT), "--html", str(html), "-o", str(tmp_path / "m.png"),
+                        "--width", "1400", "--height", "2000"], capture_output=True, text=True, timeout=300)
+    result = json.loads(r.stdout.strip().splitlines()[-1])
+    assert result["errors"] == [] and result["layout_problems"] == [], result["layout_problems"]
+    assert result["canvases"] >= 4 + 25 and r.returncode == 0
+
+
+@needs_chromium
+def test_chromium_layout_check_catches_overflow(tmp_path):
+    """The layout check itself: a block wider than the window and two overlapping blocks are named."""
+    bad = tmp_path / "wide.html"
+    bad.write_text('<!DOCTYPE html><html><head></head><body style="margin:0">'
+                   '<div style="width:1800px;height:50px;background:#ccc">wide</div>'
+                   '<div style="height:40px;margin-bottom:-30px">a</div><div style="height:40px">b</div>'
+                   '<canvas width="10" height="10"></canvas></body></html>')
+    r = subprocess.run([sys.executable, str(SCREENSHOT), "--html", str(bad), "-o", str(tmp_path / "w.png"),
+                        "--height", "300"], capture_output=True, text=True, timeout=300)
+    problems = json.loads(r.stdout.strip().splitlines()[-1])["layout_problems"]
+    assert r.returncode == 1
+    assert any("outside the window width" in p for p in problems)
+    assert any("overlaps" in p for p in problems)

@@ -27,6 +27,8 @@ def _decades(coord, mask):
     return np.log10(v.max() / v.min())
 
 
+#: the opt-in statistical criterion these tests check (the default averages every reliable point)
+STRICT = 0.075
 #: loose statistical criterion (about 10 independent samples): the span of the old counting heuristic
 LOOSE = 0.3
 
@@ -43,7 +45,7 @@ def _deviation(avg, ref):
 def test_twin_averages_follow_truth_on_median(tree, truth, name):
     """Reliable averages (predicted error <= 7.5%) follow the truth closely; loose ones span >= 4 decades."""
     ref = {"psd": truth.c1d, "acf": truth.acf, "sdrp": truth.slope}[name]
-    dev, decades = _deviation(getattr(tree.topo, name)(), ref)
+    dev, decades = _deviation(getattr(tree.topo, name)(max_error=STRICT), ref)
     assert float(dev.median()) <= 0.10
     loose, loose_decades = _deviation(getattr(tree.topo, name)(max_error=LOOSE), ref)
     assert loose_decades >= 4 and loose_decades > decades - 1e-9
@@ -51,7 +53,7 @@ def test_twin_averages_follow_truth_on_median(tree, truth, name):
 
 
 def test_averaged_psd_recovers_truth(tree, truth):
-    avg = tree.topo.psd()
+    avg = tree.topo.psd(max_error=STRICT)
     ok = avg["count"] >= 1
     q = avg.q.where(ok, drop=True)
     ratio = avg.average.sel(q=q) / truth.c1d(q.values)
@@ -61,7 +63,7 @@ def test_averaged_psd_recovers_truth(tree, truth):
 
 
 def test_averaged_acf_recovers_truth(tree, truth):
-    acf = tree.topo.acf()
+    acf = tree.topo.acf(max_error=STRICT)
     ok = acf["count"] >= 1
     d = acf.distance.where(ok, drop=True)
     ratio = acf.average.sel(distance=d) / truth.acf(d.values)
@@ -70,7 +72,7 @@ def test_averaged_acf_recovers_truth(tree, truth):
 
 
 def test_averaged_sdrp_slope_recovers_truth(tree, truth):
-    slope = tree.topo.sdrp(order=1)
+    slope = tree.topo.sdrp(order=1, max_error=STRICT)
     ok = slope["count"] >= 1
     d = slope.distance.where(ok, drop=True)
     ratio = slope.average.sel(distance=d) / truth.slope(d.values)
@@ -157,7 +159,7 @@ def test_other_seeds_follow_truth(seed, name):
     tree = example_twin(seed)
     truth = prescribed_psd(tree)
     ref = {"psd": truth.c1d, "acf": truth.acf, "sdrp": truth.slope}[name]
-    dev, decades = _deviation(getattr(tree.topo, name)(), ref)
+    dev, decades = _deviation(getattr(tree.topo, name)(max_error=STRICT), ref)
     assert decades >= 4, name
     assert float(dev.median()) <= 0.05, name
     assert float(dev.max()) <= 0.20, name
@@ -189,11 +191,16 @@ def test_bins_with_too_large_predicted_error_are_dropped(tree):
     tem = tree["tem-profile-1um"].to_dataset()
     line = independent_samples(tem, "q", 2 * np.pi * np.arange(5) / float(tem.x[-1] - tem.x[0]))
     np.testing.assert_allclose(line[1:], 0.5)  # one profile, Hann window
-    loose = tree.topo.psd(max_error=np.inf)
+    every = tree.topo.psd()                   # default: every reliable point, nothing left out
+    mid = tree.topo.psd(max_error=STRICT)
     strict = tree.topo.psd(max_error=0.02)
-    assert int(strict["count"].sum()) < int(tree.topo.psd()["count"].sum()) < int(loose["count"].sum())
-    low = loose.q.where(loose["count"] >= 1, drop=True).min()
-    assert float(tree.topo.psd().q.where(tree.topo.psd()["count"] >= 1, drop=True).min()) > float(low)
+    assert int(strict["count"].sum()) < int(mid["count"].sum()) < int(every["count"].sum())
+    assert not bool(every["left_out"].any()) and every["left_out"].attrs["criterion"] == "none"
+    # what the opt-in criterion drops is reported, value by value, with the criterion
+    xr.testing.assert_equal(mid["curves"].notnull() | mid["left_out"], every["curves"].notnull())
+    assert "0.075" in mid["left_out"].attrs["criterion"] and mid.attrs["max_error"] == STRICT
+    low = float(every.q.where(every["count"] >= 1, drop=True).min())
+    assert float(mid.q.where(mid["count"] >= 1, drop=True).min()) > low
 
 
 def test_spectra_end_four_pixels_above_the_pixel_size(tree):
@@ -233,13 +240,30 @@ def test_average_uses_measurements_until_its_error_is_smallest():
               for k, v in (("a", 1.0), ("b", 1.2), ("c", 3.0))}
     errors = {"a": 0.05 + 0 * d, "b": 0.05 + 0.0005 * d, "c": 0.5 + 0 * d}
     avg = average_curves(curves, points=d.values, errors=errors, max_error=0.075)
-    sigma = np.sqrt(0.05**2 + (0.05 + 0.0005 * d) ** 2) / 2
+    sigma = np.sqrt(0.05**2 + (1.2 * (0.05 + 0.0005 * d)) ** 2) / 2 / 1.1  # σ(mean)/mean, values 1 and 1.2
     np.testing.assert_allclose(avg.relative_error.values, sigma.values)
     np.testing.assert_array_equal(avg["count"].values, 2)
     np.testing.assert_allclose(avg.average.values, 1.1 * d.values)
     assert avg.curves.sel(measurement="c").isnull().all()
     strict = average_curves(curves, points=d.values, errors=errors, max_error=0.03)
     assert int(strict["count"].max()) == 0 and strict.average.isnull().all()
+    every = average_curves(curves, points=d.values, errors=errors)   # default: no statistical criterion
+    np.testing.assert_allclose(every.average.values, (1.0 + 1.2 + 3.0) / 3 * d.values)
+    se = np.sqrt((0.05 * d) ** 2 + (1.2 * d * (0.05 + 0.0005 * d)) ** 2 + (3.0 * 0.5 * d) ** 2) / 3
+    np.testing.assert_allclose(every.uncertainty.values, se.values)
+    assert every.uncertainty.attrs["units"] == "m" and not bool(every.left_out.any())
+
+
+def test_sparse_curve_reaches_every_collocation_point_of_its_range():
+    """A spectrum's long wavelengths (q = 2πk/L) are sparser than 10 points per decade: binned alone they
+    left empty points between k = 1, 2, 3; between its points a curve is interpolated log-log."""
+    from xtopo.stitching import average_curves
+
+    q = xr.DataArray(np.arange(1.0, 40.0), dims="q", attrs={"units": "m-1"})
+    sparse = xr.DataArray(q.values ** -2.6, dims="q", coords={"q": q}, attrs={"units": "m3"})
+    avg = average_curves({"a": sparse}, per_decade=10, method="bin")
+    assert bool((avg["count"] == 1).all())
+    np.testing.assert_allclose(avg.average.values, avg.q.values ** -2.6, rtol=0.03)  # arithmetic bin means
 
 
 def test_average_of_curves_in_different_units_refused():

@@ -117,4 +117,5 @@ class TopoTreeAccessor:
     sdrp = _delegate(_stitching.twin_sdrp)
 
     # figures (issue 8)
-    plot = _delegate(_plot.plot)
+    plot = _delegate(_plot.plot)  # the paper's Figure 5 (issue 21)
+    plot_measurements = _delegate(_plot.measurement_maps)

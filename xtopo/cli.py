@@ -55,8 +55,7 @@ def _average_line(name: str, r) -> str:
         line += f" at {int(ok.sum())} points, {coord} from {lo:.3g} to {hi:.3g} {r[coord].attrs.get('units', '')}"
     if not used.all():
         left = ", ".join(n for n, u in zip(names, used) if not u)
-        line += (f"\n      no reliable point from {left} (short scales: tip radius/resolution cutoff; long "
-                 "scales: predicted error above max_error, see xtopo.stitching)")
+        line += f"\n      no reliable point from {left} (tip radius/resolution cutoff above the scan's scales)"
     return line
 
 
@@ -65,7 +64,7 @@ def _cmd_analyze(args) -> int:
 
     from .cli_commands import iso_options, iso_report
     from .io.netcdf import tree_to_netcdf
-    from .stitching import analyze_twin
+    from .stitching import ANALYSES, analyze_twin
     from .summary import format_table
     from .twins import twin
 
@@ -75,13 +74,13 @@ def _cmd_analyze(args) -> int:
     results = analyze_twin(twin(measurements))
     print(f"xtopo analyze: {len(measurements)} measurements ({what})\n")
     print(format_table(results.to_dataset()))
-    for name in ("psd", "acf", "vbm", "sdrp"):
+    for name in ANALYSES:
         print(_average_line(name, results[name].to_dataset()))
     iso, iso_errors = iso_report(measurements, args)
     if iso is not None:
         results["iso"] = xr.DataTree(iso)
     tree_to_netcdf(results, args.output)
-    groups = "psd, acf, vbm, sdrp" + (", iso" if iso is not None else "")
+    groups = ", ".join(ANALYSES) + (", iso" if iso is not None else "")
     print(f"\nwrote {args.output} (groups: summary at the root, {groups})")
     if args.report:
         from .report import report

@@ -10,6 +10,7 @@ matplotlib backend (``hv.render(obj, backend=...)``, or displayed in Jupyter aft
   unreliable scales omitted (NaN) or dashed (when a cutoff is known and the points are present);
 * :func:`spectrum_map` — a 2D PSD on ``(q_y, q_x)`` with a logarithmic colour scale;
 * :func:`twin_curves` — a twin average: each measurement coloured, the average thick black;
+  :func:`twin_figure` — the paper's Figure 5 (PSD, ACF, VBM, curvature) of a twin;
 * :func:`contact_area` — relative contact area against mean pressure, unconverged
   points translucent; :func:`contact_maps` — pressure, gap and contact maps;
 * :func:`measurement_maps` — one panel per measurement of a twin;
@@ -32,7 +33,7 @@ from ._checks import integer, mapping, positive_number, text, xarray_object
 from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
 
-__all__ = ["plot", "topography", "curve", "spectrum_map", "twin_curves", "contact_area", "contact_maps",
+__all__ = ["plot", "topography", "curve", "spectrum_map", "twin_curves", "twin_figure", "contact_area", "contact_maps",
            "measurement_maps", "downsample", "unit_label", "PALETTE"]
 
 #: coordinate names of scale-dependent curves and whether the scale is a wavevector
@@ -433,18 +434,40 @@ def curve(da: xr.DataArray, *, cutoff=None, title: str | None = None, label: str
     return _style(hv.Overlay(elements), **_axes_opts(_title(da, title)))
 
 
-def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None = None):
-    """A twin average: every measurement's curve coloured, the average as a thick black line.
+def _groups(names, groups) -> dict:
+    """Legend group of each measurement: ``groups`` (name → group), else the name itself."""
+    groups = groups or {}
+    return {n: str(groups.get(n, n)) for n in names}
+
+
+def group_colours(groups: dict) -> dict:
+    """Colour of each group of ``groups`` (measurement name → group), in order of first appearance:
+    the colours :func:`twin_curves` draws the groups in."""
+    return {g: PALETTE[k % len(PALETTE)] for k, g in enumerate(dict.fromkeys(groups.values()))}
+
+
+def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None = None, groups: dict | None = None,
+                legend: bool = True):
+    """A twin average as in the paper's Figure 5: thin coloured measurements, the thick black average.
+
+    Each measurement's curve is drawn thin over its reliable range (the values averaged),
+    the average thick black on top with its predicted standard error as a grey band.
 
     Parameters
     ----------
     ds : xarray.Dataset
         The result of a twin average (:func:`xtopo.stitching.average_curves`): ``average``
-        on the collocation coordinate and ``curves`` on (``measurement``, coordinate).
+        on the collocation coordinate and ``curves`` on (``measurement``, coordinate);
+        ``uncertainty`` where present gives the band.
     labels : dict, optional
-        Legend text per measurement name (e.g. ``"afm-5um (AFM, 5 µm)"``); default: the names.
+        Legend text per measurement name or group (e.g. ``"afm-5um (AFM, 5 µm)"``); default: the names.
     title : str, optional
         Default: the average's ``long_name``.
+    groups : dict, optional
+        Group per measurement name (e.g. its instrument): one colour and one legend entry
+        per group, which keeps the legend short for a twin of many replicates.
+    legend : bool
+        Show the legend (outside the axes on the right, one column).
 
     Returns
     -------
@@ -452,28 +475,96 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
     """
     hv = _hv()
     xarray_object(ds, "twin_curves()", (xr.Dataset,))
-    labels, title = mapping(labels, "labels"), text(title, "title")
+    labels, title, groups = mapping(labels, "labels"), text(title, "title"), mapping(groups, "groups")
     if "average" not in ds or "curves" not in ds:
         raise XtopoError(f"twin_curves() needs a twin average with 'average' and 'curves' (got {list(ds.data_vars)})")
     coord = _curve_dim(ds["average"])
     curves = ds["curves"].transpose("measurement", coord)
     xdim = _dimension(coord, ds[coord].attrs)
-    yname = str(curves.name or "value")
+    long_name = ds["average"].attrs.get("long_name") or curves.attrs.get("long_name") or str(curves.name or "value")
+    yname = re.sub(r"\W+", "_", str(curves.attrs.get("long_name") or long_name)).strip("_") or "value"
     ydim = _dimension(yname, curves.attrs or ds["average"].attrs)
     x = np.asarray(ds[coord].values, dtype=float)
-    elements = []
+    names = [str(n) for n in np.asarray(curves["measurement"].values)]
+    group_of = _groups(names, groups)
+    colours = group_colours(group_of)
+    elements, shown = [], set()
     values = _values(curves)
-    for k, name in enumerate(np.asarray(curves["measurement"].values)):
+    avg = _values(ds["average"]).astype(float)
+    if "uncertainty" in ds:  # the band: average ± its standard error (clipped above zero for log axes)
+        se = _values(ds["uncertainty"]).astype(float)
+        ok = np.isfinite(avg) & np.isfinite(se) & (avg > 0) & (x > 0)
+        if ok.any():
+            lo = np.maximum(avg - se, avg / 10)
+            band = hv.Area((x[ok], lo[ok], (avg + se)[ok]), kdims=[xdim],
+                           vdims=[ydim, hv.Dimension(f"{yname}_upper")], label="average ± standard error")
+            elements.append(_style(band, common=dict(color="#888888", alpha=0.35),
+                                   bokeh=dict(line_alpha=0), matplotlib=dict(linewidth=0)))
+    for k, name in enumerate(names):
         xs, ys = _positive(x, values[k].astype(float))
-        elements.append(_style(hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim],
-                                        label=_safe_label(labels.get(name, name), xdim, ydim)),
-                               common=dict(color=PALETTE[k % len(PALETTE)]), bokeh=dict(line_width=1.5),
-                               matplotlib=dict(linewidth=1.5)))
-    xs, ys = _positive(x, _values(ds["average"]).astype(float))
+        group = group_of[name]
+        label = _safe_label(labels.get(group, group), xdim, ydim)
+        first = group not in shown
+        shown.add(group)
+        el = hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label=label)
+        # replicates share their group's legend entry: only the first of a group carries it
+        elements.append(_style(el, common=dict(color=colours[group], alpha=0.8),
+                               bokeh=dict(line_width=1.2, show_legend=first),
+                               matplotlib=dict(linewidth=1.2, show_legend=first)))
+    xs, ys = _positive(x, avg)
     elements.append(_style(hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label="average"),
                            common=dict(color="black"), bokeh=dict(line_width=4), matplotlib=dict(linewidth=4)))
-    long_name = ds["average"].attrs.get("long_name") or curves.attrs.get("long_name") or yname
-    return _style(hv.Overlay(elements), **_axes_opts(title or long_name, legend_outside=len(elements) > 4))
+    opts = _axes_opts(title or long_name, legend_outside=True)
+    overlay = _style(hv.Overlay(elements), **opts)
+    if not legend:
+        overlay = _style(overlay, common=dict(show_legend=False))
+    return overlay
+
+
+def twin_figure(tree, *, analyses=None, groups: dict | None = None, labels: dict | None = None,
+                per_decade: int | None = None, cols: int = 2):
+    """The paper's Figure 5 for a twin: PSD, ACF, VBM and scale-dependent curvature averages.
+
+    One log-log panel per analysis of :data:`xtopo.stitching.ANALYSES` (with units): each
+    measurement a thin curve over its reliable range, coloured by instrument (its
+    ``instrument`` attr, else its name), the average thick black with its uncertainty band.
+    One legend, outside the first row's last panel in one column, with one entry per instrument.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A twin (:func:`xtopo.twin`).
+    analyses : sequence of str, optional
+        Names from :data:`xtopo.stitching.ANALYSES` (default: all four).
+    groups : dict, optional
+        Legend group per measurement name (default: its ``instrument`` attr).
+    labels : dict, optional
+        Legend text per group.
+    per_decade : int, optional
+        Collocation points per decade (default that of :func:`xtopo.stitching.twin_psd`).
+    cols : int
+        Panels per row.
+
+    Returns
+    -------
+    holoviews.Layout
+    """
+    hv = _hv()
+    from .stitching import ANALYSES, PER_DECADE
+    from .twins import measurements
+
+    ms = measurements(tree)
+    names = list(ANALYSES) if analyses is None else [str(a) for a in analyses]
+    unknown = [a for a in names if a not in ANALYSES]
+    if unknown:
+        raise XtopoError(f"unknown analysis {unknown[0]!r} in analyses; choose from {tuple(ANALYSES)}")
+    groups = {n: str(ds.attrs.get("instrument") or n) for n, ds in ms.items()} if groups is None else groups
+    per_decade = PER_DECADE if per_decade is None else per_decade
+    cols = integer(cols, "cols")
+    # the one legend sits right of the last panel of the first row, where it covers no other panel
+    panels = [twin_curves(ANALYSES[a](tree, per_decade=per_decade).compute(), groups=groups, labels=labels,
+                          title=ANALYSES[a].title, legend=k == min(cols, len(names)) - 1) for k, a in enumerate(names)]
+    return _style(hv.Layout(panels).cols(cols), common=dict(shared_axes=False))
 
 
 # --------------------------------------------------------------------------- contact
@@ -628,7 +719,7 @@ def plot(obj, **kwargs):
     ========================================================  ==============================
     object                                                    figure
     ========================================================  ==============================
-    twin (DataTree)                                           :func:`measurement_maps`
+    twin (DataTree)                                           :func:`twin_figure`
     twin average (Dataset with ``average`` and ``curves``)    :func:`twin_curves`
     contact load curve (``area_fraction`` along ``load``)     :func:`contact_area`
     contact solution (``pressure`` map)                       :func:`contact_maps`
@@ -650,7 +741,7 @@ def plot(obj, **kwargs):
         Displayed by Jupyter; ``holoviews.save`` writes it to HTML or PNG.
     """
     if isinstance(obj, xr.DataTree):
-        return measurement_maps(obj, **kwargs)
+        return twin_figure(obj, **kwargs)
     if isinstance(obj, xr.Dataset):
         if "average" in obj and "curves" in obj:
             return twin_curves(obj, **kwargs)

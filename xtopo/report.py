@@ -17,43 +17,35 @@ import xarray as xr
 
 from ._checks import flag, mapping, option
 from .errors import XtopoError
+from .stitching import ANALYSES as _REGISTRY
 
 __all__ = ["report", "ANALYSES"]
 
-#: the stitched analyses a report shows by default
-ANALYSES = ("psd", "acf", "vbm", "sdrp")
-
-_TITLES = {
-    "psd": "power spectral density (1D)",
-    "acf": "height-difference autocorrelation",
-    "vbm": "variable-bandwidth RMS height",
-    "sdrp": "scale-dependent RMS curvature",
-}
+#: the stitched analyses a report shows by default (declared in :data:`xtopo.stitching.ANALYSES`)
+ANALYSES = tuple(_REGISTRY)
 
 _CSS = """
-body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; }
+body { font-family: system-ui, sans-serif; margin: 1.5em; color: #222; max-width: 1340px; }
 h1 { font-size: 1.6em; margin-bottom: 0.2em; }
 h2 { font-size: 1.25em; margin-top: 1.2em; border-bottom: 1px solid #ccc; }
 p.meta { color: #666; margin-top: 0; }
-table.summary { border-collapse: collapse; font-size: 0.9em; }
-table.summary th, table.summary td { padding: 0.25em 0.7em; border-bottom: 1px solid #ddd; text-align: left; }
+div.table { max-width: 100%; overflow-x: auto; }
+table.summary { border-collapse: collapse; font-size: 0.85em; }
+table.summary th, table.summary td { padding: 0.25em 0.6em; border-bottom: 1px solid #ddd; text-align: left;
+  vertical-align: top; }
+table.summary td { overflow-wrap: anywhere; max-width: 28em; }
 table.summary th { background: #f2f2f2; }
+ul.legend { list-style: none; padding: 0; margin: 0.5em 0; display: flex; flex-wrap: wrap; gap: 0.3em 1.2em;
+  font-size: 0.9em; }
+ul.legend span.swatch { display: inline-block; width: 1.8em; height: 0.35em; vertical-align: middle;
+  margin-right: 0.4em; }
 p.error { color: #a00; }
 """
 
 
 def _stitch(tree: xr.DataTree, name: str) -> xr.Dataset:
-    from . import stitching
-
-    if name == "psd":
-        return stitching.twin_psd(tree)
-    if name == "acf":
-        return stitching.twin_acf(tree)
-    if name == "vbm":
-        return stitching.twin_vbm(tree)
-    if name == "sdrp":
-        return stitching.twin_sdrp(tree, 2)
-    raise XtopoError(f"unknown analysis {name!r} for the report; choose from {ANALYSES}")
+    """The twin average ``name`` of :data:`xtopo.stitching.ANALYSES`, computed."""
+    return _REGISTRY[name](tree).compute()
 
 
 def _analyses(analyses) -> tuple:
@@ -100,7 +92,59 @@ def _iso_html(ms: dict, options: dict) -> str:
 def _cells_html(header, rows) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
-    return f'<table class="summary"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
+    return f'<div class="table"><table class="summary"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
+
+
+def _preprocessing(ds: xr.Dataset) -> str:
+    """What was done to a measurement's heights: its recorded preprocessing steps (``history``) and
+    the harmonic fill of missing data the twin averages apply (paper §3.2)."""
+    from .conventions import MASK
+    from .preprocess import STEPS
+
+    steps = [line.strip() for line in str(ds.attrs.get("history", "")).splitlines()
+             if line.strip().split("(")[0].rsplit(".", 1)[-1] in STEPS]
+    missing = bool(ds[MASK].any()) if MASK in ds else bool(ds["height"].isnull().any())
+    if missing and not any(s.startswith("fill_missing") for s in steps):
+        steps.append("missing data filled harmonically for the averages")
+    return "; ".join(steps) if steps else "none (heights as read; mean removed in each analysis)"
+
+
+def _reliability_rows(ms: dict) -> list:
+    """Per measurement: preprocessing, short reliability cutoff (paper §4.9) and its cause."""
+    from .analysis.reliability import reliability_cutoff
+    from .conventions import length_factor
+    from .stitching import _complete
+    from .summary import _fmt_len
+
+    causes = {"resolution": "instrument resolution", "tip_radius": "tip radius (eq. 13, c = 1/2)",
+              "none": "no resolution or tip radius given"}
+    rows = []
+    for name, ds in ms.items():
+        try:
+            cut = reliability_cutoff(_complete(ds, name)).compute()  # on the filled heights, as the averages
+            value, method = float(cut.max()), str(cut.attrs.get("method", "none"))
+        except XtopoError as exc:
+            value, method = float("nan"), f"not available: {exc}"
+        units = ds["x"].attrs.get("units", "m")
+        cause = causes.get(method, method)
+        if method == "tip_radius" and ds.attrs.get("tip_radius") is not None:
+            radius = float(ds.attrs["tip_radius"]) * length_factor(ds.attrs.get("tip_radius_units", units), "m")
+            cause += f", R = {_fmt_len(radius)}"
+        if method == "tip_radius" and value == 0:
+            cause += ": the tip limits no scale the data resolve"
+        text = _fmt_len(value * length_factor(units, "m")) if value > 0 else "—"
+        rows.append([name, str(ds.attrs.get("instrument") or ""), _preprocessing(ds), text, cause])
+    return rows
+
+
+def _legend_html(groups: dict, labels: dict) -> str:
+    """One legend for all twin panels: a coloured swatch per instrument group, the average in black."""
+    from .plot import group_colours
+
+    items = [(colour, labels.get(g, g)) for g, colour in group_colours(groups).items()]
+    items.append(("#000", "average (band: ± predicted standard error)"))
+    return '<ul class="legend">' + "".join(
+        f'<li><span class="swatch" style="background:{c}"></span>{html.escape(str(t))}</li>' for c, t in items) + "</ul>"
 
 
 def _labels(table: xr.Dataset) -> dict:
@@ -192,31 +236,41 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     title = str(title) if title is not None else str(tree.attrs.get("title") or "xtopo report")
     table = summary_table(ms)
     labels = _labels(table)
+    groups = {n: str(ds.attrs.get("instrument") or n) for n, ds in ms.items()}
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    blocks = [f"<h1>{html.escape(title)}</h1>"
-              f'<p class="meta">{len(ms)} measurement(s) · xtopo {html.escape(__version__)} · {stamp}</p>',
-              "<h2>Measurements</h2>" + _table_html(table)]
+    # the page: sections of HTML snippets and bokeh models, in order (a new section is one more entry)
+    sections = [("", [f"<h1>{html.escape(title)}</h1>"
+                      f'<p class="meta">{len(ms)} measurement(s) · xtopo {html.escape(__version__)} · {stamp}</p>']),
+                ("Measurements", [_table_html(table)]),
+                ("Preprocessing and reliability (paper §3.2, §4.9)",
+                 [_cells_html(["measurement", "instrument", "preprocessing", "short reliability cutoff", "cause"],
+                              _reliability_rows(ms))])]
     if iso is not None:
-        blocks.append(_iso_html(ms, mapping(iso, "iso")))
-    figures, errors = [], []
-    for name in analyses:
-        try:
-            stitched = _stitch(tree, name)
-        except XtopoError as exc:
-            errors.append(f'<p class="error">{html.escape(_TITLES.get(name, name))}: not available — '
-                          f"{html.escape(str(exc))}</p>")
-            continue
-        el = _plot.twin_curves(stitched, labels=labels, title=_TITLES[name])
-        figures.append(hv.render(el, backend="bokeh"))
+        sections.append(("", [_iso_html(ms, mapping(iso, "iso"))]))
     if analyses:
-        blocks.append("<h2>Twin averages</h2><p>Coloured: individual measurements over their reliable scales; "
-                      "black: the average at common collocation points.</p>" + "".join(errors))
+        figures, errors = [], []
+        for name in analyses:
+            try:
+                stitched = _stitch(tree, name)
+            except XtopoError as exc:
+                errors.append(f'<p class="error">{html.escape(_REGISTRY[name].title)}: not available — '
+                              f"{html.escape(str(exc))}</p>")
+                continue
+            el = _plot.twin_curves(stitched, groups=groups, title=_REGISTRY[name].title, legend=False)
+            figures.append(hv.render(el, backend="bokeh"))
+        blocks = ["<p>Thin coloured lines: the individual measurements over their reliable scales; thick black: "
+                  "the arithmetic mean with equal weight per measurement at log-spaced collocation points (paper "
+                  "§4.10), grey band: its predicted standard error.</p>" + _legend_html(groups, {}) + "".join(errors)]
         if figures:
             blocks.append(gridplot(figures, ncols=2, merge_tools=False, toolbar_location=None))
+        sections.append(("Twin averages", blocks))
     if maps:
         panels = [hv.render(_plot.topography(ds, max_pixels=max_pixels, title=labels.get(name, name)),
                             backend="bokeh") for name, ds in ms.items()]
-        blocks += ["<h2>Topography</h2>", gridplot(panels, ncols=3, merge_tools=False, toolbar_location=None)]
+        sections.append(("Topography", [gridplot(panels, ncols=2, merge_tools=False, toolbar_location=None)]))
+    blocks = []
+    for heading, items in sections:
+        blocks += ([f"<h2>{html.escape(heading)}</h2>"] if heading else []) + items
     page = _html_page(title, blocks)
     if path is None:
         return page

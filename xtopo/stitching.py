@@ -2,11 +2,13 @@
 
 Each measurement's curve (PSD, ACF, VBM, SDRP) is computed in its 1D (profile)
 representation (or ``Ciso`` with ``twin_psd(areal=True)``) with its unreliable scales
-removed (§4.9), brought onto common log-spaced collocation points (PSD, ACF: mean of
-each curve's points in log bins; VBM: log-log interpolation; SDRP: evaluated at the
-points) and averaged with equal weight per measurement. Which measurements enter a point,
-and whether the average is reliable there, follows from their predicted statistical
-errors (:func:`average_curves`; ``max_error``).
+(§4.9: resolution, tip radius) masked, brought onto common log-spaced collocation points
+(PSD, ACF, VBM: mean of each curve's points in log bins, log-log interpolation between
+points sparser than the bins; SDRP: evaluated at the points) and averaged with equal
+weight per measurement at every point of its reliable range. The predicted statistical
+uncertainty of each point is returned, not used to delete data (unless ``max_error``).
+The four analyses are declared once in :data:`ANALYSES` (name, function, coordinate,
+averaging, error model, labels), which the report, the CLI and the figure loop over.
 Everything stays lazy on dask-backed twins: the graph is built from coordinates
 alone, data are read and computed only by ``.compute()`` (threaded scheduler,
 or the active ``distributed.Client``).
@@ -14,18 +16,19 @@ or the active ``distributed.Client``).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
-from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
+from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
 from .conventions import convert_length, lateral_dims, length_factor, unit_argument
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
-__all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp"]
+__all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES", "TwinAnalysis"]
 
 #: default density of collocation points
 PER_DECADE = 10
@@ -67,50 +70,59 @@ def _check_alike(curves: dict, coord: str) -> None:
 def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str, error=None):
     """``curve`` on the collocation ``grid``, and its predicted relative standard error there (or None).
 
-    Spectra (``method="bin"`` with independent modes): ``1/√N`` with ``N`` the modes of the
-    bin's reliable wavevectors. Other curves: their ``error`` (on the curve's points) binned or
-    interpolated like the curve, where the curve is reliable.
+    Every collocation point inside the range of the curve's finite (reliable) points gets a
+    value (:func:`~xtopo._kernels.collocation.collocate`). Spectra carry their independent
+    modes: a bin holding ``N`` has ``1/√N``. Other curves: their ``error`` (on the curve's
+    points) brought onto the grid like the curve.
     """
     x = np.asarray(curve[coord].values, dtype=float)
-    kernel = {"interp": interp_loglog, "bin": bin_mean}[method]
 
-    def on_grid(da, func, **kw):
-        da = da.drop_vars([c for c in da.coords if c != coord])
-        return xr.apply_ufunc(func, da, input_core_dims=[[coord]], output_core_dims=[["_grid"]],
-                              exclude_dims={coord}, kwargs=dict(x=x, xnew=grid, **kw), dask="parallelized",
-                              output_dtypes=[float], dask_gufunc_kwargs={"output_sizes": {"_grid": grid.size}})
+    def on_grid(func, *arrays, **kw):
+        arrays = [a.drop_vars([c for c in a.coords if c != coord]) for a in arrays]
+        return xr.apply_ufunc(func, *arrays, input_core_dims=[[coord]] * len(arrays), output_core_dims=[["_grid"]],
+                              exclude_dims={coord}, kwargs=dict(x=x, xnew=grid, method=method, **kw),
+                              dask="parallelized", output_dtypes=[float],
+                              dask_gufunc_kwargs={"output_sizes": {"_grid": grid.size}})
 
-    out = on_grid(curve, kernel)
+    out = on_grid(collocate, curve)
     if method == "bin" and _MODES in curve.coords:  # spectra: independent modes add up within a bin
-        return out, on_grid(curve, bin_error, weights=np.asarray(curve[_MODES].values))
+        modes = np.asarray(curve[_MODES].values, dtype=float)
+        with np.errstate(divide="ignore"):
+            per_sample = np.where(modes > 0, 1 / np.sqrt(np.where(modes > 0, modes, 1.0)), np.nan)
+        return out, on_grid(_error_on_grid, curve, modes=modes, per_sample=per_sample)
     if error is None:
         return out, None
-    return out, on_grid(error.where(curve.notnull()), kernel)
+    return out, on_grid(_error_on_grid, curve, error)
+
+
+def _error_on_grid(y, err=None, *, x, xnew, method, modes=None, per_sample=None):
+    return collocate_error(per_sample if err is None else err, y, x, xnew, method, modes=modes)
 
 
 def _settings(per_decade, max_error) -> tuple:
-    """Checked ``per_decade`` and ``max_error`` (None: :data:`~xtopo.analysis.reliability.MAX_RELATIVE_ERROR`)."""
-    from .analysis.reliability import MAX_RELATIVE_ERROR
-
+    """Checked ``per_decade`` and ``max_error`` (None: no statistical criterion)."""
     per_decade = integer(per_decade, "per_decade")
     if per_decade > MAX_SPARSE_BINS:  # 10**30 raised numpy's 'Maximum allowed size exceeded'
         raise XtopoError(f"per_decade must be at most {MAX_SPARSE_BINS}, got {per_decade!r}")
-    return per_decade, MAX_RELATIVE_ERROR if max_error is None else positive_number(max_error, "max_error",
-                                                                                       infinite=True)
+    return per_decade, None if max_error is None else positive_number(max_error, "max_error", infinite=True)
 
 
 def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, method: str = "interp",
                    errors: dict | None = None, max_error: float | None = None) -> xr.Dataset:
-    """Average 1D curves of several measurements at common log-spaced points.
+    """Average 1D curves of several measurements at common log-spaced points (paper §4.10).
 
-    Equal weight per measurement (paper §4.10, which leaves the weighting open). Where
-    the predicted relative standard errors of the curves are known (``errors``, or the
-    independent Fourier modes a spectrum from :func:`twin_psd` carries), the statistical
-    criterion applies to the *average*: at each collocation point the measurements are
-    taken in order of increasing predicted error as long as the next one lowers the
-    predicted relative standard error of their mean, ``σ_mean = √(Σ σ_i²)/n``
-    (measurements treated as independent), and the point is reliable where that
-    ``σ_mean ≤ max_error``. Without error information every finite value is used.
+    Every finite (reliable) point of every curve contributes: each curve is brought onto the
+    collocation points (``method``) and, at every point inside the range of its finite
+    points, enters the arithmetic mean with equal weight (the paper's weighting). A curve
+    sparser than the collocation points (the long wavelengths of a spectrum) is interpolated
+    log-log between its points, so overlapping measurements leave no empty point. The
+    statistical uncertainty of the average is computed from the curves' predicted relative
+    standard errors (``errors``, or the independent Fourier modes a spectrum from
+    :func:`twin_psd` carries): ``σ = √(Σ (σ_i y_i)²)/n`` (measurements independent). It
+    deletes nothing unless asked: with ``max_error``, at each point only the measurements of
+    smallest predicted error are averaged as long as each lowers the predicted error of the
+    mean, and points whose error stays above ``max_error`` are left out; ``left_out`` says
+    which values that dropped.
 
     Parameters
     ----------
@@ -125,21 +137,24 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
     method : {"interp", "bin"}
         ``"interp"``: log-log interpolation of each curve (smooth or sparse curves:
         SDRP, VBM); ``"bin"``: mean of each curve's points in log bins around the
-        collocation points (dense, noisy curves: PSD, ACF; paper §4.10).
+        collocation points (dense, noisy curves: PSD, ACF; paper §4.10), interpolated
+        between points sparser than the bins.
     errors : dict of str to xarray.DataArray or None, optional
         Predicted relative standard error of each curve's points (same coordinate; None: unknown).
     max_error : float, optional
-        Largest predicted relative standard error of a reliable average (default
-        :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`).
+        Opt-in statistical criterion: largest predicted relative standard error of an
+        average point (e.g. :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`). Default
+        None: every reliable point is averaged.
 
     Returns
     -------
     xarray.Dataset
-        ``average``, ``count`` (measurements used) and ``relative_error`` (predicted,
-        of the average) on the collocation coordinate; ``curves`` (the values used,
-        NaN elsewhere) and ``curve_error`` (each measurement's predicted relative
-        error) on (``measurement``, coordinate); ``reliability_cutoff`` per
-        measurement where the curves carry one.
+        On the collocation coordinate: ``average``, ``uncertainty`` (its predicted standard
+        error, units of the average), ``relative_error`` (the same relative to the average)
+        and ``count`` (measurements averaged). On (``measurement``, coordinate): ``curves``
+        (the values averaged, NaN elsewhere), ``curve_error`` (each curve's predicted
+        relative error) and ``left_out`` (values dropped by ``max_error``). Per measurement
+        ``reliability_cutoff`` and ``reliability_criterion`` where the curves carry one.
     """
     per_decade, tol = _settings(per_decade, max_error)
     method = option(method, ("interp", "bin"), "method")
@@ -174,39 +189,47 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         return xr.concat(items, dim=dim).rename({"_grid": coord}).assign_coords({coord: coord_var})
 
     stacked = stack([v for v, _ in per])
-    if all(e is None for _, e in per):
-        used = stacked.notnull()
-        err = xr.full_like(stacked, np.nan)
-        sigma = xr.where(used.any("measurement"), 0.0, np.inf)
-    else:
-        err = stack([xr.full_like(v, np.nan) if e is None else e for v, e in per])
+    err = stack([xr.full_like(v, np.nan) if e is None else e for v, e in per])
+    available = stacked.notnull()
+    if tol is not None:
         used, sigma = xr.apply_ufunc(select_for_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
                                      output_core_dims=[["measurement"], []], dask="parallelized",
                                      output_dtypes=[bool, float], dask_gufunc_kwargs={"allow_rechunk": True})
-        used = used & (sigma <= tol)
-    stacked = stacked.where(used)
+        stacked = stacked.where(used & (sigma <= tol))
+    average, se, count = xr.apply_ufunc(equal_weight_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
+                                        output_core_dims=[[], [], []], dask="parallelized",
+                                        output_dtypes=[float, float, int],
+                                        dask_gufunc_kwargs={"allow_rechunk": True})
+    units = first.attrs.get("units", "1")
+    long_name = first.attrs.get("long_name", first.name or "")
     stacked.attrs = {k: v for k, v in first.attrs.items() if k in ("units", "long_name")}
-    count = used.sum("measurement")
-    total = stacked.fillna(0.0).sum("measurement")
-    average = (total / count.where(count > 0)).assign_attrs(
-        units=first.attrs.get("units", "1"), long_name=f"average {first.attrs.get('long_name', first.name or '')}".strip())
-    count.attrs = {"units": "1", "long_name": "number of measurements used"}
-    sigma = sigma.where(count > 0).assign_attrs(units="1", long_name="predicted relative standard error of the average")
-    err.attrs = {"units": "1", "long_name": "predicted relative standard error of each curve"}
-    out = xr.Dataset({"average": average, "count": count, "relative_error": sigma, "curves": stacked,
-                      "curve_error": err})
+    average.attrs = {"units": units, "long_name": f"average {long_name}".strip()}
+    count.attrs = {"units": "1", "long_name": "number of measurements averaged"}
+    se.attrs = {"units": units, "long_name": "predicted standard error of the average"}
+    rel = (se / average).assign_attrs(units="1", long_name="predicted relative standard error of the average")
+    err = err.where(available).assign_attrs(units="1", long_name="predicted relative standard error of each curve")
+    left = (available & stacked.isnull()).assign_attrs(
+        units="1", long_name="values left out by the statistical criterion",
+        criterion="none" if tol is None else f"predicted relative standard error of the average above {tol:g}")
+    out = xr.Dataset({"average": average, "uncertainty": se, "relative_error": rel, "count": count,
+                      "curves": stacked, "curve_error": err, "left_out": left})
     cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else xr.Variable((), np.nan)
             for c in curves.values()]
-    units = next((c.coords["reliability_cutoff"].attrs.get("units") for c in curves.values()
-                  if "reliability_cutoff" in c.coords), None)
-    if units is not None and all(v.ndim == 0 for v in cuts):
-        # the cutoffs' own attrs (method, tip radius) differ between measurements: only what they share
+    cut_units = next((c.coords["reliability_cutoff"].attrs.get("units") for c in curves.values()
+                      if "reliability_cutoff" in c.coords), None)
+    if cut_units is not None and all(v.ndim == 0 for v in cuts):
+        # the cutoffs' own attrs (method, tip radius) differ between measurements: their criterion becomes a variable
         out["reliability_cutoff"] = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").drop_attrs(
-            deep=False).assign_attrs(units=units, long_name="short reliability cutoff")
+            deep=False).assign_attrs(units=cut_units, long_name="short reliability cutoff")
+        out["reliability_criterion"] = ("measurement", [str(v.attrs.get("method", "none")) for v in cuts],
+                                        {"units": "1", "long_name": "criterion of the short reliability cutoff (paper §4.9)"})
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
-                 "collocation_method": method, "max_error": tol,
-                 "weighting": "equal weight per measurement over its reliable scales; measurements in order of "
-                              "increasing predicted error while each lowers the predicted error of the mean"}
+                 "collocation_method": method,
+                 "weighting": "arithmetic mean with equal weight per measurement over its reliable scales"
+                              + ("" if tol is None else "; measurements in order of increasing predicted error while "
+                                 f"each lowers the predicted error of the mean, points above {tol:g} left out")}
+    if tol is not None:
+        out.attrs["max_error"] = tol
     return out
 
 
@@ -265,8 +288,15 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     from .analysis.reliability import reliability_cutoff, sampling_cutoff
 
     cut = reliability_cutoff(ds)
+    method = cut.attrs.get("method", "none")
     if coord == "q":  # spectra also end where aliasing sets in
-        cut = np.fmax(cut, sampling_cutoff(ds, curve.attrs.get("direction", "x")))
+        sampling = sampling_cutoff(ds, curve.attrs.get("direction", "x"))
+        if cut.chunks is not None:
+            method = f"{method} or sampling"
+        elif not float(cut) >= sampling:
+            method = "sampling"
+        cut = np.fmax(cut, sampling)
+    cut.attrs["method"] = method
     x = curve[coord]
     keep = (x <= 2 * np.pi / cut) if coord == "q" else (x >= cut)
     out = curve.where(keep | ~(cut > 0))
@@ -332,9 +362,8 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
         curve = func(ds, **extra, **kw, reliable=False)
         coord = _curve_coord(curve)
         curves[name] = _reliable_part(curve, ds, coord, reliable)
-        if reliable:
-            curves[name], errors[name] = _predicted_error(curves[name], ds, coord, quantity)
-            settings[name] = _setting(ds)
+        curves[name], errors[name] = _predicted_error(curves[name], ds, coord, quantity)
+        settings[name] = _setting(ds)
     return curves, _pool_errors(errors, settings)
 
 
@@ -364,16 +393,12 @@ def _with_provenance(out: xr.Dataset, tree, analysis: str, **params) -> xr.Datas
     return out
 
 
-_CRITERION = """With ``reliable``, a measurement may be used only above its short cutoff (tip radius or
+_CRITERION = """With ``reliable``, a measurement is used only above its short cutoff (tip radius or
     resolution, paper §4.9; spectra also 4 pixels above the pixel size,
-    :func:`~xtopo.analysis.reliability.sampling_cutoff`). The statistical criterion applies
-    to the average (see :func:`average_curves`): among the usable measurements, those of
-    smallest predicted relative standard error are averaged with equal weight as long as each
-    lowers the predicted error of the mean (ACF, SDRP: replicates of one instrument setting share
-    the median of their plug-in errors, so that no scan is chosen for looking precise), and a
-    collocation point is reliable where that
-    error is at most ``max_error`` (default :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`);
-    ``count`` gives the measurements used."""
+    :func:`~xtopo.analysis.reliability.sampling_cutoff`), and there at every collocation point of
+    its range, with equal weight (see :func:`average_curves`). The statistical uncertainty of each
+    point is returned (``uncertainty``, ``relative_error``), not used to delete data unless
+    ``max_error`` is given."""
 
 _TWIN_PARAMETERS = """tree : xarray.DataTree
         A twin (:func:`xtopo.twin`): one child node per measurement.{extra}
@@ -384,8 +409,9 @@ _TWIN_PARAMETERS = """tree : xarray.DataTree
     reliable : bool
         Use each measurement only where it is reliable (default True; see above).
     max_error : float, optional
-        Largest predicted relative standard error of a reliable average point (default
-        :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`)."""
+        Opt-in statistical criterion: largest predicted relative standard error of an average
+        point (e.g. :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`); the values it
+        drops are marked in ``left_out``. Default None: every reliable point is averaged."""
 
 #: Parameters of one average beyond those all four share (after ``tree``).
 _EXTRA = {
@@ -402,8 +428,9 @@ _EXTRA = {
 _TWIN_RETURNS = """Returns
     -------
     xarray.Dataset
-        ``average``, ``count`` and ``relative_error`` on the collocation coordinate and the
-        per-measurement ``curves`` (see :func:`average_curves`)."""
+        ``average``, ``uncertainty``, ``relative_error`` and ``count`` on the collocation
+        coordinate, the per-measurement ``curves`` and the reliability cutoff and its criterion
+        per measurement (see :func:`average_curves`)."""
 
 
 def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_DECADE, units: str | None = None,
@@ -460,6 +487,17 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
                             max_error=max_error)
 
 
+def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
+    """VBM of a measurement; a set of parallel profiles (``measurement_kind="profiles"``: rows far
+    apart, as the stylus scans of :func:`xtopo.datasets.example_twin`) is the mean of its profiles'
+    line-scan VBMs, not one VBM of a map with rows as far apart as the scan is long."""
+    from .analysis.vbm import vbm
+
+    if ds.attrs.get("measurement_kind") == "profiles" and ds["height"].ndim == 2:
+        return vbm(ds.rename(y="_profile"), **kw).mean("_profile", keep_attrs=True)
+    return vbm(ds, **kw)
+
+
 def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
              max_error: float | None = None) -> xr.Dataset:
     """Average variable-bandwidth RMS height of a twin.
@@ -472,11 +510,9 @@ def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
 
     {returns}
     """
-    from .analysis.vbm import vbm
-
     _settings(per_decade, max_error)
-    curves, errors = _per_measurement(tree, vbm, {}, {}, units, reliable, quantity="vbm")
-    out = average_curves(curves, per_decade=per_decade, errors=errors, max_error=max_error)
+    curves, errors = _per_measurement(tree, _vbm, {}, {}, units, reliable, quantity="vbm")
+    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
     return _with_provenance(out, tree, "twin_vbm", per_decade=per_decade, units=units, reliable=reliable,
                             max_error=max_error)
 
@@ -521,9 +557,7 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
                                                 & (grid <= (x[-1] - x[0]) / 2)]
         curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
                                       reliable)
-        if reliable:
-            curves[name], errors[name] = _predicted_error(curves[name], ds, "distance",
-                                                          ("slope", "curvature")[order - 1])
+        curves[name], errors[name] = _predicted_error(curves[name], ds, "distance", ("slope", "curvature")[order - 1])
     out = average_curves(curves, points=grid, errors=_pool_errors(errors, settings), max_error=max_error)
     return _with_provenance(out, tree, "twin_sdrp", order=order, per_decade=per_decade, units=units,
                             reliable=reliable, max_error=max_error)
@@ -534,19 +568,71 @@ for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):
                                    parameters=_TWIN_PARAMETERS.format(extra=_EXTRA.get(_f.__name__, "")))
 
 
+@dataclass(frozen=True)
+class TwinAnalysis:
+    """One scale-dependent analysis of a twin, declared once (the report, the CLI, the figure and
+    :func:`analyze_twin` loop over :data:`ANALYSES`).
+
+    Attributes
+    ----------
+    name : str
+        Key (group name in the NetCDF output, ``--analyses`` of the CLI).
+    function : callable
+        The twin average, ``function(tree, **kwargs, per_decade=..., ...)`` returning the
+        Dataset of :func:`average_curves`.
+    coord : str
+        Its coordinate (``q``: wavevector, 1/length; others: lengths).
+    averaging : str
+        How measurements meet at the collocation points (``"bin"``: log bins, interpolated
+        between sparse points; ``"points"``: evaluated at the points).
+    error_model : str
+        How the predicted statistical error of each measurement's curve is obtained.
+    title : str
+        Plot title.
+    kwargs : dict
+        Fixed arguments of ``function`` (SDRP: ``order=2``, the curvature of Figure 5).
+    """
+
+    name: str
+    function: Callable
+    coord: str
+    averaging: str
+    error_model: str
+    title: str
+    kwargs: Mapping = field(default_factory=dict)
+
+    def __call__(self, tree, **kwargs) -> xr.Dataset:
+        """The twin average of this analysis (``kwargs`` as of :attr:`function`)."""
+        return self.function(tree, **{**self.kwargs, **kwargs})
+
+
+#: The twin analyses of the paper's Figure 5, in its order.
+ANALYSES: dict[str, TwinAnalysis] = {a.name: a for a in (
+    TwinAnalysis("psd", twin_psd, "q", "bin", "1/√N, N independent Fourier modes in the bin",
+                 "power spectral density (1D)"),
+    TwinAnalysis("acf", twin_acf, "distance", "bin", "variance of the mean square difference (stencil_error)",
+                 "height-difference autocorrelation"),
+    TwinAnalysis("vbm", twin_vbm, "bandwidth", "bin", "1/(2√N), N independent windows",
+                 "variable-bandwidth RMS height"),
+    TwinAnalysis("sdrp", twin_sdrp, "distance", "points", "variance of the mean square curvature (stencil_error)",
+                 "scale-dependent RMS curvature", {"order": 2}),
+)}
+
+
 def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:
-    """The main job: per-measurement summary and the four averaged curves of a twin.
+    """The main job: per-measurement summary and the averaged curves of a twin (:data:`ANALYSES`).
 
     Returns
     -------
     xarray.DataTree
-        Root: the summary table (scalars per measurement); groups ``psd``, ``acf``,
-        ``vbm``, ``sdrp`` with the averages, counts and per-measurement curves (computed).
+        Root: the summary table (scalars per measurement); one group per analysis of
+        :data:`ANALYSES` (``psd``, ``acf``, ``vbm``, ``sdrp``: the curvature) with the
+        averages, uncertainties, counts and per-measurement curves (computed).
     """
     from .summary import summary_table
 
     ms = _measurements(tree)
     results = {"/": summary_table(ms).assign_attrs({**tree.attrs, "title": tree.attrs.get("title", "twin analysis")})}
-    for name, func in (("psd", twin_psd), ("acf", twin_acf), ("vbm", twin_vbm), ("sdrp", twin_sdrp)):
-        results[f"/{name}"] = func(tree, per_decade=per_decade).compute()
+    for name, analysis in ANALYSES.items():
+        results[f"/{name}"] = analysis(tree, per_decade=per_decade).compute()
     return xr.DataTree.from_dict(results)

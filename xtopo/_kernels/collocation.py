@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["interp_loglog", "collocation_points", "bin_mean", "bin_error", "select_for_mean"]
+__all__ = ["interp_loglog", "collocation_points", "bin_mean", "bin_error", "select_for_mean", "fill_inside",
+           "equal_weight_mean", "collocate", "collocate_error"]
 
 
 def collocation_points(lo: float, hi: float, per_decade: int) -> np.ndarray:
@@ -80,6 +81,81 @@ def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, weights=None, min_w
         at = np.bincount(idx[ok], weights=lx[ok], minlength=nb + 1)[:nb][full] / counts[full]
         out[i, full] = _loglog_line(at, means, lc[full])
     return out.reshape(y.shape[:-1] + (nb,))
+
+
+def fill_inside(values: np.ndarray, y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
+    """``values[..., len(xnew)]`` (e.g. bin means) with its NaN points inside the range of each row's
+    finite samples ``y[..., n]`` (at ``x[n]``) filled by log-log interpolation between those samples.
+
+    A curve sampled more sparsely than the collocation points (the long wavelengths of a
+    spectrum, ``q = 2πk/L``) thus reaches every collocation point between its first and last
+    sample instead of leaving empty bins between its samples.
+    """
+    values = np.asarray(values, dtype=float)
+    gaps = np.isnan(values)
+    if not gaps.any():
+        return values
+    return np.where(gaps, interp_loglog(y, x, xnew), values)
+
+
+def collocate(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, method: str = "bin") -> np.ndarray:
+    """Curves ``y[..., n]`` (at ``x[n]``) at the collocation points ``xnew``.
+
+    ``"interp"``: log-log interpolation (smooth or sparse curves); ``"bin"``: mean of the
+    samples in the log bin of each point (:func:`bin_mean`), and between samples sparser than
+    the bins log-log interpolation (:func:`fill_inside`). Either way every point inside the
+    range of a row's finite samples gets a value; points outside it are NaN. Samples that are not
+    positive have no place on log-log axes (a degenerate window's zero RMS height) and are ignored.
+    """
+    y = np.asarray(y, dtype=float)
+    y = np.where(y > 0, y, np.nan)
+    if method == "interp":
+        return interp_loglog(y, x, xnew)
+    return fill_inside(bin_mean(y, x, xnew), y, x, xnew)
+
+
+def collocate_error(err: np.ndarray, y: np.ndarray, x: np.ndarray, xnew: np.ndarray, method: str = "bin",
+                    modes=None) -> np.ndarray:
+    """Relative standard error of :func:`collocate` ``(y, x, xnew, method)`` from that of its samples.
+
+    ``err[..., n]``: the samples' relative standard errors (ignored where ``y`` is NaN). With
+    ``modes`` (independent Fourier modes of each sample of a spectrum) a bin holding ``N`` modes
+    has ``1/√N`` (:func:`bin_error`); otherwise a bin has the mean error of its samples (neighbouring
+    samples are correlated). Interpolated points have the interpolated error of their neighbours.
+    """
+    err = np.where(np.isfinite(y) & (np.asarray(y) > 0), np.broadcast_to(np.asarray(err, dtype=float), np.shape(y)), np.nan)
+    if method == "interp":
+        return interp_loglog(err, x, xnew)
+    if modes is not None:
+        binned = bin_error(np.where(np.asarray(y) > 0, y, np.nan), x, xnew, modes)
+        binned = np.where(np.isfinite(binned), binned, np.nan)
+    else:
+        binned = bin_mean(err, x, xnew)
+    return fill_inside(binned, err, x, xnew)
+
+
+def equal_weight_mean(values: np.ndarray, errors: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Equal-weight mean over the last axis of the finite ``values[..., m]`` and its standard error.
+
+    ``errors[..., m]`` are the relative standard errors of the values (NaN: unknown). The
+    measurements are independent, so the standard error of the mean of ``n`` values is
+    ``√(Σ (σ_i y_i)²) / n``; NaN where a used value's error is unknown.
+
+    Returns
+    -------
+    mean, standard_error : numpy.ndarray, shape ``[...]``
+        NaN where no value is finite.
+    count : numpy.ndarray of int, shape ``[...]``
+    """
+    values = np.asarray(values, dtype=float)
+    used = np.isfinite(values)
+    count = used.sum(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(used, values, 0.0).sum(axis=-1) / np.where(count > 0, count, np.nan)
+        var = np.where(used, (np.asarray(errors, dtype=float) * values) ** 2, 0.0).sum(axis=-1)
+        unknown = (used & ~np.isfinite(np.asarray(errors, dtype=float))).any(axis=-1)
+        se = np.where(unknown | (count == 0), np.nan, np.sqrt(var) / np.where(count > 0, count, 1))
+    return mean, se, count
 
 
 def _bin_index(x: np.ndarray, centers: np.ndarray) -> np.ndarray:
