@@ -175,11 +175,20 @@ class _Stdout:
         return getattr(self._stream, name)
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning on the command line: its text, not the library line that raised it."""
+    print(f"xtopo: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv=None) -> int:
+    import warnings
+
     stdout = sys.stdout
     sys.stdout = _Stdout(stdout)
     try:
-        return _main(argv)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return _main(argv)
     finally:
         sys.stdout.flush()
         sys.stdout = stdout

@@ -285,7 +285,7 @@ def _add_control_options(p) -> None:
 def _add_scene_options(p) -> None:
     g = p.add_argument_group("contact scene")
     g.add_argument("--modulus", type=_positive_float, default=1.0,
-                   help="effective contact modulus E* (default %(default)s: pressures in units of E*)")
+                   help="effective contact modulus E* in Pa (default %(default)s: pressures in units of E*)")
     g.add_argument("--hardness", type=_positive_float, default=None,
                    help="hardness (pressure cap), same units as --modulus")
     g.add_argument("--periodic", choices=("yes", "no"), default=None,

@@ -479,7 +479,7 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
 # --------------------------------------------------------------------------- contact
 
 def _contact_steps_dim(ds) -> str | None:
-    for d in ("load", "penetration"):
+    for d in ("load", "mean_pressure", "penetration"):
         if d in ds.dims:
             return d
     return None
