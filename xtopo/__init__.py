@@ -8,7 +8,7 @@ from . import conventions, datasets, errors
 from .conventions import make_measurement, validate
 from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, ReaderError, UnitsError,
                      UnsupportedFormatError, ValidationError, WriteError, XtopoError)
-from .io import open_topography, to_netcdf
+from .io import open_contact, open_topography, to_netcdf
 from .twins import open_twin, twin
 from . import cache
 from . import io, preprocess
@@ -17,7 +17,7 @@ from . import accessors as _accessors  # noqa: F401  (registers .topo)
 
 __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
-    "open_topography", "to_netcdf", "twin", "open_twin", "cache", "io", "preprocess", "batch",
+    "open_topography", "open_contact", "to_netcdf", "twin", "open_twin", "cache", "io", "preprocess", "batch",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
     "ValidationError", "ContactError", "WriteError", "ConvergenceWarning",
 ]

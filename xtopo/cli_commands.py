@@ -79,9 +79,13 @@ def _err(msg: str) -> None:
 
 
 def _fmt_size(size, units) -> str:
+    from ._format import format_quantities
+
     if not size:
         return "?"
-    return " × ".join("?" if s is None else f"{s:.4g}" for s in size) + (f" {units}" if units else "")
+    if any(s is None for s in size):
+        return " × ".join("?" if s is None else f"{s:.4g}" for s in size) + (f" {units}" if units else "")
+    return format_quantities(size, units or "", sep=" × ")
 
 
 # --------------------------------------------------------------------------- info
@@ -89,6 +93,7 @@ def _fmt_size(size, units) -> str:
 
 def _cmd_info(args) -> int:
     import xtopo.io as xio
+    from ._format import format_quantities
     from .conventions import height_of, lateral_dims, physical_size
     from .summary import format_percent
 
@@ -111,11 +116,11 @@ def _cmd_info(args) -> int:
     u = h.attrs.get("units", "?")
     print(f"measurement: {'area' if len(dims) == 2 else 'line'} scan, "
           + " × ".join(f"{d}={ds.sizes[d]}" for d in dims) + " points, "
-          + "size " + " × ".join(f"{physical_size(ds, d):.4g}" for d in dims) + f" {u}")
+          + "size " + _fmt_size([physical_size(ds, d) for d in dims], u))
     hv = h.values
     finite = hv[~(hv != hv)]
     if finite.size:
-        print(f"heights: {float(finite.min()):.4g} … {float(finite.max()):.4g} {u}, missing "
+        print(f"heights: {format_quantities([finite.min(), finite.max()], u)}, missing "
               f"{hv.size - finite.size} points ({format_percent(100 * (1 - finite.size / hv.size))})")
     print("metadata:")
     for key in sorted(ds.attrs):
@@ -157,6 +162,7 @@ def _control(args) -> tuple[str, list]:
 
 
 def _cmd_contact(args) -> int:
+    from ._format import format_columns
     from .batch import _contact_item, _require_contact
     from .io import open_topography
     from .io.netcdf import to_netcdf
@@ -165,16 +171,15 @@ def _cmd_contact(args) -> int:
     control, values = _control(args)
     ds = preprocess(open_topography(args.file, channel=args.channel, **read_options(args)), args)
     res = _contact_item(ds, values, control=control, scene=_scene_kwargs(args), solve=_solve_kwargs(args),
-                        maps=not args.scalars_only)
+                        maps=args.maps)
     print(f"xtopo contact: {args.file}, {len(values)} {control.replace('_', ' ')}(s)\n")
-    cols = [c for c in ("load", "mean_pressure", "area_fraction", "penetration", "iterations", "converged")
-            if c in res and c != control]
-    print("  ".join([control] + cols))
-    for i, value in enumerate(res[control].values):
-        print("  ".join([f"{value:.4g}"] + [f"{res[c].values[i]:.4g}" if res[c].dtype.kind == "f"
-                                           else str(res[c].values[i]) for c in cols]))
-    to_netcdf(res, args.output)
-    print(f"\nwrote {args.output}")
+    cols = [control] + [c for c in ("load", "mean_pressure", "area_fraction", "penetration", "iterations",
+                                    "converged") if c in res and c != control]
+    print(format_columns([(c, res[c].values.tolist(), None if c == "converged" else res[c].attrs.get("units"))
+                          for c in cols]))
+    to_netcdf(res, args.output, compress=True)
+    maps = "with" if args.maps else "scalars only, without (--maps keeps)"
+    print(f"\nwrote {args.output} ({maps} the pressure/gap/displacement/contact maps)")
     if "converged" in res and not bool(res["converged"].all()):
         failed = [f"{v:g}" for v, ok in zip(res[control].values, res["converged"].values) if not ok]
         _err(f"the solves at {_OPTIONS[control]} {' '.join(failed)} did not converge (see 'converged'); raise "
@@ -326,7 +331,9 @@ def add_commands(sub) -> None:
     p.add_argument("file", help="measurement file")
     _add_control_options(p)
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
-    p.add_argument("--scalars-only", action="store_true", help="leave the pressure/gap maps out of the output")
+    p.add_argument("--maps", action="store_true",
+                   help="keep the pressure/gap/displacement/contact maps of every step (large; compressed)")
+    p.add_argument("--scalars-only", action="store_true", help=argparse.SUPPRESS)  # the default since issue 26
     p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
     _add_scene_options(p)
     add_preprocess_options(p)
