@@ -79,3 +79,41 @@ def test_contact_results_read_back(tmp_path):
     xtopo.to_netcdf(ds, tmp_path / "m.nc")
     with pytest.raises(xtopo.ReaderError, match="open_topography"):
         xtopo.open_contact(tmp_path / "m.nc")
+
+
+def _two_files(tmp_path):
+    paths = []
+    for seed in (1, 2):
+        ds = xtopo.datasets.fractal_surface((64, 64), 1e-5, hurst=0.8, rms_height=1e-8, periodic=False, seed=seed)
+        paths.append(tmp_path / f"s{seed}.nc")
+        xtopo.to_netcdf(ds, paths[-1])
+    return paths
+
+
+def test_tip_radius_per_file_on_the_command_line(tmp_path):
+    """--tip-radius with units, one per file, reaches the measurements and their reliability cutoff (§4.9)."""
+    files = _two_files(tmp_path)
+    out = _xtopo("analyze", *files, "--tip-radius", "20nm", "0.03um", "-o", tmp_path / "a.nc")
+    assert out.returncode == 0, out.stderr
+    rows = [line.split() for line in out.stdout.splitlines() if line.startswith("s1.nc") or line.startswith("s2.nc")]
+    assert [r[r.index("nm") - 1] for r in rows] == ["20", "30"]
+    import xarray as xr
+
+    with xr.open_datatree(tmp_path / "a.nc") as tree:
+        assert tree.to_dataset()["tip_radius"].values.tolist() == pytest.approx([2e-8, 3e-8])
+    bad = _xtopo("analyze", *files, "--tip-radius", "1nm", "2nm", "3nm", "-o", tmp_path / "b.nc")
+    assert bad.returncode == 2 and "--tip-radius takes one value for every file or one per file" in bad.stderr
+    bad = _xtopo("analyze", *files, "--resolution", "20 s", "-o", tmp_path / "b.nc")
+    assert bad.returncode == 2 and "--resolution" in bad.stderr
+
+
+def test_batch_read_options_per_measurement(tmp_path):
+    from tests._batch_work import probe_attrs
+
+    files = _two_files(tmp_path)
+    res = xtopo.batch.run(probe_attrs, [str(f) for f in files], scheduler="sync", progress=False,
+                          read_options={"tip_radius": [2e-8, 3e-8]})
+    assert res["tip_radius"].values.tolist() == pytest.approx([2e-8, 3e-8])
+    with pytest.raises(xtopo.XtopoError, match="2 measurements"):
+        xtopo.batch.run(probe_attrs, [str(f) for f in files], scheduler="sync", progress=False,
+                        read_options={"tip_radius": [2e-8]})

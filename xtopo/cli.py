@@ -21,9 +21,9 @@ def _load_measurements(files, args):
         tree = example_twin()
         return {name: preprocess(node.to_dataset(), args) for name, node in tree.children.items()}, "example twin", []
     out, failed = {}, []
-    for f in files:
+    for i, f in enumerate(files):
         try:
-            out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args)), args)
+            out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args, i)), args)
         except Exception as exc:  # reported per file; the good ones go on
             failed.append((f, exc))
     return out, f"{len(files)} file(s)", failed
@@ -103,7 +103,7 @@ def _cmd_report(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
-    from .cli_commands import add_preprocess_options, add_read_options
+    from .cli_commands import add_preprocess_options, add_probe_options, add_read_options
 
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
@@ -116,6 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
     add_preprocess_options(p)
     add_read_options(p)
+    add_probe_options(p)
     p.set_defaults(func=_cmd_analyze)
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin), and write one "
@@ -128,6 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
     add_preprocess_options(r)
     add_read_options(r)
+    add_probe_options(r)
     r.set_defaults(func=_cmd_report)
     from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
 

@@ -34,11 +34,55 @@ def add_read_options(p) -> None:
                    help="physical size, in --file-units: Lx (line scan) or Ly Lx (area scan)")
 
 
-def read_options(args) -> dict:
-    """The :func:`xtopo.io.open_topography` options given by :func:`add_read_options` (those given only)."""
+def _length(value: str) -> float:
+    """A length with its unit (``20nm``, ``0.5 um``; metres without one) → metres (``--tip-radius``)."""
+    import re
+
+    from .conventions import length_factor
+    from .errors import UnitsError
+
+    m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\d\s].*)?", value)
+    if not m:
+        raise argparse.ArgumentTypeError(f"must be a length such as 20nm or 1.5e-8 (metres), got {value!r}")
+    try:
+        x = float(m.group(1)) * (length_factor(m.group(2).strip(), "m") if m.group(2) else 1.0)
+    except UnitsError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f"must be a length above 0, got {value!r}")
+    return x
+
+
+def add_probe_options(p) -> None:
+    """``--tip-radius`` and ``--resolution``: the reliability cutoff (paper §4.9) of files that store none."""
+    g = p.add_argument_group("reliability (paper §4.9) of files that store no tip radius or resolution")
+    g.add_argument("--tip-radius", type=_length, nargs="+", metavar="R",
+                   help="probe tip radius with its unit (e.g. 20nm): one for every file, or one per file")
+    g.add_argument("--resolution", type=_length, nargs="+", metavar="D",
+                   help="lateral resolution with its unit (e.g. 0.5um): one for every file, or one per file")
+
+
+def read_options(args, index: int | None = None) -> dict:
+    """The :func:`xtopo.io.open_topography` options given by :func:`add_read_options` and
+    :func:`add_probe_options` (those given only; tip radius and resolution in metres).
+
+    ``--tip-radius``/``--resolution`` with one value per file: ``index`` picks the file's; without it the
+    options hold the list (as :mod:`xtopo.batch` takes it) or the one value.
+    """
     size = getattr(args, "physical_size", None)
     options = {"file_units": getattr(args, "file_units", None), "height_units": getattr(args, "height_units", None),
                "physical_size": None if not size else size[0] if len(size) == 1 else tuple(size)}
+    n = len(getattr(args, "files", None) or [])
+    for key in ("tip_radius", "resolution"):
+        values = getattr(args, key, None)
+        if not values:
+            continue
+        if len(values) not in (1, n):
+            from .errors import XtopoError
+
+            raise XtopoError(f"--{key.replace('_', '-')} takes one value for every file or one per file; got "
+                             f"{len(values)} for {n} files")
+        options[key] = values[0] if len(values) == 1 else values[index] if index is not None else list(values)
     return {k: v for k, v in options.items() if v is not None}
 
 
@@ -359,6 +403,7 @@ def add_commands(sub) -> None:
     p.add_argument("files", nargs="+", help="measurement files")
     p.add_argument("--analyses", nargs="+", default=["scalars"], metavar="NAME",
                    help="xtopo.analysis modules to run (default: scalars)")
+    add_probe_options(p)
     _add_batch_options(p)
     p.set_defaults(func=_cmd_batch_analyze)
 
@@ -373,4 +418,5 @@ def add_commands(sub) -> None:
     p.add_argument("--units", default="m", help="length unit of the output (default: %(default)s)")
     add_preprocess_options(p)
     add_read_options(p)
+    add_probe_options(p)
     p.set_defaults(func=_cmd_convert)

@@ -21,7 +21,7 @@ import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
 from ._kernels.collocation import bin_error, bin_mean, collocation_points, interp_loglog, select_for_mean
-from .conventions import convert_length, lateral_dims, length_factor, unit_argument
+from .conventions import convert_length, height_of, lateral_dims, length_factor, unit_argument
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
@@ -219,6 +219,9 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
     """
     from .preprocess import fill_missing
 
+    h = height_of(ds)
+    if h.chunks is None and bool(np.isfinite(h.values).all()):
+        return ds  # complete: no second fill_missing line after --fill-missing (issue 26)
     try:
         return fill_missing(ds)
     except GridError as exc:

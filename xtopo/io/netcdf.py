@@ -214,12 +214,21 @@ def _write(obj, tmp, path, **kwargs):
 
 
 def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
-    """Write every node of a DataTree as a NetCDF group (atomically); provenance on the root only."""
+    """Write every node of a DataTree as a NetCDF group (atomically); provenance on the root only.
+
+    Each group holds the coordinates it inherits too (``measurement`` names), so that a group opened
+    on its own (``xr.open_dataset(path, group="psd")``) is labelled; :func:`xarray.open_datatree`
+    reads them back as inherited.
+    """
     engine = check_engine(engine)
-    groups = {node.path: prepare_for_netcdf(node.to_dataset(inherit=False), provenance=node.is_root)
-              for node in tree.subtree}
-    out = xr.DataTree.from_dict(groups)
-    return atomic_write(path, lambda tmp: _write(out, tmp, path, engine=engine))
+    groups = [(node.path, prepare_for_netcdf(node.to_dataset(inherit=not node.is_root), provenance=node.is_root))
+              for node in tree.subtree]
+
+    def write(tmp):
+        for k, (group, ds) in enumerate(groups):
+            _write(ds, tmp, path, engine=engine, mode="a" if k else "w", group=None if group == "/" else group)
+
+    return atomic_write(path, write)
 
 
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
