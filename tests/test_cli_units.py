@@ -117,3 +117,42 @@ def test_batch_read_options_per_measurement(tmp_path):
     with pytest.raises(xtopo.XtopoError, match="2 measurements"):
         xtopo.batch.run(probe_attrs, [str(f) for f in files], scheduler="sync", progress=False,
                         read_options={"tip_radius": [2e-8]})
+
+
+def _on_a_terminal(argv, tmp_path):
+    """Run the command with stdout and stderr on a pseudo-terminal; returns what it wrote."""
+    import pty
+
+    leader, follower = pty.openpty()
+    import fcntl
+    import struct
+    import termios
+
+    fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 120, 0, 0))  # a terminal's size (0×0: no bar)
+    env = {**os.environ, "PYTHONPATH": str(REPO), "COLUMNS": "120"}
+    proc = subprocess.Popen([sys.executable, "-m", "xtopo", *map(str, argv)], stdout=follower, stderr=follower,
+                            env=env, cwd=tmp_path)
+    os.close(follower)
+    chunks = []
+    while True:
+        try:
+            data = os.read(leader, 65536)
+        except OSError:
+            break
+        if not data:
+            break
+        chunks.append(data)
+    proc.wait()
+    os.close(leader)
+    return proc.returncode, b"".join(chunks).decode("utf-8", "replace")
+
+
+def test_progress_on_a_terminal_only(tmp_path):
+    files = _two_files(tmp_path)
+    rc, text = _on_a_terminal(["analyze", *files, "-o", tmp_path / "a.nc"], tmp_path)
+    assert rc == 0, text
+    assert "reading files" in text and "twin averages" in text
+    rc, text = _on_a_terminal(["analyze", *files, "-q", "-o", tmp_path / "a.nc"], tmp_path)
+    assert rc == 0 and "reading files" not in text and "twin averages" not in text
+    piped = _xtopo("analyze", *files, "-o", tmp_path / "a.nc")
+    assert piped.returncode == 0 and "reading files" not in piped.stderr + piped.stdout

@@ -88,7 +88,7 @@ def read_options(args, index: int | None = None) -> dict:
 
 def add_preprocess_options(p) -> None:
     """``--detrend MODE`` and ``--fill-missing``: the preprocessing of paper §3.2 for commands that analyse."""
-    from ._kernels.polyfit import DEGREES
+    from ._kernels import DEGREES
 
     g = p.add_argument_group("preprocessing (paper §3.2; each step is recorded in the history attribute)")
     g.add_argument("--detrend", choices=tuple(DEGREES), default=None,
@@ -253,7 +253,9 @@ def _report_batch(result, store_dir) -> int:
 
 
 def _batch_common(args) -> dict:
-    return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=not args.quiet,
+    # the bar only on a terminal: not in pipes, logs and CI (issue 26)
+    progress = not args.quiet and sys.stdout.isatty()
+    return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=progress,
                 chunks=args.chunk_size, read_options=read_options(args), preprocess=preprocess_steps(args))
 
 

@@ -130,7 +130,7 @@ def _html_page(title: str, blocks: list) -> str:
 
 
 def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
-           maps: bool = True) -> str:
+           maps: bool = True, progress: bool | None = False) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters
@@ -150,6 +150,8 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
         Largest number of pixels per side of a map in the page.
     maps : bool
         Include one map/profile per measurement.
+    progress : bool, optional
+        A progress bar over the analyses (None: on a terminal or in a notebook).
 
     Returns
     -------
@@ -178,7 +180,9 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
               f'<p class="meta">{len(ms)} measurement(s) · xtopo {html.escape(__version__)} · {stamp}</p>',
               "<h2>Measurements</h2>" + _table_html(table)]
     figures, errors = [], []
-    for name in analyses:
+    from ._progress import progress_bar
+
+    for name in progress_bar(analyses, desc="twin averages", unit="analysis", enabled=progress):
         try:
             stitched = _stitch(tree, name)
         except XtopoError as exc:

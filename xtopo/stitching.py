@@ -537,8 +537,17 @@ for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):
                                    parameters=_TWIN_PARAMETERS.format(extra=_EXTRA.get(_f.__name__, "")))
 
 
-def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:
+def analyze_twin(tree, *, per_decade: int = PER_DECADE, progress: bool | None = False) -> xr.DataTree:
     """The main job: per-measurement summary and the four averaged curves of a twin.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        The twin.
+    per_decade : int
+        Collocation points per decade of the averages.
+    progress : bool, optional
+        A progress bar over the analyses (None: on a terminal or in a notebook).
 
     Returns
     -------
@@ -550,6 +559,9 @@ def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:
 
     ms = _measurements(tree)
     results = {"/": summary_table(ms).assign_attrs({**tree.attrs, "title": tree.attrs.get("title", "twin analysis")})}
-    for name, func in (("psd", twin_psd), ("acf", twin_acf), ("vbm", twin_vbm), ("sdrp", twin_sdrp)):
+    from ._progress import progress_bar
+
+    steps = (("psd", twin_psd), ("acf", twin_acf), ("vbm", twin_vbm), ("sdrp", twin_sdrp))
+    for name, func in progress_bar(steps, desc="twin averages", unit="analysis", enabled=progress):
         results[f"/{name}"] = func(tree, per_decade=per_decade).compute()
     return xr.DataTree.from_dict(results)

@@ -10,7 +10,22 @@ from __future__ import annotations
 import os
 
 import numpy as np
-import scipy.fft as sfft
+
+
+class _Lazy:
+    """A module imported on first attribute access: ``import xtopo`` stays fast (scipy.fft takes ~0.3 s to
+    import and only the analyses and the solver need it)."""
+
+    def __init__(self, name: str):
+        self._name = name
+
+    def __getattr__(self, attr):
+        import importlib
+
+        return getattr(importlib.import_module(self._name), attr)
+
+
+sfft = _Lazy("scipy.fft")  # lazy import (startup time, issue 26)
 
 __all__ = ["rfftn", "irfftn", "fftn", "ifftn", "choose_backend", "workers"]
 

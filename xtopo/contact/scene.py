@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._kernels.convolution import Convolution
 from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
@@ -182,9 +181,11 @@ class Scene:
         return len(self.shape) == 1
 
     @property
-    def convolution(self) -> Convolution:
+    def convolution(self):
         """The elastic operator ``u = G * p`` (built on first use)."""
         if self._conv is None:
+            from .._kernels.convolution import Convolution  # lazy: numba and scipy.fft (startup time)
+
             self._conv = Convolution(self.shape, self.spacing, self.modulus, periodic=self.periodic,
                                      dtype=self.dtype, backend=self.backend)
         return self._conv

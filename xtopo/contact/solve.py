@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._kernels.pk_solver import COUNTERS, polonsky_keer
 from .._checks import integer, positive_number
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
@@ -188,6 +187,8 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
     (the cap is inactive), and the capped solver is not needed; otherwise the capped solver
     gets the iterations the elastic solve left of ``maxiter``.
     """
+    from .._kernels.pk_solver import COUNTERS, polonsky_keer  # lazy: numba (startup time, issue 26)
+
     kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=initial)
     elastic = None
     if scene.hardness is not None and load is not None and load > 0:
