@@ -36,11 +36,13 @@ _LAZY = {
 
 
 def __getattr__(name):
+    module, attr = _LAZY.get(name, (f".{name}", None))  # any submodule: xtopo.summary, xtopo.report, ...
     try:
-        module, attr = _LAZY[name]
-    except KeyError:
+        value = importlib.import_module(module, __name__)
+    except ModuleNotFoundError as exc:
+        if exc.name != f"{__name__}{module}":
+            raise
         raise AttributeError(f"module 'xtopo' has no attribute {name!r}") from None
-    value = importlib.import_module(module, __name__)
     return value if attr is None else getattr(value, attr)
 
 

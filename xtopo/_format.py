@@ -71,7 +71,7 @@ def format_quantities(values, units: str, *, digits: int = 4, sep: str = " … "
     base = _base(units)
     finite = [abs(v) for v in values if math.isfinite(v)]
     if base is None or not finite:
-        tail = "" if units in (None, "", "1") else f" {units}"
+        tail = "" if units in (None, "", "1") or not finite else f" {units}"
         return sep.join("-" if not math.isfinite(v) else f"{v:.{digits}g}" for v in values) + tail
     factor, unit, power = base
     name, scale = _prefix(max(finite) * factor, power)
