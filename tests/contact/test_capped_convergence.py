@@ -5,6 +5,7 @@ penetration (a lower bound), grows its bracket by the secant, and warm-starts ea
 from pressures interpolated between the bracket ends (:mod:`xtopo._kernels.pk_solver`).
 """
 
+import importlib.util
 import pathlib
 import warnings
 
@@ -113,4 +114,7 @@ def test_physical_modulus_gives_physical_units_and_a_mean_pressure_curve():
     assert cur["mean_pressure"].attrs["units"] == "Pa" and cur["load"].attrs["units"] == "Pa m2"
     assert cur.attrs["modulus_units"] == "Pa"
     cur.area_fraction.plot(x="mean_pressure")  # the issue's call
+    if importlib.util.find_spec("holoviews") is not None:  # the figure's axis: Pa, not p/E*
+        axis = xtopo.plot.contact_area(cur).Curve.I.kdims[0]
+        assert axis.unit == "Pa" and "E*" not in axis.label
     assert Scene(ds).solve(mean_pressure=1e-3)["pressure"].attrs["units"] == "E*"  # the default modulus 1
