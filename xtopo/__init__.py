@@ -13,14 +13,15 @@ import os
 import sys
 
 from ._version import __version__
-from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, ReaderError, UnitsError,
-                     UnsupportedFormatError, ValidationError, WriteError, XtopoError)
+from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, MetadataWarning, ReaderError,
+                     UnitsError, UnsupportedFormatError, ValidationError, WriteError, XtopoError)
 
 __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
-    "open_topography", "open_contact", "to_netcdf", "twin", "open_twin", "cache", "io", "preprocess", "batch",
+    "open_topography", "open_contact", "to_netcdf", "twin", "open_twin", "to_container", "cache", "io", "preprocess",
+    "batch",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
-    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning",
+    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "MetadataWarning",
 ]
 
 #: public name → (module, attribute or None for the module itself), imported on first access
@@ -31,7 +32,8 @@ _LAZY = {
     "stitching": (".stitching", None), "twins": (".twins", None), "accessors": (".accessors", None),
     "make_measurement": (".conventions", "make_measurement"), "validate": (".conventions", "validate"),
     "open_topography": (".io", "open_topography"), "open_contact": (".io", "open_contact"),
-    "to_netcdf": (".io", "to_netcdf"), "twin": (".twins", "twin"), "open_twin": (".twins", "open_twin"),
+    "to_netcdf": (".io", "to_netcdf"), "to_container": (".io", "to_container"), "twin": (".twins", "twin"),
+    "open_twin": (".twins", "open_twin"),
 }
 
 

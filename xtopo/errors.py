@@ -21,6 +21,7 @@ __all__ = [
     "WriteError",
     "ConvergenceWarning",
     "warn",
+    "MetadataWarning",
 ]
 
 
@@ -82,6 +83,14 @@ class WriteError(XtopoError, OSError):
 
 class ConvergenceWarning(UserWarning):
     """An iterative solver stopped before reaching its tolerance."""
+
+
+class MetadataWarning(UserWarning):
+    """A file lacks metadata a measurement needs (its length unit, its size) and a default was assumed.
+
+    The message names the file and the option (``file_units=``, ``physical_size=``) that states the
+    missing value.
+    """
 
 
 #: Top-level packages whose frames stand between a user's call and xtopo's code (a batch's scheduler,

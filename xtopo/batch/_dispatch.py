@@ -78,14 +78,25 @@ def _client_for(client, scheduler, workers):
         n = int(workers) if workers else (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                                           else os.cpu_count() or 1)
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
-                Client(cluster) as c:
+                Client(cluster, set_as_default=False) as c:
             yield c
         return
     if not scheduler.startswith(_ADDRESS_PREFIXES):
         raise XtopoError(f"unknown scheduler {scheduler!r}; use 'threads', 'processes', 'sync', 'local' "
                          "or a scheduler address like 'tcp://host:8786'")
+    if scheduler.startswith(("tcp://", "tls://")):
+        from distributed.comm import get_address_host_port
+
+        try:  # before any Client exists: a Client that fails to connect lingers until exit (60 s on close)
+            get_address_host_port(scheduler)
+        except ValueError as exc:
+            raise XtopoError(f"scheduler {scheduler!r} is not an address: {exc}; give it as "
+                             "'tcp://host:port', e.g. 'tcp://127.0.0.1:8786'") from None
     try:
-        c = Client(scheduler)  # connect timeout: dask config distributed.comm.timeouts.connect
+        # not the process's default client: a batch leaves the user's dask configuration as it found it
+        # (a Client that fails to connect would otherwise stay registered, and every later dask compute
+        # in the process would ask the dead scheduler)
+        c = Client(scheduler, set_as_default=False)  # connect timeout: dask config distributed.comm.timeouts.connect
     except (OSError, TimeoutError, ValueError) as exc:  # ValueError: an address without host or port
         raise XtopoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}. Is `dask scheduler` "
                          f"running there, and are workers attached (`dask worker {scheduler}`)?") from None
