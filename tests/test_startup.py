@@ -7,10 +7,8 @@ import subprocess
 import sys
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-HEAVY = ["dask", "distributed", "holoviews", "bokeh", "netCDF4", "h5netcdf", "matplotlib", "pint", "tqdm"]
-# numba and scipy: issue 26 kept them out of `import xtopo`, but the ISO kernels merged since
-# (_kernels.iso_areal: numba decorators at module level; _kernels.gaussian_filter: scipy.fft/ndimage) import
-# them through the accessors again; add them here once those imports are deferred
+HEAVY = ["dask", "distributed", "holoviews", "bokeh", "numba", "netCDF4", "h5netcdf", "scipy", "matplotlib",
+         "pint", "tqdm"]
 
 
 def _loaded(code, *args):

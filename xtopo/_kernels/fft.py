@@ -11,21 +11,9 @@ import os
 
 import numpy as np
 
+from ._lazy import Lazy
 
-class _Lazy:
-    """A module imported on first attribute access: ``import xtopo`` stays fast (scipy.fft takes ~0.3 s to
-    import and only the analyses and the solver need it)."""
-
-    def __init__(self, name: str):
-        self._name = name
-
-    def __getattr__(self, attr):
-        import importlib
-
-        return getattr(importlib.import_module(self._name), attr)
-
-
-sfft = _Lazy("scipy.fft")  # lazy import (startup time, issue 26)
+sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
 
 __all__ = ["rfftn", "irfftn", "fftn", "ifftn", "choose_backend", "workers"]
 
