@@ -271,8 +271,8 @@ def _cmd_contact(args) -> int:
     print(format_columns([(c, res[c].values.tolist(), None if c == "converged" else res[c].attrs.get("units"))
                           for c in cols]))
     to_netcdf(res, args.output, compress=True)
-    maps = "with" if args.maps else "scalars only, without (--maps keeps)"
-    print(f"\nwrote {args.output} ({maps} the pressure/gap/displacement/contact maps)")
+    maps = "with the" if args.maps else "scalars only; --maps keeps the"
+    print(f"\nwrote {args.output} ({maps} pressure/gap/displacement/contact maps)")
     if "converged" in res and not bool(res["converged"].all()):
         failed = [f"{v:g}" for v, ok in zip(res[control].values, res["converged"].values) if not ok]
         _err(f"the solves at {_OPTIONS[control]} {' '.join(failed)} did not converge (see 'converged'); raise "
