@@ -58,3 +58,10 @@ def fft_work(ds, loads, *, iterations: int = 30):
         "area_fraction": ("load", fractions, {"units": "1", "long_name": "fraction of the area in contact"}),
         "fft_threads": ((), _fft.workers(), {"units": "1", "long_name": "FFT threads used by the task"}),
     })
+
+
+def probe_attrs(ds):
+    """The tip radius a measurement was read with (a batch function of tests/test_cli_units.py)."""
+    import xarray as xr
+
+    return xr.Dataset({"tip_radius": ((), float(ds.attrs.get("tip_radius", float("nan"))), {"units": "m"})})

@@ -480,7 +480,7 @@ def test_contact_grid_extremes(shape, kind, periodic):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no ConvergenceWarning either
         c = scene.curve(mean_pressures=PRESSURES)
-    afs = [check_contact_result(c.isel(load=i).drop_vars(["stiffness", "gap_distribution"]), scene, mp)
+    afs = [check_contact_result(c.isel(mean_pressure=i).drop_vars(["stiffness", "gap_distribution"]), scene, mp)
            for i, mp in enumerate(PRESSURES)]
     assert np.all(np.diff(afs) >= 0), afs
     delta = c["penetration"].values

@@ -1,23 +1,64 @@
 """xtopo: surface topography analysis and contact mechanics on xarray.
 
 Importing xtopo registers the ``.topo`` accessors on DataArray, Dataset and DataTree.
+
+Startup (issue 26): the submodules and their heavy dependencies (scipy, numba, dask, holoviews,
+netCDF4) are imported on first use — the names below resolve lazily (:func:`__getattr__`, PEP 562);
+registering the accessors imports xarray only. The ``xtopo`` command registers them after parsing
+its arguments, so that ``xtopo --version``/``--help`` import neither xarray nor numpy.
 """
 
+import importlib
+import os
+import sys
+
 from ._version import __version__
-from . import conventions, datasets, errors
-from .conventions import make_measurement, validate
 from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, MetadataWarning, ReaderError,
                      UnitsError, UnsupportedFormatError, ValidationError, WriteError, XtopoError)
-from .io import open_topography, to_container, to_netcdf
-from .twins import open_twin, twin
-from . import cache
-from . import io, preprocess
-from . import batch  # issue 7: chunked Dask batch runs (distributed is imported lazily)
-from . import accessors as _accessors  # noqa: F401  (registers .topo)
 
 __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
-    "open_topography", "to_netcdf", "twin", "open_twin", "to_container", "cache", "io", "preprocess", "batch",
+    "open_topography", "open_contact", "to_netcdf", "twin", "open_twin", "to_container", "cache", "io", "preprocess",
+    "batch",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
     "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "MetadataWarning",
 ]
+
+#: public name → (module, attribute or None for the module itself), imported on first access
+_LAZY = {
+    "conventions": (".conventions", None), "datasets": (".datasets", None), "cache": (".cache", None),
+    "io": (".io", None), "preprocess": (".preprocess", None), "batch": (".batch", None),
+    "contact": (".contact", None), "analysis": (".analysis", None), "plot": (".plot", None),
+    "stitching": (".stitching", None), "twins": (".twins", None), "accessors": (".accessors", None),
+    "make_measurement": (".conventions", "make_measurement"), "validate": (".conventions", "validate"),
+    "open_topography": (".io", "open_topography"), "open_contact": (".io", "open_contact"),
+    "to_netcdf": (".io", "to_netcdf"), "to_container": (".io", "to_container"), "twin": (".twins", "twin"),
+    "open_twin": (".twins", "open_twin"),
+}
+
+
+def __getattr__(name):
+    module, attr = _LAZY.get(name, (f".{name}", None))  # any submodule: xtopo.summary, xtopo.report, ...
+    try:
+        value = importlib.import_module(module, __name__)
+    except ModuleNotFoundError as exc:
+        if exc.name != f"{__name__}{module}":
+            raise
+        raise AttributeError(f"module 'xtopo' has no attribute {name!r}") from None
+    return value if attr is None else getattr(value, attr)
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
+def _command_line() -> bool:
+    """Whether this process is the ``xtopo`` command (script or ``python -m xtopo``): it registers the
+    accessors itself once its arguments are parsed, so ``--version``/``--help`` import no xarray."""
+    argv = getattr(sys, "orig_argv", [])
+    script = os.path.basename(sys.argv[0] if sys.argv else "")
+    return script in ("xtopo", "xtopo.exe") or argv[1:3] in (["-m", "xtopo"], ["-m", "xtopo.cli"])
+
+
+if not _command_line():
+    from . import accessors as _accessors  # noqa: F401, E402  (registers .topo; imports xarray)

@@ -12,7 +12,13 @@ import sys
 __all__ = ["main"]
 
 
+def _progress(args):
+    """Progress bars of a command: off with -q, else on when stderr is a terminal (None: auto)."""
+    return False if getattr(args, "quiet", False) else None
+
+
 def _load_measurements(files, args):
+    from ._progress import progress_bar
     from .cli_commands import preprocess, read_options
     from .datasets import example_twin
     from .io import open_topography
@@ -21,9 +27,9 @@ def _load_measurements(files, args):
         tree = example_twin()
         return {name: preprocess(node.to_dataset(), args) for name, node in tree.children.items()}, "example twin", []
     out, failed = {}, []
-    for f in files:
+    for i, f in progress_bar(list(enumerate(files)), desc="reading files", unit="file", enabled=_progress(args)):
         try:
-            out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args)), args)
+            out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args, i)), args)
         except Exception as exc:  # reported per file; the good ones go on
             failed.append((f, exc))
     return out, f"{len(files)} file(s)", failed
@@ -71,7 +77,7 @@ def _cmd_analyze(args) -> int:
     measurements, what, failed = _read_inputs(args)
     if not measurements:
         return 2
-    results = analyze_twin(twin(measurements))
+    results = analyze_twin(twin(measurements), progress=_progress(args))
     print(f"xtopo analyze: {len(measurements)} measurements ({what})\n")
     print(format_table(results.to_dataset()))
     for name in ANALYSES:
@@ -85,7 +91,8 @@ def _cmd_analyze(args) -> int:
     if args.report:
         from .report import report
 
-        report(measurements, args.report, title=f"xtopo analysis: {what}", iso=iso_options(args))
+        report(measurements, args.report, title=f"xtopo analysis: {what}", iso=iso_options(args),
+               progress=_progress(args))
         print(f"wrote {args.report}")
     return 1 if failed or iso_errors else 0
 
@@ -104,14 +111,14 @@ def _cmd_report(args) -> int:
     if not measurements:
         return 2
     report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses,
-           iso=iso_options(args))
+           iso=iso_options(args), progress=_progress(args))
     print(f"wrote {args.output} ({len(measurements)} measurements, {what})")
     return 1 if failed else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
-    from .cli_commands import add_iso_options, add_preprocess_options, add_read_options
+    from .cli_commands import add_iso_options, add_preprocess_options, add_probe_options, add_read_options
 
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
@@ -125,6 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_preprocess_options(p)
     add_read_options(p)
     add_iso_options(p)
+    add_probe_options(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars (shown only on a terminal)")
     p.set_defaults(func=_cmd_analyze)
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin), and write one "
@@ -138,6 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_preprocess_options(r)
     add_read_options(r)
     add_iso_options(r)
+    add_probe_options(r)
+    r.add_argument("-q", "--quiet", action="store_true", help="no progress bars (shown only on a terminal)")
     r.set_defaults(func=_cmd_report)
     from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
 
@@ -185,11 +196,20 @@ class _Stdout:
         return getattr(self._stream, name)
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning on the command line: its text, not the library line that raised it."""
+    print(f"xtopo: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv=None) -> int:
+    import warnings
+
     stdout = sys.stdout
     sys.stdout = _Stdout(stdout)
     try:
-        return _main(argv)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            return _main(argv)
     finally:
         sys.stdout.flush()
         sys.stdout = stdout
@@ -201,6 +221,7 @@ def _main(argv) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from . import accessors  # noqa: F401  (registers .topo; skipped when the package was imported by the command)
     from .errors import XtopoError
 
     try:

@@ -34,17 +34,61 @@ def add_read_options(p) -> None:
                    help="physical size, in --file-units: Lx (line scan) or Ly Lx (area scan)")
 
 
-def read_options(args) -> dict:
-    """The :func:`xtopo.io.open_topography` options given by :func:`add_read_options` (those given only)."""
+def _length(value: str) -> float:
+    """A length with its unit (``20nm``, ``0.5 um``; metres without one) → metres (``--tip-radius``)."""
+    import re
+
+    from .conventions import length_factor
+    from .errors import UnitsError
+
+    m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\d\s].*)?", value)
+    if not m:
+        raise argparse.ArgumentTypeError(f"must be a length such as 20nm or 1.5e-8 (metres), got {value!r}")
+    try:
+        x = float(m.group(1)) * (length_factor(m.group(2).strip(), "m") if m.group(2) else 1.0)
+    except UnitsError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if not (math.isfinite(x) and x > 0):
+        raise argparse.ArgumentTypeError(f"must be a length above 0, got {value!r}")
+    return x
+
+
+def add_probe_options(p) -> None:
+    """``--tip-radius`` and ``--resolution``: the reliability cutoff (paper §4.9) of files that store none."""
+    g = p.add_argument_group("reliability (paper §4.9) of files that store no tip radius or resolution")
+    g.add_argument("--tip-radius", type=_length, nargs="+", metavar="R",
+                   help="probe tip radius with its unit (e.g. 20nm): one for every file, or one per file")
+    g.add_argument("--resolution", type=_length, nargs="+", metavar="D",
+                   help="lateral resolution with its unit (e.g. 0.5um): one for every file, or one per file")
+
+
+def read_options(args, index: int | None = None) -> dict:
+    """The :func:`xtopo.io.open_topography` options given by :func:`add_read_options` and
+    :func:`add_probe_options` (those given only; tip radius and resolution in metres).
+
+    ``--tip-radius``/``--resolution`` with one value per file: ``index`` picks the file's; without it the
+    options hold the list (as :mod:`xtopo.batch` takes it) or the one value.
+    """
     size = getattr(args, "physical_size", None)
     options = {"file_units": getattr(args, "file_units", None), "height_units": getattr(args, "height_units", None),
                "physical_size": None if not size else size[0] if len(size) == 1 else tuple(size)}
+    n = len(getattr(args, "files", None) or [])
+    for key in ("tip_radius", "resolution"):
+        values = getattr(args, key, None)
+        if not values:
+            continue
+        if len(values) not in (1, n):
+            from .errors import XtopoError
+
+            raise XtopoError(f"--{key.replace('_', '-')} takes one value for every file or one per file; got "
+                             f"{len(values)} for {n} files")
+        options[key] = values[0] if len(values) == 1 else values[index] if index is not None else list(values)
     return {k: v for k, v in options.items() if v is not None}
 
 
 def add_preprocess_options(p) -> None:
     """``--detrend MODE`` and ``--fill-missing``: the preprocessing of paper §3.2 for commands that analyse."""
-    from ._kernels.polyfit import DEGREES
+    from ._kernels import DEGREES
 
     g = p.add_argument_group("preprocessing (paper §3.2; each step is recorded in the history attribute)")
     g.add_argument("--detrend", choices=tuple(DEGREES), default=None,
@@ -127,9 +171,13 @@ def _err(msg: str) -> None:
 
 
 def _fmt_size(size, units) -> str:
+    from ._format import format_quantities
+
     if not size:
         return "?"
-    return " × ".join("?" if s is None else f"{s:.4g}" for s in size) + (f" {units}" if units else "")
+    if any(s is None for s in size):
+        return " × ".join("?" if s is None else f"{s:.4g}" for s in size) + (f" {units}" if units else "")
+    return format_quantities(size, units or "", sep=" × ")
 
 
 # --------------------------------------------------------------------------- info
@@ -137,6 +185,7 @@ def _fmt_size(size, units) -> str:
 
 def _cmd_info(args) -> int:
     import xtopo.io as xio
+    from ._format import format_quantities
     from .conventions import height_of, lateral_dims, physical_size
     from .summary import format_percent
 
@@ -159,11 +208,11 @@ def _cmd_info(args) -> int:
     u = h.attrs.get("units", "?")
     print(f"measurement: {'area' if len(dims) == 2 else 'line'} scan, "
           + " × ".join(f"{d}={ds.sizes[d]}" for d in dims) + " points, "
-          + "size " + " × ".join(f"{physical_size(ds, d):.4g}" for d in dims) + f" {u}")
+          + "size " + _fmt_size([physical_size(ds, d) for d in dims], u))
     hv = h.values
     finite = hv[~(hv != hv)]
     if finite.size:
-        print(f"heights: {float(finite.min()):.4g} … {float(finite.max()):.4g} {u}, missing "
+        print(f"heights: {format_quantities([finite.min(), finite.max()], u)}, missing "
               f"{hv.size - finite.size} points ({format_percent(100 * (1 - finite.size / hv.size))})")
     print("metadata:")
     for key in sorted(ds.attrs):
@@ -206,6 +255,7 @@ def _control(args) -> tuple[str, list]:
 
 
 def _cmd_contact(args) -> int:
+    from ._format import format_columns
     from .batch import _contact_item, _require_contact
     from .io import open_topography
     from .io.netcdf import to_netcdf
@@ -214,16 +264,15 @@ def _cmd_contact(args) -> int:
     control, values = _control(args)
     ds = preprocess(open_topography(args.file, channel=args.channel, **read_options(args)), args)
     res = _contact_item(ds, values, control=control, scene=_scene_kwargs(args), solve=_solve_kwargs(args),
-                        maps=not args.scalars_only)
+                        maps=args.maps)
     print(f"xtopo contact: {args.file}, {len(values)} {control.replace('_', ' ')}(s)\n")
-    cols = [c for c in ("load", "mean_pressure", "area_fraction", "penetration", "iterations", "converged")
-            if c in res and c != control]
-    print("  ".join([control] + cols))
-    for i, value in enumerate(res[control].values):
-        print("  ".join([f"{value:.4g}"] + [f"{res[c].values[i]:.4g}" if res[c].dtype.kind == "f"
-                                           else str(res[c].values[i]) for c in cols]))
-    to_netcdf(res, args.output)
-    print(f"\nwrote {args.output}")
+    cols = [control] + [c for c in ("load", "mean_pressure", "area_fraction", "penetration", "iterations",
+                                    "converged") if c in res and c != control]
+    print(format_columns([(c, res[c].values.tolist(), None if c == "converged" else res[c].attrs.get("units"))
+                          for c in cols]))
+    to_netcdf(res, args.output, compress=True)
+    maps = "with the" if args.maps else "scalars only; --maps keeps the"
+    print(f"\nwrote {args.output} ({maps} pressure/gap/displacement/contact maps)")
     if "converged" in res and not bool(res["converged"].all()):
         failed = [f"{v:g}" for v, ok in zip(res[control].values, res["converged"].values) if not ok]
         _err(f"the solves at {_OPTIONS[control]} {' '.join(failed)} did not converge (see 'converged'); raise "
@@ -253,7 +302,9 @@ def _report_batch(result, store_dir) -> int:
 
 
 def _batch_common(args) -> dict:
-    return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=not args.quiet,
+    # the bar only on a terminal: not in pipes, logs and CI (issue 26)
+    progress = not args.quiet and sys.stdout.isatty()
+    return dict(scheduler=args.scheduler, workers=args.workers, store=args.output, progress=progress,
                 chunks=args.chunk_size, read_options=read_options(args), preprocess=preprocess_steps(args))
 
 
@@ -334,7 +385,7 @@ def _add_control_options(p) -> None:
 def _add_scene_options(p) -> None:
     g = p.add_argument_group("contact scene")
     g.add_argument("--modulus", type=_positive_float, default=1.0,
-                   help="effective contact modulus E* (default %(default)s: pressures in units of E*)")
+                   help="effective contact modulus E* in Pa (default %(default)s: pressures in units of E*)")
     g.add_argument("--hardness", type=_positive_float, default=None,
                    help="hardness (pressure cap), same units as --modulus")
     g.add_argument("--periodic", choices=("yes", "no"), default=None,
@@ -376,7 +427,9 @@ def add_commands(sub) -> None:
     p.add_argument("file", help="measurement file")
     _add_control_options(p)
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
-    p.add_argument("--scalars-only", action="store_true", help="leave the pressure/gap maps out of the output")
+    p.add_argument("--maps", action="store_true",
+                   help="keep the pressure/gap/displacement/contact maps of every step (large; compressed)")
+    p.add_argument("--scalars-only", action="store_true", help=argparse.SUPPRESS)  # the default since issue 26
     p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
     _add_scene_options(p)
     add_preprocess_options(p)
@@ -402,6 +455,7 @@ def add_commands(sub) -> None:
     p.add_argument("files", nargs="+", help="measurement files")
     p.add_argument("--analyses", nargs="+", default=["scalars"], metavar="NAME",
                    help="xtopo.analysis modules to run (default: scalars)")
+    add_probe_options(p)
     _add_batch_options(p)
     p.set_defaults(func=_cmd_batch_analyze)
 
@@ -416,4 +470,5 @@ def add_commands(sub) -> None:
     p.add_argument("--units", default="m", help="length unit of the output (default: %(default)s)")
     add_preprocess_options(p)
     add_read_options(p)
+    add_probe_options(p)
     p.set_defaults(func=_cmd_convert)

@@ -6,6 +6,9 @@ catch one type.  Messages name the file or variable involved and say what to do.
 
 from __future__ import annotations
 
+import sys
+import warnings
+
 __all__ = [
     "XtopoError",
     "ReaderError",
@@ -17,6 +20,7 @@ __all__ = [
     "ContactError",
     "WriteError",
     "ConvergenceWarning",
+    "warn",
     "MetadataWarning",
 ]
 
@@ -87,3 +91,29 @@ class MetadataWarning(UserWarning):
     The message names the file and the option (``file_units=``, ``physical_size=``) that states the
     missing value.
     """
+
+
+#: Top-level packages whose frames stand between a user's call and xtopo's code (a batch's scheduler,
+#: xarray's apply_ufunc): a warning is attributed to the first frame outside them and outside xtopo.
+_PASS_THROUGH = frozenset({"xtopo", "dask", "distributed", "xarray", "toolz", "concurrent", "threading", "functools"})
+
+
+def _internal(frame) -> bool:
+    return str(frame.f_globals.get("__name__", "")).partition(".")[0] in _PASS_THROUGH
+
+
+def warn(message: str, category: type[Warning] = UserWarning) -> None:
+    """``warnings.warn`` attributed to the user's call: the first frame outside xtopo (and the
+    scheduler/xarray frames it runs under), not the internal line that noticed the problem.
+
+    Parameters
+    ----------
+    message : str
+        The warning's text.
+    category : type
+        Its class, e.g. :class:`ConvergenceWarning`.
+    """
+    frame, level = sys._getframe(1), 2
+    while frame.f_back is not None and _internal(frame):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level)

@@ -570,7 +570,7 @@ def twin_figure(tree, *, analyses=None, groups: dict | None = None, labels: dict
 # --------------------------------------------------------------------------- contact
 
 def _contact_steps_dim(ds) -> str | None:
-    for d in ("load", "penetration"):
+    for d in ("load", "mean_pressure", "penetration"):
         if d in ds.dims:
             return d
     return None

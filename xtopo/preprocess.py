@@ -19,7 +19,6 @@ import xarray as xr
 
 from ._apply import apply_lateral
 from ._checks import flag, option
-from ._kernels import laplace_fill as _fill
 from ._kernels import polyfit as _poly
 from .conventions import (MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims,
                           length_factor, spacing)
@@ -138,6 +137,8 @@ def fill_missing(obj):
     h = height_of(obj)
     dims = lateral_dims(h)
     periodic = is_periodic(obj)
+    from ._kernels import laplace_fill as _fill  # lazy: scipy.sparse and numba (startup time, issue 26)
+
     if dims == (Y, X):
         dy, dx = _fill_spacings(h)
         kwargs = {"periodic": periodic, "dy": dy, "dx": dx}

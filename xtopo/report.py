@@ -189,7 +189,7 @@ def _html_page(title: str, blocks: list) -> str:
 
 
 def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
-           maps: bool = True, iso: dict | None = None) -> str:
+           maps: bool = True, iso: dict | None = None, progress: bool | None = False) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters
@@ -213,6 +213,8 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
         Add a table of the ISO parameters (ISO 21920-2 profiles, and the areal set where it is
         installed) with these options: ``{}`` for the defaults, or ``lambda_s``/``lambda_c``
         (see :func:`xtopo.analysis.iso21920.iso21920`; a bare number is in metres). None: no table.
+    progress : bool, optional
+        A progress bar over the analyses (None: on a terminal or in a notebook).
 
     Returns
     -------
@@ -248,8 +250,10 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     if iso is not None:
         sections.append(("", [_iso_html(ms, mapping(iso, "iso"))]))
     if analyses:
+        from ._progress import progress_bar
+
         figures, errors = [], []
-        for name in analyses:
+        for name in progress_bar(analyses, desc="twin averages", unit="analysis", enabled=progress):
             try:
                 stitched = _stitch(tree, name)
             except XtopoError as exc:

@@ -24,7 +24,7 @@ import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
-from .conventions import convert_length, lateral_dims, length_factor, unit_argument
+from .conventions import convert_length, height_of, lateral_dims, length_factor, unit_argument
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
@@ -242,6 +242,9 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
     """
     from .preprocess import fill_missing
 
+    h = height_of(ds)
+    if h.chunks is None and bool(np.isfinite(h.values).all()):
+        return ds  # complete: no second fill_missing line after --fill-missing (issue 26)
     try:
         return fill_missing(ds)
     except GridError as exc:
@@ -619,8 +622,17 @@ ANALYSES: dict[str, TwinAnalysis] = {a.name: a for a in (
 )}
 
 
-def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:
+def analyze_twin(tree, *, per_decade: int = PER_DECADE, progress: bool | None = False) -> xr.DataTree:
     """The main job: per-measurement summary and the averaged curves of a twin (:data:`ANALYSES`).
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        The twin.
+    per_decade : int
+        Collocation points per decade of the averages.
+    progress : bool, optional
+        A progress bar over the analyses (None: on a terminal or in a notebook).
 
     Returns
     -------
@@ -633,6 +645,8 @@ def analyze_twin(tree, *, per_decade: int = PER_DECADE) -> xr.DataTree:
 
     ms = _measurements(tree)
     results = {"/": summary_table(ms).assign_attrs({**tree.attrs, "title": tree.attrs.get("title", "twin analysis")})}
-    for name, analysis in ANALYSES.items():
+    from ._progress import progress_bar
+
+    for name, analysis in progress_bar(ANALYSES.items(), desc="twin averages", unit="analysis", enabled=progress):
         results[f"/{name}"] = analysis(tree, per_decade=per_decade).compute()
     return xr.DataTree.from_dict(results)

@@ -10,6 +10,7 @@ import xarray as xr
 
 from .analysis.scalars import scalars
 from .conventions import HEIGHT, MEASUREMENT_ATTRS, convert_length, height_of, is_nonuniform, lateral_dims, physical_size
+from ._format import format_quantity
 from .errors import GridError, ValidationError
 
 __all__ = ["summary_table", "format_table", "format_percent", "table_rows", "text_table"]
@@ -129,13 +130,7 @@ def summary_table(measurements) -> xr.Dataset:
 
 
 def _fmt_len(v: float) -> str:
-    if not np.isfinite(v):
-        return "-"
-    shown = float(f"{abs(v):.3g}")  # the unit for the value as printed: 0.9999996 m is "1 m", not "1e+03 mm"
-    for unit, f in (("m", 1.0), ("mm", 1e-3), ("µm", 1e-6), ("nm", 1e-9)):
-        if shown >= f * (1 - 1e-12):
-            return f"{v / f:.3g} {unit}"
-    return f"{v / 1e-12:.3g} pm"
+    return format_quantity(v, "m", digits=3)  # the unit for the value as printed: 0.9999996 m is "1 m"
 
 
 def format_percent(p: float) -> str:

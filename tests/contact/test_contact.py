@@ -341,7 +341,7 @@ def test_accessor_and_counter_surface():
     r2 = Scene(compound).solve(mean_pressure=0.02)
     xr.testing.assert_allclose(r.pressure, r2.pressure)
     curve = s1.topo.contact(mean_pressure=[0.01, 0.02])
-    assert curve.sizes["load"] == 2
+    assert curve.sizes["mean_pressure"] == 2  # the control given (issue 26)
 
 
 def test_scene_choices_repr_and_pickle():

@@ -10,7 +10,7 @@ and ``A(0) = 0`` exactly.
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft as sfft
+from .fft import sfft  # imported on first use (startup time)
 
 from . import fft as _fft
 from .spectra import BACKEND as _BACKEND

@@ -20,7 +20,10 @@ nonperiodic map is incomplete and left out. Periodic maps wrap around.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ._lazy import LazyJit
+
+njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
 __all__ = ["significant_extrema", "FEATURES", "feature_parameters"]
 

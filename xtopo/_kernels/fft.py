@@ -10,7 +10,10 @@ from __future__ import annotations
 import os
 
 import numpy as np
-import scipy.fft as sfft
+
+from ._lazy import Lazy
+
+sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
 
 __all__ = ["rfftn", "irfftn", "fftn", "ifftn", "choose_backend", "workers"]
 

@@ -24,8 +24,10 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-import scipy.fft as sfft
-from scipy import ndimage
+
+from ._lazy import Lazy
+
+sfft, ndimage = Lazy("scipy.fft"), Lazy("scipy.ndimage")  # imported on first use (startup time, issue 26)
 
 __all__ = ["ALPHA", "TRUNCATION", "weights", "transmission", "gaussian_lowpass"]
 

@@ -21,8 +21,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.fft as sfft
-from numba import njit
+from ._lazy import Lazy, LazyJit
+
+sfft = Lazy("scipy.fft")  # imported, and the kernels compiled, on first use (startup time, issue 26)
+njit = LazyJit(globals())
 
 from . import fft as _fft
 from . import features as _features

@@ -26,7 +26,10 @@ of values and ignore NaN.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from ._lazy import LazyJit
+
+njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
 __all__ = ["Distribution", "distribution", "FUNCTIONAL", "functional", "EQUIVALENCE_WIDTH", "CURVE_SAMPLES"]
 

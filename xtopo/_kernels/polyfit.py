@@ -9,10 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["DEGREES", "subtract_polynomial_2d", "subtract_polynomial_1d"]
+from . import DEGREES  # polynomial degree of each detrend mode (kept in the package: no numpy for the CLI)
 
-#: Polynomial degree of each detrend mode.
-DEGREES = {"mean": 0, "plane": 1, "curvature": 2}
+__all__ = ["DEGREES", "subtract_polynomial_2d", "subtract_polynomial_1d"]
 
 
 def _scaled(v):

@@ -19,7 +19,7 @@ from .._checks import path as checked_path
 from ..errors import XtopoError
 from ..preprocess import checked_steps
 from ._dispatch import execute, fft_env
-from ._inputs import checked_read_options, chunk_sizes, names_and_sources, run_options
+from ._inputs import checked_read_options, chunk_sizes, names_and_sources, per_measurement, run_options
 from ._results import combine, failed_items, failure_block
 from ._scans import settle_scans
 from ._store import MANIFEST, Store, chunk_key, fingerprint, func_name
@@ -88,7 +88,9 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     read_options : dict, optional
         Keywords of :func:`xtopo.open_topography` for the file paths, e.g.
         ``{"file_units": "um", "physical_size": (Ly, Lx)}`` for files that store no size or
-        unit (plain text, npy, MATLAB, HDF5). They are part of a chunk's store key.
+        unit (plain text, npy, MATLAB, HDF5). ``tip_radius``/``resolution`` (the reliability
+        cutoff, paper §4.9, of files that store none; in the result's units) may be lists with
+        one value per measurement. They are part of a chunk's store key.
     preprocess : str, dict or sequence, optional
         Preprocessing applied in the worker to each measurement (file or Dataset) before
         ``func`` sees it, by step name and options, in the order given:
@@ -120,8 +122,9 @@ def _plan(func, dim, names, sources, params, chunks, read_options, steps, store,
     """The batch's chunks: rows of measurement blocks, each a list of parameter-value blocks."""
     mchunk, pchunk = chunk_sizes(chunks, dim, len(names), 1 if params is None else len(params))
     # a file read with other options is another measurement: the options enter its fingerprint
-    opts = json.dumps(read_options, sort_keys=True, default=repr) if read_options else ""
-    prints = [fingerprint(s) + (f"|read:{opts}" if opts and not isinstance(s, xr.Dataset) else "") for s in sources]
+    opts = [json.dumps(o, sort_keys=True, default=repr) if o else "" for o in read_options]
+    prints = [fingerprint(s) + (f"|read:{o}" if o and not isinstance(s, xr.Dataset) else "")
+              for s, o in zip(sources, opts)]
     home = os.getpid()
     grid = []
     for i in range(0, len(names), mchunk):
@@ -132,7 +135,7 @@ def _plan(func, dim, names, sources, params, chunks, read_options, steps, store,
             row.append(Chunk(func=func, dim=dim, names=names[m], sources=sources[m], params=p,
                              key=chunk_key(func, dim, names[m], prints[m], p, steps),
                              store=None if store is None else store.directory, fft_threads=fft_threads,
-                             home_pid=home, read_options=read_options, preprocess=steps, rows=(m.start, m.stop),
+                             home_pid=home, read_options=read_options[m], preprocess=steps, rows=(m.start, m.stop),
                              cols=None if p is None else (j, j + len(p))))
         grid.append(row)
     return grid
@@ -166,7 +169,7 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
     """
     names, sources = names_and_sources(measurements)
     params = run_options(func, dim, dim_attrs, workers, fft_threads, retries, progress, params)
-    read_options = checked_read_options(read_options)
+    read_options = per_measurement(checked_read_options(read_options, len(names)), len(names))
     steps = checked_steps(preprocess)
     store_obj = Store(store) if store is not None else None
     grid = _plan(func, dim, names, sources, params, chunks, read_options, steps, store_obj, fft_threads)

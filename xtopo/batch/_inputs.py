@@ -18,7 +18,7 @@ from .._checks import flag, integer, mapping
 from ..errors import XtopoError
 from ._results import ERROR, HISTORY, MEASUREMENT, SOURCE
 
-__all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options"]
+__all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options", "per_measurement"]
 
 
 def names_and_sources(measurements) -> tuple[list[str], list]:
@@ -108,8 +108,26 @@ def chunk_sizes(chunks, dim, n_meas: int, n_par: int) -> list[int]:
     return sizes
 
 
-def checked_read_options(read_options) -> dict:
-    """``read_options`` checked against :func:`xtopo.open_topography`'s keywords (a copy; {} for None)."""
+#: read options that may differ per file: a list or tuple gives one value per measurement
+PER_FILE = ("tip_radius", "resolution")
+
+
+def per_measurement(read_options: dict, n: int) -> list[dict]:
+    """``read_options`` for each of ``n`` measurements: a ``tip_radius``/``resolution`` given as a list or tuple
+    holds one value per measurement (an :class:`~xtopo.errors.XtopoError` when its length is not ``n``)."""
+    out = [dict(read_options) for _ in range(n)]
+    for key in PER_FILE:
+        values = read_options.get(key)
+        if isinstance(values, (list, tuple)):
+            for opts, v in zip(out, values):
+                opts[key] = v
+    return out
+
+
+def checked_read_options(read_options, n: int | None = None) -> dict:
+    """``read_options`` checked against :func:`xtopo.open_topography`'s keywords (a copy; {} for None).
+
+    ``tip_radius`` and ``resolution`` may be lists with one value per measurement (``n`` of them)."""
     if read_options is not None and not isinstance(read_options, dict):
         raise XtopoError(f"read_options must be a dict of xtopo.open_topography keywords, got "
                          f"{type(read_options).__name__}")
@@ -121,5 +139,11 @@ def checked_read_options(read_options) -> dict:
     unknown = sorted(set(read_options) - set(allowed))
     if unknown:
         raise XtopoError(f"read_options {unknown} are not options of xtopo.open_topography ({', '.join(allowed)})")
-    check_options("read_options", read_options)
+    for key in PER_FILE:
+        values = read_options.get(key)
+        if isinstance(values, (list, tuple)) and n is not None and len(values) != n:
+            raise XtopoError(f"read_options[{key!r}] holds {len(values)} values for {n} measurements: give one "
+                             "value for all, or one per measurement")
+    for opts in per_measurement(read_options, 1 if n is None else n):
+        check_options("read_options", opts)
     return dict(read_options)

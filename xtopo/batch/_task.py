@@ -36,7 +36,7 @@ class Chunk(NamedTuple):
     store: str | None  #: the store directory (None: no store)
     fft_threads: int | None  #: FFT threads in a worker process (None: its setting)
     home_pid: int  #: the client's process id: elsewhere, the task runs in a dedicated worker process
-    read_options: dict  #: keywords of :func:`xtopo.open_topography` for the file paths
+    read_options: list  #: keywords of :func:`xtopo.open_topography` for each of the sources (file paths)
     preprocess: tuple  #: the steps applied to each measurement once read (:func:`xtopo.preprocess.checked_steps`)
     rows: tuple  #: (first, end) index of the measurements in the batch
     cols: tuple | None  #: (first, end) index of the parameter values in the batch
@@ -152,8 +152,8 @@ def run_chunk(chunk: Chunk) -> xr.Dataset:
         if chunk.fft_threads:
             os.environ["XTOPO_FFT_THREADS"] = str(int(chunk.fft_threads))
     results, errors = [], []
-    for source in chunk.sources:
-        res, err = _run_item(chunk.func, source, chunk.params, chunk.dim, chunk.read_options, chunk.preprocess)
+    for source, options in zip(chunk.sources, chunk.read_options):
+        res, err = _run_item(chunk.func, source, chunk.params, chunk.dim, options, chunk.preprocess)
         results.append(res)
         errors.append(err)
     ds = chunk_dataset(chunk.names, chunk.sources, results, errors, chunk.params, chunk.dim)

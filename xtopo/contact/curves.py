@@ -1,15 +1,14 @@
-"""Load curves: a sequence of warm-started solves stacked along ``load`` (or ``penetration``)."""
+"""Load curves: a sequence of warm-started solves stacked along the control given (``load``,
+``mean_pressure`` or ``penetration``)."""
 
 from __future__ import annotations
-
-import warnings
 
 import numpy as np
 import xarray as xr
 
 from .._checks import bin_count
 from ..conventions import append_history
-from ..errors import ContactError, ConvergenceWarning
+from ..errors import ContactError, ConvergenceWarning, warn
 from .solve import _control, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution", "contact"]
@@ -62,9 +61,9 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     Returns
     -------
     xarray.Dataset
-        The variables of :func:`~xtopo.contact.solve.solve` stacked along ``load`` (loads or
-        mean pressures given; coordinate ``load``) or ``penetration``, plus ``stiffness``
-        (``dF/dδ``) and ``gap_distribution``.
+        The variables of :func:`~xtopo.contact.solve.solve` stacked along the control given:
+        ``load``, ``mean_pressure`` or ``penetration`` (dimension and coordinate, the values the
+        solves reached), plus ``stiffness`` (``dF/dδ``) and ``gap_distribution``.
     """
     gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), 0, error=ContactError)
     given = [(n, v) for n, v in (("loads", loads), ("mean_pressures", mean_pressures),
@@ -81,12 +80,11 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     for v, (load, pen) in zip(values, controls):
         res = run_solver(scene, load=load, penetration=pen, tol=tol, maxiter=maxiter, initial=previous)
         if not res.converged:
-            warnings.warn(f"contact solve at {name[:-1]}={v:g} did not converge in {res.iterations} iterations "
-                          f"(residual {res.residual:.3g} > tol {tol:g}); flagged converged=False",
-                          ConvergenceWarning, stacklevel=3)
+            warn(f"contact solve at {name[:-1]}={v:g} did not converge in {res.iterations} iterations "
+                 f"(residual {res.residual:.3g} > tol {tol:g}); flagged converged=False", ConvergenceWarning)
         previous = res.pressure if np.any(res.pressure) else None
         steps.append(to_dataset(scene, res, tol))
-    dim = "penetration" if name == "penetrations" else "load"
+    dim = key  # the curve runs along the control the user gave
     ds = xr.concat([st.set_coords(dim) for st in steps], dim=dim, data_vars="all", coords="minimal",
                    compat="override", combine_attrs="override")
     # penetrations are known to the solver tolerance (relative to the roughness, or the pixel for a flat)

@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .._kernels.convolution import Convolution
 from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
@@ -82,7 +81,8 @@ class Scene:
     dtype : {"float64", "float32"}, optional
         Floating point type of the solver; default from ``preset`` (``"float64"``).
     modulus_units : str, optional
-        Units label of ``modulus`` (e.g. ``"GPa"``); default ``"E*"``.
+        Units label of ``modulus`` (e.g. ``"GPa"``); default ``"E*"`` for the default modulus 1
+        (pressures relative to ``E*``), ``"Pa"`` for any other value.
     backend : {"auto", "scipy", "pyfftw"}
         FFT library (default ``"auto"``: planned pyFFTW where it is installed, else scipy; see
         :func:`xtopo._kernels.fft.choose_backend`).
@@ -115,7 +115,10 @@ class Scene:
         self.hardness = hardness
         if modulus_units is not None and not (isinstance(modulus_units, str) and modulus_units.strip()):
             raise ContactError(f"modulus_units must be a units label such as 'GPa' or 'E*', got {modulus_units!r}")
-        self.modulus_units = modulus_units.strip() if modulus_units is not None else "E*"
+        # a modulus given without units is a physical one in Pa (SI, as the lengths read from files); only
+        # the default modulus 1 makes pressures relative to E*
+        default_units = "E*" if modulus == 1.0 else "Pa"
+        self.modulus_units = modulus_units.strip() if modulus_units is not None else default_units
         self.length_units = shared_length_unit(h, "topography")
         self.dims = tuple(h.dims)
         self.shape = tuple(h.shape)
@@ -178,9 +181,11 @@ class Scene:
         return len(self.shape) == 1
 
     @property
-    def convolution(self) -> Convolution:
+    def convolution(self):
         """The elastic operator ``u = G * p`` (built on first use)."""
         if self._conv is None:
+            from .._kernels.convolution import Convolution  # lazy: numba and scipy.fft (startup time)
+
             self._conv = Convolution(self.shape, self.spacing, self.modulus, periodic=self.periodic,
                                      dtype=self.dtype, backend=self.backend)
         return self._conv

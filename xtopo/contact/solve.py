@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import xarray as xr
 
-from .._kernels.pk_solver import COUNTERS, polonsky_keer
 from .._checks import integer, positive_number
 from ..conventions import append_history
-from ..errors import ContactError, ConvergenceWarning
+from ..errors import ContactError, ConvergenceWarning, warn
 from ..presets import resolve as resolve_preset
 
 __all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "control_value", "result_units", "run_solver"]
@@ -176,9 +173,9 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
     res = run_solver(scene, load=load, penetration=penetration, tol=tol, maxiter=maxiter,
                      initial=_initial(scene, initial), callback=callback)
     if not res.converged:
-        warnings.warn(f"contact solve did not converge in {res.iterations} iterations (relative residual "
-                      f"{res.residual:.3g} > tol {tol:g}); the result is flagged converged=False — raise maxiter or "
-                      "tol, or start from a nearby solution (initial=)", ConvergenceWarning, stacklevel=3)
+        warn(f"contact solve did not converge in {res.iterations} iterations (relative residual "
+             f"{res.residual:.3g} > tol {tol:g}); the result is flagged converged=False — raise maxiter or "
+             "tol, or start from a nearby solution (initial=)", ConvergenceWarning)
     return to_dataset(scene, res, tol)
 
 
@@ -190,6 +187,8 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
     (the cap is inactive), and the capped solver is not needed; otherwise the capped solver
     gets the iterations the elastic solve left of ``maxiter``.
     """
+    from .._kernels.pk_solver import COUNTERS, polonsky_keer  # lazy: numba (startup time, issue 26)
+
     kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=initial)
     elastic = None
     if scene.hardness is not None and load is not None and load > 0:
@@ -197,6 +196,8 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
         if elastic.converged and float(np.max(elastic.pressure)) < scene.hardness:
             return elastic
         kw["maxiter"] = max(int(maxiter) - elastic.iterations, 0)
+        if initial is None and np.any(elastic.pressure):
+            kw["initial"] = elastic.pressure  # its penetration is a lower bound of the capped one's
     if scene.hardness is None or load is None:
         kw["callback"] = callback
     res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=scene.hardness, **kw)

@@ -47,7 +47,6 @@ import os
 import posixpath
 import tempfile
 import textwrap
-import warnings
 import zipfile
 from collections.abc import Mapping
 
@@ -58,7 +57,7 @@ from .._checks import path as checked_path
 from .._version import __version__
 from ..conventions import (append_history, height_of, is_nonuniform, is_periodic, lateral_dims, length_factor,
                            normalize_units, physical_size, safe_name)
-from ..errors import ReaderError, UnitsError, ValidationError, XtopoError
+from ..errors import ReaderError, UnitsError, ValidationError, XtopoError, warn
 from ._zip import MAX_MEMBER, check_declared, copy_member, read_member, unsafe_name
 
 __all__ = ["open_container", "container_twin", "to_container", "is_container", "DETREND_MODES"]
@@ -261,9 +260,8 @@ def _check_size(ds, meta: dict, where: str, path) -> None:
     f = length_factor(unit, ds["x"].attrs["units"])
     found = [physical_size(ds, d) for d in dims]
     if not np.allclose(found, np.asarray(size) * f, rtol=1e-4):
-        warnings.warn(f"{path}: {where}: the data file's size {tuple(found)} {ds['x'].attrs['units']} differs from "
-                      f"the container's {tuple(v * f for v in size)}; the file's size is used", UserWarning,
-                      stacklevel=4)
+        warn(f"{path}: {where}: the data file's size {tuple(found)} {ds['x'].attrs['units']} differs from "
+             f"the container's {tuple(v * f for v in size)}; the file's size is used", UserWarning)
 
 
 def _instrument_attrs(meta: dict, units: str) -> dict:

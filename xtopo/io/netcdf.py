@@ -21,7 +21,7 @@ from .._version import __version__
 from ..conventions import CONVENTIONS, provenance_of
 from ..errors import ReaderError, ValidationError, WriteError, XtopoError
 
-__all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
+__all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "open_contact", "is_contact_result", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
            "ENGINES"]
 
 ENGINES = ("netcdf4", "h5netcdf")
@@ -214,12 +214,21 @@ def _write(obj, tmp, path, **kwargs):
 
 
 def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
-    """Write every node of a DataTree as a NetCDF group (atomically); provenance on the root only."""
+    """Write every node of a DataTree as a NetCDF group (atomically); provenance on the root only.
+
+    Each group holds the coordinates it inherits too (``measurement`` names), so that a group opened
+    on its own (``xr.open_dataset(path, group="psd")``) is labelled; :func:`xarray.open_datatree`
+    reads them back as inherited.
+    """
     engine = check_engine(engine)
-    groups = {node.path: prepare_for_netcdf(node.to_dataset(inherit=False), provenance=node.is_root)
-              for node in tree.subtree}
-    out = xr.DataTree.from_dict(groups)
-    return atomic_write(path, lambda tmp: _write(out, tmp, path, engine=engine))
+    groups = [(node.path, prepare_for_netcdf(node.to_dataset(inherit=not node.is_root), provenance=node.is_root))
+              for node in tree.subtree]
+
+    def write(tmp):
+        for k, (group, ds) in enumerate(groups):
+            _write(ds, tmp, path, engine=engine, mode="a" if k else "w", group=None if group == "/" else group)
+
+    return atomic_write(path, write)
 
 
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
@@ -240,3 +249,44 @@ def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Da
         out[name].encoding.pop("source", None)
     out.encoding.pop("source", None)
     return out
+
+
+#: variables by which a Dataset is a contact result (xtopo.contact.Scene.solve/curve, xtopo contact)
+_CONTACT_VARIABLES = ("area_fraction", "converged")
+
+
+def is_contact_result(ds) -> bool:
+    """Whether ``ds`` holds a contact result (``area_fraction`` and ``converged``) rather than a measurement."""
+    return all(v in ds.variables for v in _CONTACT_VARIABLES) and "height" not in ds.variables
+
+
+def open_contact(path, *, engine: str | None = None) -> xr.Dataset:
+    """Read back a contact result written with :func:`to_netcdf` or by ``xtopo contact``.
+
+    :func:`xtopo.open_topography` reads measurements (a ``height``); a contact result (maps
+    and scalars of :meth:`xtopo.contact.Scene.solve`/``curve``, units and provenance kept) is
+    read with this function.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+    engine : {"netcdf4", "h5netcdf"}, optional
+        NetCDF library (default: from the file's first bytes).
+
+    Returns
+    -------
+    xarray.Dataset
+        The result as it was written, loaded into memory.
+
+    Raises
+    ------
+    ReaderError
+        The file is not readable, or holds no contact result (e.g. a measurement).
+    """
+    ds = read_netcdf(path, engine=engine)
+    if not is_contact_result(ds):
+        what = "a measurement; read it with xtopo.open_topography" if "height" in ds else (
+            f"no contact result (variables {sorted(map(str, ds.data_vars))})")
+        raise ReaderError(path, f"this file holds {what}")
+    return ds

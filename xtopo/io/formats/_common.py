@@ -22,12 +22,11 @@ import functools
 import math
 import numbers
 import re
-import warnings
 
 import numpy as np
 
 from ...conventions import make_measurement, normalize_units
-from ...errors import MetadataWarning, ReaderError, UnitsError, UnsupportedFormatError, XtopoError
+from ...errors import MetadataWarning, ReaderError, UnitsError, UnsupportedFormatError, XtopoError, warn
 from ..registry import ChannelInfo
 
 __all__ = ["reading", "guarded", "pick_channel", "to_float", "to_int", "clean_text", "length_unit", "value_unit",
@@ -300,7 +299,6 @@ def lateral_unit_or_given(path, stated: str | None, file_units: str | None) -> s
 def metres_assumed(path, what: str) -> dict:
     """Warn (:class:`~xtopo.errors.MetadataWarning`) that ``path`` states no length unit and was read in
     metres; return the ``units_assumed`` attribute that records it."""
-    warnings.warn(f"{path}: the {what} states no length unit; read as metres. Pass file_units= (e.g. "
-                  "file_units='um') to say what it is in, and physical_size= if its size is not right",
-                  MetadataWarning, stacklevel=3)
+    warn(f"{path}: the {what} states no length unit; read as metres. Pass file_units= (e.g. "
+         "file_units='um') to say what it is in, and physical_size= if its size is not right", MetadataWarning)
     return {"units_assumed": f"the {what} states no length unit; metres assumed"}

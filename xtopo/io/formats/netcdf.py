@@ -15,7 +15,12 @@ def _read(path, *, channel=None):
     pick_channel(path, ["height"], channel)  # the one channel: 0, "height" or None (anything else was ignored)
     ds = read_netcdf(path)
     if "height" not in ds:
-        from ...errors import UnsupportedFormatError
+        from ...errors import ReaderError, UnsupportedFormatError
+        from ..netcdf import is_contact_result
+
+        if is_contact_result(ds):  # a ReaderError: the advice wins over the other readers' refusals
+            raise ReaderError(path, "this file holds a contact result, not a measurement; read it with "
+                                    "xtopo.open_contact")
 
         raise UnsupportedFormatError(path, "NetCDF file without a 'height' variable is not an xtopo measurement")
     return ds
