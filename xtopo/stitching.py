@@ -377,7 +377,8 @@ def _with_provenance(out: xr.Dataset, tree, analysis: str, **params) -> xr.Datas
     twin root's ``source_file``/``source_sha256`` where it has them, and its ``history`` plus one
     line naming the average, its parameters (``units``: the length unit used, also where it
     was the first measurement's) and how many measurements entered. Each
-    measurement's ``source_file`` and ``source_sha256`` become coordinates along ``measurement``
+    measurement's ``source_file``, ``source_sha256`` and ``history`` (its preprocessing) become
+    coordinates along ``measurement``
     ('' for one without). Only attrs and coordinates built from attrs: a lazy average stays lazy.
     """
     from .analysis._scale import provenance
@@ -387,7 +388,8 @@ def _with_provenance(out: xr.Dataset, tree, analysis: str, **params) -> xr.Datas
         params["units"] = _common_units(_measurements(tree))
     coords = {}
     for key, long_name in (("source_file", "file the measurement was read from ('' where unknown)"),
-                           ("source_sha256", "SHA-256 checksum of that file ('' where unknown)")):
+                           ("source_sha256", "SHA-256 checksum of that file ('' where unknown)"),
+                           ("history", "processing of the measurement before the average, one step a line")):
         values = [str(tree.children[n].attrs.get(key) or "") for n in names]
         if any(values):
             coords[key] = ("measurement", values, {"long_name": long_name})
