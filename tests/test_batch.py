@@ -7,6 +7,7 @@ import signal
 import threading
 import time
 
+import dask
 import numpy as np
 import pytest
 import xarray as xr
@@ -540,12 +541,15 @@ def test_run_refuses_a_client_that_is_no_distributed_client(client):
         batch.run(fft_work, _surfaces(1), LOADS, client=client, progress=False)
 
 
-@pytest.mark.parametrize("scheduler", ["tcp://", "tcp://:"])
+@pytest.mark.parametrize("scheduler", ["tcp://", "tcp://:", "inproc://nothing"])
 def test_a_scheduler_address_without_host_or_port_is_refused(scheduler):
     """distributed's ValueError ('missing port number in address') escaped."""
     with pytest.raises(XtopoError, match=f"cannot connect to the Dask scheduler at {scheduler}.*dask worker "
                                          f"{scheduler}"):
         batch.run(fft_work, _surfaces(1), LOADS, scheduler=scheduler, progress=False)
+    # the failed Client left dask pointed at "dask.distributed": later NetCDF writes (the cache's) failed with
+    # "missing port number in address ''"
+    assert dask.config.get("scheduler", None) is None
 
 
 @pytest.mark.parametrize("read_options, match", [
