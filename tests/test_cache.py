@@ -1,6 +1,7 @@
 import functools
 import multiprocessing as mp
 import os
+import pathlib
 
 import numpy as np
 import pytest
@@ -259,3 +260,87 @@ def test_checksum_and_freeze_need_xarray(obj):
         freeze(obj)
     with pytest.raises(XtopoError, match="freeze needs an xarray Dataset, got DataArray"):
         freeze(xr.DataArray(np.zeros(3)))  # was AttributeError: no 'variables'
+
+
+# --------------------------------------------------------------------------- damaged entries (issue 24)
+
+def _float_at(path, value: float) -> int:
+    """Offset of the stored float64 ``value`` in the file (the entry holds it once)."""
+    raw = path.read_bytes()
+    pos = raw.find(np.float64(value).tobytes())
+    assert pos >= 0 and raw.find(np.float64(value).tobytes(), pos + 1) < 0
+    return pos
+
+
+def _flip_bit(path, value):
+    pos = _float_at(path, value)
+    with open(path, "r+b") as f:
+        f.seek(pos + 2)
+        byte = f.read(1)[0]
+        f.seek(pos + 2)
+        f.write(bytes([byte ^ 0x10]))
+
+
+def _write_nan(path, value):
+    pos = _float_at(path, value)
+    with open(path, "r+b") as f:
+        f.seek(pos)
+        f.write(np.float64(np.nan).tobytes())
+
+
+def _truncate(path, value):
+    with open(path, "r+b") as f:
+        f.truncate(os.path.getsize(path) // 2)
+
+
+def _other_key(path, value):
+    """Another key's valid entry copied over this one (same function, another surface)."""
+    cache = Cache(path.parent, memory_bytes=0)
+    other = cache(_sa_of, fractal_surface((32, 32), 1.0, hurst=0.7, seed=9))
+    assert float(other) != value
+    path.write_bytes(pathlib.Path(cache.path(_sa_of, fractal_surface((32, 32), 1.0, hurst=0.7, seed=9)))
+                     .read_bytes())
+
+
+def _sa_of(ds):
+    return scalars(ds).Sa
+
+
+@pytest.mark.parametrize("damage", [_flip_bit, _write_nan, _truncate, _other_key])
+def test_a_damaged_or_swapped_entry_is_recomputed_and_replaced(tmp_path, damage):
+    """A flipped bit, a NaN written into the stored value and another key's valid entry copied over
+    were all served as hits: each entry now holds its key and a checksum of its content."""
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1)
+    cache = Cache(tmp_path)
+    first = cache(_sa_of, ds)
+    path = pathlib.Path(cache.path(_sa_of, ds))
+    damage(path, float(first))
+    fresh = Cache(tmp_path, memory_bytes=0)  # read from disk
+    again = fresh(_sa_of, ds)
+    assert fresh.misses == 1 and fresh.hits == 0
+    xr.testing.assert_identical(again, first)
+    later = Cache(tmp_path, memory_bytes=0)  # the entry was replaced by a good one
+    xr.testing.assert_identical(later(_sa_of, ds), first)
+    assert later.hits == 1
+    # the in-process copy follows the file too: the cache that wrote it recomputes after damage
+    damage(path, float(first))
+    xr.testing.assert_identical(cache(_sa_of, ds), first)
+    assert cache.misses == 2
+
+
+def _mixed(ds):
+    """A result with a bool map, text coords, an array attr and a DataArray-free layout."""
+    s = scalars(ds)
+    return xr.Dataset({"flags": (("y", "x"), np.asarray(ds.height.values > 0)),
+                       "values": (("name",), np.array([float(s.Sq), float(s.Sa)]), {"units": "m"})},
+                      coords={"name": ["Sq", "Sa"]}, attrs={"weights": np.array([1.0, 2.0]), "ok": True})
+
+
+@pytest.mark.parametrize("func", [_mixed, _sa_of, scalars])
+def test_every_kind_of_result_verifies_when_read_back(tmp_path, func):
+    """The content checksum is taken over the stored form: valid entries of every shape are hits."""
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    first = Cache(tmp_path)(func, ds)
+    cold = Cache(tmp_path, memory_bytes=0)
+    xr.testing.assert_identical(cold(func, ds), first)
+    assert cold.hits == 1
