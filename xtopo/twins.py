@@ -18,7 +18,7 @@ from ._checks import path as checked_path
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import ValidationError, XtopoError
-from .io.netcdf import read_netcdf, tree_to_netcdf
+from .io.netcdf import READ_ENGINES, read_netcdf, tree_to_netcdf
 
 __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
 
@@ -177,11 +177,12 @@ def open_twin(path, engine: str | None = None) -> xr.DataTree:
     path : str or os.PathLike
         The archive.
     engine : {"netcdf4", "h5netcdf"}, optional
-        NetCDF library (default: xarray's choice).
+        NetCDF library (default ``h5netcdf``: a damaged archive cannot crash the interpreter, see
+        :data:`xtopo.io.netcdf.READ_ENGINES`).
     """
     path = checked_path(path, "path", kind="file path")
     try:
-        tree = xr.open_datatree(path, engine=engine)
+        tree = xr.open_datatree(path, engine=engine or READ_ENGINES["hdf5"])
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:
         from .errors import ReaderError
 

@@ -21,6 +21,8 @@ __all__ = ["AREA_PARAMETERS", "LINE_PARAMETERS", "area_parameters", "profile_par
 AREA_PARAMETERS = ("Sq", "Sdq", "Sddq", "Sa", "Sz", "Ssk", "Sku")
 #: Names and order of the outputs of :func:`profile_parameters` (per direction).
 LINE_PARAMETERS = ("Rq", "Rdq", "Rddq", "Ra", "Rz", "Rsk", "Rku")
+#: how each parameter (both lists) scales with the heights: h¹, skewness and kurtosis h⁰
+HEIGHT_POWERS = (1, 1, 1, 1, 1, 0, 0)
 
 
 def _nanmean(a, axis):

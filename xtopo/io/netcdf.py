@@ -20,8 +20,9 @@ from .._checks import path as checked_path
 from .._version import __version__
 from ..conventions import CONVENTIONS, provenance_of
 from ..errors import ReaderError, ValidationError, WriteError, XtopoError
+from ._netcdf3 import check_netcdf3_header
 
-__all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
+__all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "read_engine", "READ_ENGINES", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
            "ENGINES"]
 
 ENGINES = ("netcdf4", "h5netcdf")
@@ -222,13 +223,36 @@ def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
     return atomic_write(path, lambda tmp: _write(out, tmp, path, engine=engine))
 
 
+#: The engines that read files xtopo did not just write (archives, cache entries, twins, batch stores, files
+#: from elsewhere). NetCDF-4/HDF5 files are read with h5netcdf (h5py), never with the netCDF4 library:
+#: mutated NetCDF-4 files crash the interpreter (SIGSEGV) inside netCDF-C, some only at the next garbage
+#: collection after a later good file, while h5py reads the same files or raises (issue 24;
+#: tests/io/test_netcdf_fuzz.py). NetCDF-3 files are read with scipy (pure Python) once
+#: :func:`check_netcdf3_header` has bounded every size in the header by the file's size.
+READ_ENGINES = {"netcdf3": "scipy", "hdf5": "h5netcdf"}
+
+
+def read_engine(path) -> str:
+    """The engine that reads ``path`` safely: ``scipy`` for NetCDF-3 (header checked first), else ``h5netcdf``."""
+    with open(path, "rb") as f:
+        head = f.read(4)
+    if head[:3] == b"CDF":
+        check_netcdf3_header(path)
+        return READ_ENGINES["netcdf3"]
+    return READ_ENGINES["hdf5"]
+
+
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
-    """Open an xtopo NetCDF file; loaded into memory unless ``lazy``."""
+    """Open an xtopo NetCDF file; loaded into memory unless ``lazy``.
+
+    Without ``engine``, NetCDF-4/HDF5 files are read with h5netcdf and NetCDF-3 files with scipy after
+    a check of their header (:data:`READ_ENGINES`): no file can crash the interpreter or make the reader
+    allocate more than the file holds.
+    """
     path = checked_path(path, "path", kind="file path")  # an int would be opened (and closed) as a descriptor
     try:
         if engine is None:  # naming the engine skips xarray's guessing over every backend (ours included)
-            with open(path, "rb") as f:
-                engine = "scipy" if f.read(3) == b"CDF" else _default_engine()
+            engine = read_engine(path)
         ds = xr.open_dataset(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError) as exc:
         raise ReaderError(path, f"not a readable NetCDF/HDF5 file: {exc}") from None
