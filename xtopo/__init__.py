@@ -6,8 +6,8 @@ Importing xtopo registers the ``.topo`` accessors on DataArray, Dataset and Data
 from ._version import __version__
 from . import conventions, datasets, errors
 from .conventions import make_measurement, validate
-from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, ReaderError, UnitsError,
-                     UnsupportedFormatError, ValidationError, WriteError, XtopoError)
+from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, ReaderError, UndefinedValueWarning,
+                     UnitsError, UnsupportedFormatError, ValidationError, WriteError, XtopoError)
 from .io import open_topography, to_netcdf
 from .twins import open_twin, twin
 from . import cache
@@ -19,5 +19,5 @@ __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
     "open_topography", "to_netcdf", "twin", "open_twin", "cache", "io", "preprocess", "batch",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
-    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning",
+    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "UndefinedValueWarning",
 ]

@@ -22,7 +22,7 @@ import xarray as xr
 from .conventions import lateral_dims
 from .errors import ChunkError, XtopoError
 
-__all__ = ["check_core_chunks", "apply_lateral"]
+__all__ = ["check_core_chunks", "apply_lateral", "scale_exponent", "rescaled"]
 
 
 def check_core_chunks(da: xr.DataArray, core_dims, what: str = "this analysis") -> None:
@@ -41,7 +41,7 @@ def check_core_chunks(da: xr.DataArray, core_dims, what: str = "this analysis") 
 SCALED_FROM = 64
 
 
-def _scale_exponent(h: np.ndarray) -> int:
+def scale_exponent(h: np.ndarray) -> int:
     """``e`` with ``2**e`` near the largest finite |h| when that is beyond ``2**±SCALED_FROM``, else 0."""
     if h.dtype.kind not in "fc" or h.size == 0:
         return 0
@@ -53,7 +53,7 @@ def _scale_exponent(h: np.ndarray) -> int:
     return e if abs(e) > SCALED_FROM else 0
 
 
-def _rescaled(out, e: int, power, what: str) -> np.ndarray:
+def rescaled(out, e: int, power, what: str) -> np.ndarray:
     """``out · 2**(e·power)``; an XtopoError where a finite nonzero value leaves float64's normal range."""
     if power is None or e == 0:
         return out
@@ -76,11 +76,11 @@ def _declared(kernel, dtypes, height_power=None, what: str = "this analysis"):
     """``kernel`` with its output(s) cast to ``dtypes`` (a float32 FFT would otherwise give float32),
     computed in scaled units when ``height_power`` (one entry per output) says how each output scales."""
     def run(h, *args, **kwargs):
-        e = _scale_exponent(h) if height_power is not None else 0
+        e = scale_exponent(h) if height_power is not None else 0
         out = kernel(np.ldexp(h, -e) if e else h, *args, **kwargs)
         outs = (out,) if len(dtypes) == 1 else tuple(out)
         powers = height_power if height_power is not None else (None,) * len(outs)
-        res = tuple(np.asarray(_rescaled(np.asarray(o, dtype=d), e, p, what), dtype=d)
+        res = tuple(np.asarray(rescaled(np.asarray(o, dtype=d), e, p, what), dtype=d)
                     for o, p, d in zip(outs, powers, dtypes))
         return res[0] if len(dtypes) == 1 else res
 

@@ -17,6 +17,7 @@ __all__ = [
     "ContactError",
     "WriteError",
     "ConvergenceWarning",
+    "UndefinedValueWarning",
 ]
 
 
@@ -74,6 +75,11 @@ class WriteError(XtopoError, OSError):
 
     def __str__(self) -> str:
         return self.strerror if self.strerror is not None else super().__str__()
+
+
+class UndefinedValueWarning(UserWarning):
+    """A result is NaN because it is mathematically undefined for this input (the skewness of a flat
+    surface), not because a computation failed."""
 
 
 class ConvergenceWarning(UserWarning):

@@ -68,10 +68,14 @@ def scalars(obj) -> xr.Dataset:
 
     Notes
     -----
-    A parameter is NaN exactly where it is undefined, never from a numerical failure:
+    Heights of any representable scale (1e±300 included) are analysed in scaled units: the parameters
+    are finite, or an :class:`~xtopo.errors.XtopoError` says they lie beyond float64 (a curvature of
+    heights 1e300 m on µm pixels). A parameter is NaN exactly where it is undefined, never from a
+    numerical failure:
 
     * all parameters, when every height is missing;
-    * skewness and kurtosis (Ssk, Sku, Rsk, Rku), when the RMS height is 0 (a flat surface);
+    * skewness and kurtosis (Ssk, Sku, Rsk, Rku), when the RMS height is 0 (a flat surface), with an
+      :class:`~xtopo.errors.UndefinedValueWarning` (when the kernel runs: at ``.compute()`` for dask data);
     * slopes (Sdq, Rdq) of nonperiodic data with fewer than 2 samples along a direction,
       curvatures (Sddq, Rddq) with fewer than 3 (SΔq and SΔ²q need both directions).
     """
