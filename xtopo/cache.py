@@ -353,7 +353,7 @@ class Cache:
             out.attrs = {**result.attrs, "xtopo_cache_kind": "Dataset"}
         out.attrs[_KEY_ATTR] = os.path.basename(path)[:-len(".nc")]
         out.attrs[_SUM_ATTR] = _content_sum(out)
-        to_netcdf(out, path)
+        to_netcdf(out, path, engine="h5netcdf")  # the library that reads it: one HDF5 lock, no netCDF-C
         stored = self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
         return result if stored is None else stored
 
