@@ -30,8 +30,9 @@ from xtopo.datasets import fractal_surface
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 #: a child that reads must stay below this much resident memory above its start (MB)
 MEMORY_BOUND_MB = 400
-#: seconds for one child's whole list (a hang guard: reads take milliseconds)
-CHILD_TIMEOUT = 600
+#: seconds one read (a damaged file, then a good one) may take before it counts as a hang; reads take
+#: milliseconds, the margin is for a loaded machine
+READ_TIMEOUT = 120
 
 _WORKER = textwrap.dedent("""
     import gc, json, resource, sys, warnings
@@ -62,32 +63,45 @@ _WORKER = textwrap.dedent("""
 def read_in_children(jobs):
     """Read ``jobs`` (kind, path, good path) in child processes; ``({path: status}, peak MB)``.
 
-    A child that dies (a signal) marks the file it was reading as ``crash``; one past the timeout
-    marks it as ``hang``; the remaining files go to a fresh child.
+    A child that dies (a signal) marks the file it was reading as ``crash``; one that reports nothing
+    for :data:`READ_TIMEOUT` seconds is killed and the file marked ``hang``; the remaining files go to
+    a fresh child.
     """
+    import queue
+    import threading
+
     results, peak = {}, 0.0
     todo = list(jobs)
     while todo:
-        try:
-            proc = subprocess.run([sys.executable, "-c", _WORKER], input=json.dumps(todo), capture_output=True,
-                                  text=True, timeout=CHILD_TIMEOUT)
-            out, rc = proc.stdout, proc.returncode
-        except subprocess.TimeoutExpired as exc:
-            out, rc = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or ""), "hang"
-        done = 0
-        for line in out.splitlines():
-            path, status = json.loads(line)
+        proc = subprocess.Popen([sys.executable, "-c", _WORKER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                stderr=subprocess.DEVNULL, text=True)
+        lines = queue.Queue()
+        threading.Thread(target=lambda: [lines.put(x) for x in proc.stdout] + [lines.put(None)], daemon=True).start()
+        proc.stdin.write(json.dumps(todo))
+        proc.stdin.close()
+        done, status = 0, None
+        while True:
+            try:
+                line = lines.get(timeout=READ_TIMEOUT * (3 if done == 0 else 1))  # the first includes imports
+            except queue.Empty:
+                proc.kill()
+                status = "hang"
+                break
+            if line is None:
+                break
+            path, value = json.loads(line)
             if path == "__memory__":
-                peak = max(peak, status)
+                peak = max(peak, value)
             else:
-                results[path] = status
+                results[path] = value
                 done += 1
-        if rc == 0:
+        rc = proc.wait()
+        if status is None and rc == 0:
             break
         if done >= len(todo):  # died after its last report: while collecting garbage or exiting
             results[todo[-1][1]] = f"crash at exit ({rc})"
             break
-        results[todo[done][1]] = "hang" if rc == "hang" else f"crash ({rc})"
+        results[todo[done][1]] = status or f"crash ({rc})"
         todo = todo[done + 1:]
     return results, peak
 
