@@ -8,6 +8,11 @@ chooses (default: the user cache directory). Writes are atomic (temp file + ``os
 processes writing the same key never leave a broken file: the last complete
 write wins and both results are identical by construction.
 
+Entries are NetCDF-3 files where the result survives NetCDF-3 unchanged (checked by reading it back),
+else NetCDF-4 written and read with h5netcdf. NetCDF-3 is read by scipy, pure Python after
+:func:`xtopo.io.netcdf.read_engine` has checked the header: a damaged entry cannot crash the process,
+and a cold hit costs 1.4-14 ms where HDF5 took 35-190 ms (1024² PSD, ACF, scalars).
+
 Every entry carries its own full key and a checksum of its content (attrs ``xtopo_cache_key``,
 ``xtopo_cache_sum``), both verified whenever the file is read: a damaged entry (a flipped bit,
 a value overwritten, a truncated file) or another key's valid entry copied over it is computed
@@ -51,7 +56,7 @@ from ._tokens import callable_token
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
 from .errors import XtopoError
-from .io.netcdf import PROVENANCE_KEYS, read_netcdf, sanitize_attrs, to_netcdf
+from .io.netcdf import PROVENANCE_KEYS, atomic_write, prepare_for_netcdf, read_netcdf, sanitize_attrs, to_netcdf
 
 __all__ = ["Cache", "checksum", "default_directory", "freeze"]
 
@@ -353,8 +358,16 @@ class Cache:
             out.attrs = {**result.attrs, "xtopo_cache_kind": "Dataset"}
         out.attrs[_KEY_ATTR] = os.path.basename(path)[:-len(".nc")]
         out.attrs[_SUM_ATTR] = _content_sum(out)
-        to_netcdf(out, path, engine="h5netcdf")  # the library that reads it: one HDF5 lock, no netCDF-C
-        stored = self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
+        stored = None
+        try:  # NetCDF-3 first: read back by scipy (pure Python) 15-25x faster than HDF5 (module docstring)
+            atomic_write(path, lambda tmp: prepare_for_netcdf(out).to_netcdf(tmp, engine="scipy",
+                                                                           format="NETCDF3_64BIT"))
+            stored = self._load(path)  # None when NetCDF-3 changed it (int64, text): verified by its checksum
+        except (TypeError, ValueError, OverflowError):  # content NetCDF-3 cannot hold (complex, non-Latin-1 text)
+            pass
+        if stored is None:
+            to_netcdf(out, path, engine="h5netcdf")  # the library that reads it: one HDF5 lock, no netCDF-C
+            stored = self._load(path)  # the stored form becomes the in-process copy (disk and memory hits agree)
         return result if stored is None else stored
 
     def clear(self) -> int:
