@@ -45,8 +45,10 @@ def scale_exponent(h: np.ndarray) -> int:
     """``e`` with ``2**e`` near the largest finite |h| when that is beyond ``2**±SCALED_FROM``, else 0."""
     if h.dtype.kind not in "fc" or h.size == 0:
         return 0
-    with np.errstate(invalid="ignore"):
-        top = max(abs(float(np.nanmax(h.real))), abs(float(np.nanmin(h.real)))) if not np.isnan(h).all() else 0.0
+    hi, lo = float(h.real.max()), float(h.real.min())  # one pass each, no temporaries (~2 % of an FFT's time)
+    if np.isnan(hi) or np.isnan(lo):  # missing data: the NaN-skipping reductions (all NaN gives NaN: 0 below)
+        hi, lo = float(np.fmax.reduce(h.real, axis=None)), float(np.fmin.reduce(h.real, axis=None))
+    top = max(abs(hi), abs(lo))
     if not np.isfinite(top) or top == 0.0:
         return 0
     e = int(np.frexp(top)[1])
