@@ -27,10 +27,12 @@ SECTION = re.compile(r"^(?:Parameters|Other Parameters)\n-+\n(.*?)(?=^\S[^\n]*\n
 SEE = re.compile(r"see :(?:func|meth):`~?([\w.]+)`")
 
 #: modules whose ``__all__`` is checked where documented
-MODULES = ["xtopo.conventions", "xtopo.datasets", "xtopo.io", "xtopo.preprocess", "xtopo.batch", "xtopo.cache",
+MODULES = ["xtopo.filtration", "xtopo.analysis.iso21920",
+           "xtopo.conventions", "xtopo.datasets", "xtopo.io", "xtopo.preprocess", "xtopo.batch", "xtopo.cache",
            "xtopo.twins", "xtopo.stitching", "xtopo.contact", "xtopo.plot", "xtopo.presets",
            "xtopo.analysis.scalars", "xtopo.analysis.distribution", "xtopo.analysis.psd", "xtopo.analysis.acf",
-           "xtopo.analysis.vbm", "xtopo.analysis.sdrp", "xtopo.analysis.hurst", "xtopo.analysis.reliability"]
+           "xtopo.analysis.vbm", "xtopo.analysis.sdrp", "xtopo.analysis.hurst", "xtopo.analysis.reliability",
+           "xtopo.analysis.iso25178"]
 
 
 def parameters_section(doc: str | None) -> dict[str, tuple[str, str, bool]] | None:

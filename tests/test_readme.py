@@ -222,6 +222,21 @@ def test_readme_file_counts_match_the_real_data(real_data):
     assert len({fmt for _, fmt in native}) == len(names), (sorted({fmt for _, fmt in native}), names)
 
 
+def test_readme_layout_formats_are_registered():
+    """"11 more formats are read from their published layout ...: Keyence VK4, ..."."""
+    from xtopo.io import registry
+
+    text = " ".join(_section(_readme(), "Files").split())
+    m = re.search(r"(\d+) more formats are read from their published layout \([^()]*\): ([^.]*)\.", text)
+    assert m, "the README's sentence on the layout-tested formats changed; update tests/test_readme.py"
+    names = m[2].split(", ")
+    keys = {"Keyence VK4": "vk4", "Keyence VK6/VK7": "vk6", "Keyence ZON": "zon", "Zygo DATX": "datx",
+            "Sensofar PLUX": "plux", "Olympus LEXT": "lext", "Olympus OIR": "oir", "Olympus POIR": "poir",
+            "OmniSurf3D": "os3d", "NT-MDT": "mdt", "KLA Zeta ZMG": "zmg"}
+    assert int(m[1]) == len(names) and sorted(names) == sorted(keys)
+    assert set(keys.values()) <= set(registry.formats())
+
+
 def test_every_command_has_help(capsys):
     """"Every command has `--help`"."""
     from xtopo.cli import build_parser, main

@@ -6,9 +6,10 @@ Importing xtopo registers the ``.topo`` accessors on DataArray, Dataset and Data
 from ._version import __version__
 from . import conventions, datasets, errors
 from .conventions import make_measurement, validate
-from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, ReaderError, UndefinedValueWarning,
-                     UnitsError, UnsupportedFormatError, ValidationError, WriteError, XtopoError)
-from .io import open_topography, to_netcdf
+from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, MetadataWarning, ReaderError,
+                     UndefinedValueWarning, UnitsError, UnsupportedFormatError, ValidationError, WriteError,
+                     XtopoError)
+from .io import open_topography, to_container, to_netcdf
 from .twins import open_twin, twin
 from . import cache
 from . import io, preprocess
@@ -17,7 +18,7 @@ from . import accessors as _accessors  # noqa: F401  (registers .topo)
 
 __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
-    "open_topography", "to_netcdf", "twin", "open_twin", "cache", "io", "preprocess", "batch",
+    "open_topography", "to_netcdf", "twin", "open_twin", "to_container", "cache", "io", "preprocess", "batch",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
-    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "UndefinedValueWarning",
+    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "MetadataWarning", "UndefinedValueWarning",
 ]

@@ -14,8 +14,11 @@ from . import conventions
 from .analysis import distribution as _distribution
 from .analysis import scalars as _scalars
 from . import preprocess as _preprocess
+from . import filtration as _filtration
+from .analysis import iso21920 as _iso21920
 from .analysis import acf as _acf
 from .analysis import hurst as _hurst
+from .analysis import iso25178 as _iso25178
 from .analysis import psd as _psd
 from .analysis import reliability as _reliability
 from .analysis import sdrp as _sdrp
@@ -52,6 +55,9 @@ class _TopoAccessor:
     # io and preprocessing (issue 4)
     detrend = _delegate(_preprocess.detrend)
     fill_missing = _delegate(_preprocess.fill_missing)
+    # ISO filtration and profile parameters (issue 22)
+    filter = _delegate(_filtration.filter)
+    iso21920 = _delegate(_iso21920.iso21920)
     to_surfacetopography_netcdf = _delegate(_st_netcdf.to_surfacetopography_netcdf)
     # scale-dependent analyses (issue 3)
     psd = _delegate(_psd.psd)
@@ -60,6 +66,9 @@ class _TopoAccessor:
     sdrp = _delegate(_sdrp.sdrp)
     reliability_cutoff = _delegate(_reliability.reliability_cutoff)
     hurst = _delegate(_hurst.hurst)
+    # ISO 25178-2 areal parameters (issue 22)
+    iso25178 = _delegate(_iso25178.iso25178)
+    material_ratio = _delegate(_iso25178.material_ratio)
     # figures (issue 8)
     plot = _delegate(_plot.plot)
     # contact mechanics (issue 5)

@@ -61,6 +61,9 @@ def _average_line(name: str, r) -> str:
 
 
 def _cmd_analyze(args) -> int:
+    import xarray as xr
+
+    from .cli_commands import iso_options, iso_report
     from .io.netcdf import tree_to_netcdf
     from .stitching import analyze_twin
     from .summary import format_table
@@ -74,17 +77,22 @@ def _cmd_analyze(args) -> int:
     print(format_table(results.to_dataset()))
     for name in ("psd", "acf", "vbm", "sdrp"):
         print(_average_line(name, results[name].to_dataset()))
+    iso, iso_errors = iso_report(measurements, args)
+    if iso is not None:
+        results["iso"] = xr.DataTree(iso)
     tree_to_netcdf(results, args.output)
-    print(f"\nwrote {args.output} (groups: summary at the root, psd, acf, vbm, sdrp)")
+    groups = "psd, acf, vbm, sdrp" + (", iso" if iso is not None else "")
+    print(f"\nwrote {args.output} (groups: summary at the root, {groups})")
     if args.report:
         from .report import report
 
-        report(measurements, args.report, title=f"xtopo analysis: {what}")
+        report(measurements, args.report, title=f"xtopo analysis: {what}", iso=iso_options(args))
         print(f"wrote {args.report}")
-    return 1 if failed else 0
+    return 1 if failed or iso_errors else 0
 
 
 def _cmd_report(args) -> int:
+    from .cli_commands import iso_options
     from .report import ANALYSES, report
 
     analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
@@ -96,14 +104,15 @@ def _cmd_report(args) -> int:
     measurements, what, failed = _read_inputs(args)
     if not measurements:
         return 2
-    report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses)
+    report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses,
+           iso=iso_options(args))
     print(f"wrote {args.output} ({len(measurements)} measurements, {what})")
     return 1 if failed else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
     from ._version import __version__
-    from .cli_commands import add_preprocess_options, add_read_options
+    from .cli_commands import add_iso_options, add_preprocess_options, add_read_options
 
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
@@ -116,6 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
     add_preprocess_options(p)
     add_read_options(p)
+    add_iso_options(p)
     p.set_defaults(func=_cmd_analyze)
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin), and write one "
@@ -128,6 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
     add_preprocess_options(r)
     add_read_options(r)
+    add_iso_options(r)
     r.set_defaults(func=_cmd_report)
     from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
 

@@ -74,6 +74,54 @@ def preprocess(ds, args):
     return apply_steps(ds, preprocess_steps(args))
 
 
+def add_iso_options(p) -> None:
+    """``--iso``, ``--lambda-s``, ``--lambda-c``: the ISO parameter sets (issue 22) for commands that show them."""
+    g = p.add_argument_group("ISO parameters (ISO 21920-2 profiles along x; ISO 16610 Gaussian filters)")
+    g.add_argument("--iso", action="store_true", help="also compute and show the ISO parameters")
+    g.add_argument("--lambda-c", metavar="LENGTH", default=None,
+                   help="L-filter cut-off λc, with its unit ('0.8 mm'; a bare number is in metres) or 'auto' "
+                        "(ISO 4288 class by Ra); the sampling length. Default: no L-filter (form-removed profile, "
+                        "5 sections of the whole length)")
+    g.add_argument("--lambda-s", metavar="LENGTH", default=None,
+                   help="S-filter nesting index λs ('2.5 um', or 'auto' for the ISO 3274 value); default: none")
+
+
+def _length_option(value):
+    """A ``--lambda-*`` value: a bare number is a float (metres), anything else goes to the filter as given."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return value
+
+
+def iso_options(args) -> dict | None:
+    """The report's ``iso`` argument from ``--iso``/``--lambda-s``/``--lambda-c`` (None without ``--iso``)."""
+    if not getattr(args, "iso", False):
+        return None
+    return {"lambda_s": _length_option(args.lambda_s), "lambda_c": _length_option(args.lambda_c)}
+
+
+def iso_report(measurements: dict, args):
+    """The ISO table of ``measurements`` (:func:`xtopo.analysis._iso_sets.iso_table`), printed.
+
+    Returns ``(table, errors)``: ``(None, {})`` without ``--iso``; ``errors`` names the
+    measurements whose ISO parameters failed (printed to stderr).
+    """
+    from .analysis._iso_sets import format_iso_table, iso_table
+    from .summary import text_table
+
+    options = iso_options(args)
+    if options is None:
+        return None, {}
+    table, errors = iso_table(measurements, **options)
+    print(f"\nISO parameters (lambda_s={args.lambda_s or 'none'}, lambda_c={args.lambda_c or 'none'}):")
+    if table.data_vars:
+        print(text_table(*format_iso_table(table)))
+    for name, msg in errors.items():
+        print(f"xtopo: error: ISO parameters of {name}: {msg}", file=sys.stderr)
+    return table, errors
+
+
 def _err(msg: str) -> None:
     print(f"xtopo: error: {msg}", file=sys.stderr)
 
@@ -123,7 +171,8 @@ def _cmd_info(args) -> int:
             continue
         val = str(ds.attrs[key])
         print(f"  {key}: {val if len(val) <= 100 else val[:97] + '...'}")
-    return 0
+    _, iso_errors = iso_report({os.path.basename(path): ds}, args)
+    return 1 if iso_errors else 0
 
 
 # --------------------------------------------------------------------------- contact
@@ -318,6 +367,7 @@ def add_commands(sub) -> None:
     p.add_argument("file", help="measurement file (any supported format)")
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name (default: the first height channel)")
     add_read_options(p)
+    add_iso_options(p)
     p.set_defaults(func=_cmd_info)
 
     p = sub.add_parser("contact", help="contact mechanics of one measurement at several loads",

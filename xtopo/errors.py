@@ -17,6 +17,7 @@ __all__ = [
     "ContactError",
     "WriteError",
     "ConvergenceWarning",
+    "MetadataWarning",
     "UndefinedValueWarning",
 ]
 
@@ -84,3 +85,11 @@ class UndefinedValueWarning(UserWarning):
 
 class ConvergenceWarning(UserWarning):
     """An iterative solver stopped before reaching its tolerance."""
+
+
+class MetadataWarning(UserWarning):
+    """A file lacks metadata a measurement needs (its length unit, its size) and a default was assumed.
+
+    The message names the file and the option (``file_units=``, ``physical_size=``) that states the
+    missing value.
+    """

@@ -24,6 +24,8 @@ from ._kernels import polyfit as _poly
 from .conventions import (MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims,
                           length_factor, spacing)
 from .errors import GridError, UnitsError, XtopoError
+from .filtration import filter as _filter
+from .filtration import filter_options as _filter_options
 
 __all__ = ["detrend", "fill_missing", "apply_steps", "checked_steps"]
 
@@ -193,7 +195,8 @@ def _checked(kernel):
 
 #: the steps a batch (``preprocess=``) or the command line (``--detrend``, ``--fill-missing``) requests by name:
 #: name → (the function, its options checked into a dict)
-_STEPS = {"detrend": (detrend, _detrend_options), "fill_missing": (fill_missing, lambda: {})}
+_STEPS = {"detrend": (detrend, _detrend_options), "fill_missing": (fill_missing, lambda: {}),
+          "filter": (_filter, _filter_options)}
 STEPS = tuple(_STEPS)
 
 
@@ -238,8 +241,9 @@ def checked_steps(steps, name: str = "preprocess") -> tuple:
         in the order given, where ``options`` is True (the step's defaults), False or None (the
         step is left out), a dict of the step's keywords (``{"mode": "plane", "per_line": True}``)
         or the value of its first keyword (``"plane"`` for ``detrend``'s ``mode``). The steps:
-        ``"detrend"`` (:func:`detrend`) and ``"fill_missing"`` (:func:`fill_missing`); detrend
-        first, so that the fill does not enter the fitted background.
+        ``"detrend"`` (:func:`detrend`), ``"fill_missing"`` (:func:`fill_missing`) and ``"filter"``
+        (ISO 16610 filtration, :func:`xtopo.filtration.filter`); detrend first, so that the fill
+        does not enter the fitted background.
     name : str
         What the steps are called in an error message (the argument or option that gave them).
 

@@ -15,7 +15,7 @@ import os
 
 import xarray as xr
 
-from ._checks import flag, option
+from ._checks import flag, mapping, option
 from .errors import XtopoError
 
 __all__ = ["report", "ANALYSES"]
@@ -82,7 +82,22 @@ def _as_twin(source) -> xr.DataTree:
 def _table_html(table: xr.Dataset) -> str:
     from .summary import table_rows
 
-    header, rows = table_rows(table)
+    return _cells_html(*table_rows(table))
+
+
+def _iso_html(ms: dict, options: dict) -> str:
+    """The ISO parameters section (:mod:`xtopo.analysis._iso_sets`), errors per measurement included."""
+    from .analysis._iso_sets import format_iso_table, iso_table
+
+    table, errors = iso_table(ms, **options)
+    cut = ", ".join(f"{k} = {v}" for k, v in options.items() if v is not None) or "no filter, form removed"
+    out = f"<h2>ISO parameters</h2><p>{html.escape(cut)}</p>"
+    if table.data_vars:
+        out += _cells_html(*format_iso_table(table))
+    return out + "".join(f'<p class="error">{html.escape(n)}: {html.escape(m)}</p>' for n, m in errors.items())
+
+
+def _cells_html(header, rows) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
     return f'<table class="summary"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
@@ -130,7 +145,7 @@ def _html_page(title: str, blocks: list) -> str:
 
 
 def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
-           maps: bool = True) -> str:
+           maps: bool = True, iso: dict | None = None) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters
@@ -150,6 +165,10 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
         Largest number of pixels per side of a map in the page.
     maps : bool
         Include one map/profile per measurement.
+    iso : dict, optional
+        Add a table of the ISO parameters (ISO 21920-2 profiles, and the areal set where it is
+        installed) with these options: ``{}`` for the defaults, or ``lambda_s``/``lambda_c``
+        (see :func:`xtopo.analysis.iso21920.iso21920`; a bare number is in metres). None: no table.
 
     Returns
     -------
@@ -177,6 +196,8 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     blocks = [f"<h1>{html.escape(title)}</h1>"
               f'<p class="meta">{len(ms)} measurement(s) · xtopo {html.escape(__version__)} · {stamp}</p>',
               "<h2>Measurements</h2>" + _table_html(table)]
+    if iso is not None:
+        blocks.append(_iso_html(ms, mapping(iso, "iso")))
     figures, errors = [], []
     for name in analyses:
         try:

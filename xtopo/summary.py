@@ -12,7 +12,7 @@ from .analysis.scalars import scalars
 from .conventions import HEIGHT, MEASUREMENT_ATTRS, convert_length, height_of, is_nonuniform, lateral_dims, physical_size
 from .errors import GridError, ValidationError
 
-__all__ = ["summary_table", "format_table", "format_percent", "table_rows"]
+__all__ = ["summary_table", "format_table", "format_percent", "table_rows", "text_table"]
 
 _COLUMNS = (
     ("kind", "kind", None),
@@ -166,7 +166,11 @@ def table_rows(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
 
 def format_table(table: xr.Dataset) -> str:
     """A plain-text table of :func:`summary_table` for the terminal."""
-    header, lines = table_rows(table)
+    return text_table(*table_rows(table))
+
+
+def text_table(header: list[str], lines: list[list[str]]) -> str:
+    """Columns of text cells padded to a common width, the header underlined (a terminal table)."""
     widths = [max(len(r[k]) for r in [header] + lines) for k in range(len(header))]
     fmt = "  ".join(f"{{:<{w}}}" for w in widths)
     out = [fmt.format(*header), fmt.format(*["-" * w for w in widths])]

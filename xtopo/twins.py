@@ -169,18 +169,31 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     return tree_to_netcdf(xr.DataTree.from_dict({"/": root, **nodes}), path, engine)
 
 
-def open_twin(path, engine: str | None = None) -> xr.DataTree:
-    """Restore a twin archived with :func:`to_netcdf` (data loaded into read-only memory, as in :func:`twin`).
+def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
+    """Restore a twin archived with :func:`to_netcdf`, or read one from a contact.engineering container (ZIP).
+
+    Data are loaded into read-only memory, as in :func:`twin`. A contact.engineering download
+    (ZIP with ``index.json`` or ``meta.yml``) gives the twin of its surface, with the stored height
+    scale, filling and detrending applied (see :mod:`xtopo.io.container`); a container with several
+    surfaces needs ``surface=`` (or read them all with :func:`xtopo.io.open_container`).
 
     Parameters
     ----------
     path : str or os.PathLike
-        The archive.
+        The archive (NetCDF) or the container (ZIP).
     engine : {"netcdf4", "h5netcdf"}, optional
         NetCDF library (default ``h5netcdf``: a damaged archive cannot crash the interpreter, see
         :data:`xtopo.io.netcdf.READ_ENGINES`).
+    surface : str or int, optional
+        For a container: the surface's name or index.
     """
+    from .io.container import container_twin, is_container
+
     path = checked_path(path, "path", kind="file path")
+    if is_container(path):
+        return container_twin(path, surface)
+    if surface is not None:
+        raise ValidationError(f"surface= applies to contact.engineering containers (ZIP); {path} is not one")
     try:
         tree = xr.open_datatree(path, engine=engine or READ_ENGINES["hdf5"])
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:

@@ -11,11 +11,13 @@ from __future__ import annotations
 import re
 import shutil
 import struct
+import warnings
 
 import numpy as np
 import pytest
 import xarray as xr
 
+import xtopo
 from xtopo.errors import ReaderError, UnitsError, UnsupportedFormatError, XtopoError
 from xtopo.io import open_topography
 from xtopo.io.registry import detect, formats
@@ -146,9 +148,18 @@ def test_ibw_asylum(real_data):
 def test_ibw_tiny_without_name(real_data):
     data = _bytes(real_data, "10x10-one_channel_without_name.ibw")
     ndim, sfa, note, values = _ibw(data)
-    ds = open_topography(real_data / "10x10-one_channel_without_name.ibw", units=None)
+    with pytest.warns(xtopo.MetadataWarning, match=r"10x10-one_channel_without_name\.ibw.*file_units="):
+        ds = open_topography(real_data / "10x10-one_channel_without_name.ibw", units=None)
     _check_grid(ds, (10, 10), (10 * sfa[1], 10 * sfa[0]), "m")
     assert "units_assumed" in ds.attrs
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the caller said what the wave is in: no warning
+        um = open_topography(real_data / "10x10-one_channel_without_name.ibw", units=None, file_units="um")
+    _check_grid(um, (10, 10), (10 * sfa[1], 10 * sfa[0]), "um")
+    assert "units_assumed" not in um.attrs
+    np.testing.assert_array_equal(um.height.values, ds.height.values)
+    with pytest.raises(xtopo.ReaderError, match="states its length unit"):
+        open_topography(real_data / "spot_1-1000nm.ibw", file_units="um")
     assert float(ds.height.mean()) == pytest.approx(float(values.mean()), rel=1e-7)
     (info,) = formats()["ibw"].channels(str(real_data / "10x10-one_channel_without_name.ibw"))
     assert info.name  # named after the wave when the channel has no label
@@ -329,7 +340,10 @@ def _gwy_field(data: bytes, key: bytes):
                                               ("file_landscape.gwy", b"/3/data", "m")])
 def test_gwy(real_data, name, key, units):
     f = _gwy_field(_bytes(real_data, name), key)
-    ds = open_topography(real_data / name, units=None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ds = open_topography(real_data / name, units=None)
+    assert any(issubclass(w.category, xtopo.MetadataWarning) for w in caught) == ("units_assumed" in ds.attrs)
     _check_grid(ds, (f["yres"], f["xres"]), (f["yreal"], f["xreal"]), units)
     np.testing.assert_array_equal(ds.height.values.ravel(), f["data"])
     if name == "file_landscape.gwy":

@@ -28,11 +28,7 @@ def _design_1d(x, degree):
 
 def _design_2d(y, x, degree):
     v, u = np.meshgrid(_scaled(y), _scaled(x), indexing="ij")
-    cols = [np.ones_like(u)]
-    if degree >= 1:
-        cols += [u, v]
-    if degree >= 2:
-        cols += [u * u, u * v, v * v]
+    cols = [u ** (total - j) * v ** j for total in range(degree + 1) for j in range(total + 1)]
     return np.stack([c.ravel() for c in cols], axis=-1)
 
 
@@ -58,7 +54,9 @@ def _subtract(A, values):
 
 
 def subtract_polynomial_2d(h, y, x, degree: int, per_line: bool = False):
-    """Remove a least-squares polynomial of ``degree`` (0, 1 or 2) from maps ``h[..., ny, nx]``.
+    """Remove a least-squares polynomial of ``degree`` from maps ``h[..., ny, nx]``.
+
+    The polynomial has every monomial ``x^i y^j`` with ``i + j <= degree``.
 
     With ``per_line`` every row (profile along ``x``) gets its own 1D polynomial.
     """

@@ -52,52 +52,6 @@ def _active_client():
         return None
 
 
-def _check_address(address: str) -> None:
-    """Raise ``ValueError`` for a host-and-port address without host or port (``tcp://``, ``tcp://:``).
-
-    Checked before a ``distributed.Client`` is made: ``Client.__init__`` makes itself the process's default
-    client and sets dask's ``scheduler="dask.distributed"`` before it parses the address, and a refused
-    address left both behind, so that every later compute in the process (xarray's NetCDF writes of the
-    cache) failed with "missing port number in address ''".
-    """
-    from distributed.comm import get_address_host_port
-
-    if address.startswith(("tcp://", "tls://", "ws://", "wss://")):
-        host, _ = get_address_host_port(address)
-        if not host:
-            raise ValueError(f"no host in address {address!r}")
-
-
-@contextlib.contextmanager
-def _undone_on_failure():
-    """Undo what a ``distributed.Client`` whose construction fails for any other reason leaves behind
-    (see :func:`_check_address`): dask's scheduler setting, and the failed client as the default one."""
-    import dask
-    from distributed import default_client
-
-    def current():
-        try:
-            return default_client()
-        except ValueError:
-            return None
-
-    missing = object()
-    saved = {k: dask.config.config.get(k, missing) for k in ("scheduler", "shuffle")}
-    before = current()
-    try:
-        yield
-    except BaseException:
-        for key, value in saved.items():
-            if value is missing:
-                dask.config.config.pop(key, None)
-            else:
-                dask.config.config[key] = value
-        failed = current()
-        if failed is not None and failed is not before:
-            failed.status = "closed"  # skipped (and forgotten) by distributed's look-up of the default client
-        raise
-
-
 @contextlib.contextmanager
 def _client_for(client, scheduler, workers):
     """The distributed client to use (None: a local dask scheduler), closing any we open."""
@@ -124,16 +78,25 @@ def _client_for(client, scheduler, workers):
         n = int(workers) if workers else (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                                           else os.cpu_count() or 1)
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
-                Client(cluster) as c:
+                Client(cluster, set_as_default=False) as c:
             yield c
         return
     if not scheduler.startswith(_ADDRESS_PREFIXES):
         raise XtopoError(f"unknown scheduler {scheduler!r}; use 'threads', 'processes', 'sync', 'local' "
                          "or a scheduler address like 'tcp://host:8786'")
+    if scheduler.startswith(("tcp://", "tls://")):
+        from distributed.comm import get_address_host_port
+
+        try:  # before any Client exists: a Client that fails to connect lingers until exit (60 s on close)
+            get_address_host_port(scheduler)
+        except ValueError as exc:
+            raise XtopoError(f"scheduler {scheduler!r} is not an address: {exc}; give it as "
+                             "'tcp://host:port', e.g. 'tcp://127.0.0.1:8786'") from None
     try:
-        _check_address(scheduler)
-        with _undone_on_failure():
-            c = Client(scheduler)  # connect timeout: dask config distributed.comm.timeouts.connect
+        # not the process's default client: a batch leaves the user's dask configuration as it found it
+        # (a Client that fails to connect would otherwise stay registered, and every later dask compute
+        # in the process would ask the dead scheduler)
+        c = Client(scheduler, set_as_default=False)  # connect timeout: dask config distributed.comm.timeouts.connect
     except (OSError, TimeoutError, ValueError) as exc:  # ValueError: an address without host or port
         raise XtopoError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}. Is `dask scheduler` "
                          f"running there, and are workers attached (`dask worker {scheduler}`)?") from None

@@ -16,7 +16,8 @@ from ..errors import ReaderError, UnitsError, UnsupportedFormatError
 
 __all__ = [
     "MAX_TEXT_BYTES", "looks_like_text", "read_text", "split_lines", "parse_table", "parse_quantity",
-    "length_unit", "token_ulp", "uniform_spacing", "line_measurement", "header_value", "is_number",
+    "length_unit", "token_ulp", "column_precision", "uniform_spacing", "line_measurement", "header_value",
+    "is_number",
 ]
 
 #: Refuse text files larger than this (a text matrix of 2e7 values).
@@ -25,11 +26,18 @@ MAX_TEXT_BYTES = 512 * 1024 * 1024
 _CONTROL = bytes(range(0, 9)) + bytes(range(14, 32))
 
 
+_UTF16_BOMS = (b"\xff\xfe", b"\xfe\xff")
+
+
 def looks_like_text(head: bytes) -> bool:
     """True if ``head`` (the start of a file) is plausibly text: no NUL byte, few control characters.
 
-    UTF-8 or Latin-1 (one byte per character) encodings are accepted.
+    UTF-8 or Latin-1 (one byte per character) encodings are accepted, and UTF-16 with a byte-order
+    mark (spreadsheet exports).
     """
+    if head[:2] in _UTF16_BOMS:
+        text = head[:len(head) & ~1].decode("utf-16", errors="replace")
+        return bool(text[1:]) and looks_like_text(text[1:].encode("utf-8"))
     if not head or b"\0" in head:
         return False
     n_control = len(head) - len(head.translate(None, _CONTROL))
@@ -45,7 +53,8 @@ def looks_like_text(head: bytes) -> bool:
 
 
 def read_text(path, limit: int = MAX_TEXT_BYTES) -> str:
-    """Decode the whole file as UTF-8 (BOM stripped) or, failing that, Latin-1."""
+    """Decode the whole file: UTF-16 if it starts with a UTF-16 byte-order mark, else UTF-8 (BOM stripped)
+    or, failing that, Latin-1."""
     try:
         size = os.path.getsize(path)
         if size > limit:
@@ -54,6 +63,14 @@ def read_text(path, limit: int = MAX_TEXT_BYTES) -> str:
             data = f.read()
     except OSError as exc:
         raise ReaderError(path, f"cannot be read: {exc}") from None
+    if data[:2] in _UTF16_BOMS:
+        try:
+            text = data.decode("utf-16")
+        except UnicodeDecodeError:
+            raise ReaderError(path, "starts with a UTF-16 byte-order mark but is not UTF-16 text") from None
+        if "\0" in text:
+            raise UnsupportedFormatError(path, "contains NUL characters; it is not a text file")
+        return text
     if b"\0" in data:
         raise UnsupportedFormatError(path, "contains NUL bytes; it is not a text file")
     if data.startswith(b"\xef\xbb\xbf"):
@@ -193,13 +210,45 @@ def token_ulp(tok: str) -> float:
     return 10.0 ** (exp - decimals)
 
 
-def uniform_spacing(x: np.ndarray, tolerance: float = 0.0) -> float | None:
-    """Spacing of ``x`` if it is a uniform grid within ``tolerance`` (e.g. the print precision), else None.
+_TOKENS = re.compile(r"^\s*[-+]?\d*(?:\.(\d*))?(?:[eE]([-+]?\d+))?\s*$", re.M)
 
-    A straight line ``x_0 + m Δ`` is fitted to the positions by least squares; residuals up to
-    ``max(tolerance, 1e-9 |Δ| N)`` count as rounding (printed positions are rounded to their last
-    digit). Tolerances of a whole step or more cannot tell a grid from scattered points and are
-    capped below ``Δ``.
+
+def column_precision(tokens) -> float:
+    """The coarsest printed precision among number ``tokens``: the largest :func:`token_ulp`.
+
+    Positions printed with different numbers of decimals (``0.5``, ``0.25``) are only as precise
+    as the coarsest of them. Tokens that are not plain numbers count as 0 (unknown).
+    """
+    text = "\n".join(t.strip() for t in tokens)
+    raw = text.encode("utf-8", "replace")
+    if not raw.strip():
+        return 0.0
+    if not raw.translate(None, b"0123456789+-.\n"):  # the common case, vectorised: no exponent, no name
+        b = np.frombuffer(raw, dtype=np.uint8)
+        ends = np.append(np.flatnonzero(b == 10), b.size)
+        dots = np.flatnonzero(b == 46)
+        decimals = np.zeros(ends.size, dtype=np.int64)
+        decimals[np.searchsorted(ends, dots)] = ends[np.searchsorted(ends, dots)] - dots - 1
+        return 10.0 ** -int(decimals.min())
+    shapes = set(_TOKENS.findall(text))  # (decimals, exponent) of each number: one regex pass
+    ulps = [10.0 ** (int(exp or 0) - len(dec)) for dec, exp in shapes if abs(int(exp or 0)) <= 300]
+    return max(ulps, default=0.0)
+
+
+#: A grid is never accepted when positions stray from it by this fraction of a step or more.
+MAX_GRID_DEVIATION = 0.4
+
+
+def uniform_spacing(x: np.ndarray, precision: float = 0.0) -> float | None:
+    """Spacing of ``x`` if it is a uniform grid within its printed ``precision``, else None.
+
+    ``precision`` is the unit in the last printed place of the positions (:func:`column_precision`;
+    0 for positions stored as binary numbers). Rounding to it moves a position by up to half of it,
+    so a step between neighbours by up to ``precision`` and a position off the least-squares line
+    ``x_0 + m Δ`` by about half of it. Every step and every position is checked against
+    ``min(precision, 0.4 Δ)`` (plus floating-point slack): a missing or inserted sample changes one
+    step by a whole ``Δ`` and is never mistaken for rounding, while positions printed too coarsely
+    to tell a grid from a scan with gaps are read as nonuniform, as printed.
     """
     x = np.asarray(x, dtype=float)
     n = x.size
@@ -209,16 +258,18 @@ def uniform_spacing(x: np.ndarray, tolerance: float = 0.0) -> float | None:
     mc = m - m.mean()
     with np.errstate(over="ignore", invalid="ignore"):  # positions near the float limit: no grid, no warning
         d = float(np.dot(mc, x - x.mean()) / np.dot(mc, mc))
-    if not (np.isfinite(d) and d > 0):
-        return None
-    dev = np.abs(x - x.mean() - d * mc)
-    tol = min(max(tolerance, 1e-9 * d * n, 1e-12 * float(np.max(np.abs(x)))), 0.75 * d)
-    return d if float(np.max(dev)) <= tol else None
+        if not (np.isfinite(d) and d > 0):
+            return None
+        slack = max(1e-9 * d * n, 1e-12 * float(np.max(np.abs(x))))
+        tol = min(float(precision), MAX_GRID_DEVIATION * d) + slack
+        steps = np.abs(np.diff(x) - d)
+        dev = np.abs(x - x.mean() - d * mc)
+    return d if float(np.max(steps)) <= tol and float(np.max(dev)) <= tol else None
 
 
-def line_measurement(path, x, h, units: str, *, tolerance: float = 0.0, mask=None, **attrs):
-    """A line scan from positions and heights: uniform (``size=N Δ``) when ``x`` is a grid within
-    ``tolerance``, nonuniform (``x=``, ``grid="nonuniform"``) otherwise.
+def line_measurement(path, x, h, units: str, *, precision: float = 0.0, mask=None, **attrs):
+    """A line scan from positions and heights: uniform (``size=N Δ``) when ``x`` is a grid within its
+    printed ``precision`` (:func:`uniform_spacing`), nonuniform (``x=``, ``grid="nonuniform"``) otherwise.
 
     Raises
     ------
@@ -231,7 +282,7 @@ def line_measurement(path, x, h, units: str, *, tolerance: float = 0.0, mask=Non
         raise ReaderError(path, f"a line scan needs at least 2 points, found {x.size}")
     if not np.all(np.isfinite(x)) or np.any(np.diff(x) <= 0):
         raise ReaderError(path, "the positions (first column) must be finite and strictly increasing")
-    d = uniform_spacing(x, tolerance)
+    d = uniform_spacing(x, precision)
     if d is not None:
         return make_measurement(h, size=x.size * d, units=units, mask=mask, **attrs)
     return make_measurement(h, x=x, units=units, mask=mask, **attrs)

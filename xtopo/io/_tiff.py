@@ -81,8 +81,7 @@ class TiffFile:
         self.endian = "<" if data[:2] == b"II" else ">"
         self.reader = BinaryReader(data, path, self.endian)
         self.ifds: list[dict[int, tuple[int, int, int]]] = []
-        r = self.reader
-        pos = r.unpack("I", "first IFD offset", at=4)
+        pos = self.reader.unpack("I", "first IFD offset", at=4)
         seen = set()
         while pos:
             if pos in seen:
@@ -90,25 +89,37 @@ class TiffFile:
             if len(self.ifds) >= MAX_IFDS:
                 raise ReaderError(path, f"more than {MAX_IFDS} TIFF directories (corrupt chain)")
             seen.add(pos)
-            n = r.unpack("H", "IFD entry count", at=pos)
-            check_count(path, n, 12, len(r) - r.pos, "TIFF directory entries")
-            tags = {}
-            for i in range(n):
-                base = pos + 2 + 12 * i
-                tag, typ, count = r.unpack("HHI", "IFD entry", at=base)
-                if typ not in _TYPES:
-                    continue  # unknown types are skipped, as TIFF readers must
-                size = _TYPES[typ][1] * count
-                if size <= 4:
-                    off = base + 8
-                else:
-                    off = r.unpack("I", "IFD value offset", at=base + 8)
-                    if off + size > len(r):
-                        # keep the entry; reading it raises a clear error if needed
-                        off = -off - 1
-                tags[tag] = (typ, count, off)
+            tags, pos = self._directory(pos)
             self.ifds.append(tags)
-            pos = r.unpack("I", "next IFD offset", at=pos + 2 + 12 * n)
+
+    def _directory(self, pos: int):
+        """``(tags, offset of the next directory)`` of the directory at ``pos``."""
+        r = self.reader
+        n = r.unpack("H", "IFD entry count", at=pos)
+        check_count(self.path, n, 12, len(r) - r.pos, "TIFF directory entries")
+        tags = {}
+        for i in range(n):
+            base = pos + 2 + 12 * i
+            tag, typ, count = r.unpack("HHI", "IFD entry", at=base)
+            if typ not in _TYPES:
+                continue  # unknown types are skipped, as TIFF readers must
+            size = _TYPES[typ][1] * count
+            if size <= 4:
+                off = base + 8
+            else:
+                off = r.unpack("I", "IFD value offset", at=base + 8)
+                if off + size > len(r):
+                    # keep the entry; reading it raises a clear error if needed
+                    off = -off - 1
+            tags[tag] = (typ, count, off)
+        return tags, r.unpack("I", "next IFD offset", at=pos + 2 + 12 * n)
+
+    def sub_directory(self, pos: int) -> int:
+        """Read the directory at ``pos`` that a tag points to (EXIF, GPS); its index for :meth:`value`."""
+        if len(self.ifds) >= MAX_IFDS:
+            raise ReaderError(self.path, f"more than {MAX_IFDS} TIFF directories (corrupt chain)")
+        self.ifds.append(self._directory(int(pos))[0])
+        return len(self.ifds) - 1
 
     def has(self, ifd: int, tag: int) -> bool:
         return tag in self.ifds[ifd]

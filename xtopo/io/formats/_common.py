@@ -11,6 +11,7 @@ underscore keeps the registry from importing it as one).
 * :func:`length_unit` / :func:`value_unit` spell instrument units the xtopo way.
 * :func:`iso_time`, :func:`parse_time`, :func:`unix_time` give acquisition times as ISO 8601.
 * :func:`measurement` builds the Dataset, also for channels whose values are not lengths.
+* :func:`lateral_unit_or_given` / :func:`metres_assumed`: files that may state no length unit.
 """
 
 from __future__ import annotations
@@ -21,16 +22,17 @@ import functools
 import math
 import numbers
 import re
+import warnings
 
 import numpy as np
 
 from ...conventions import make_measurement, normalize_units
-from ...errors import ReaderError, UnitsError, UnsupportedFormatError, XtopoError
+from ...errors import MetadataWarning, ReaderError, UnitsError, UnsupportedFormatError, XtopoError
 from ..registry import ChannelInfo
 
 __all__ = ["reading", "guarded", "pick_channel", "to_float", "to_int", "clean_text", "length_unit", "value_unit",
            "unit_factor", "channel_info", "measurement", "unique_name", "iso_time", "parse_time", "unix_time",
-           "sniff_magic", "ChannelInfo", "HEIGHT_NAME_RE"]
+           "sniff_magic", "ChannelInfo", "HEIGHT_NAME_RE", "lateral_unit_or_given", "metres_assumed"]
 
 #: Channel names that denote topography (heights) rather than an auxiliary signal.
 HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|^z[ _(]", re.IGNORECASE)
@@ -279,3 +281,26 @@ def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, va
     else:
         ds["height"].attrs["long_name"] = "height"
     return ds
+
+
+def lateral_unit_or_given(path, stated: str | None, file_units: str | None) -> str:
+    """The length unit of a file that may state none: ``stated``, else the caller's ``file_units``,
+    else metres (then :func:`metres_assumed` says so).
+
+    Raises
+    ------
+    ReaderError
+        If the file states a unit and ``file_units`` is given too.
+    """
+    if stated is not None and file_units is not None:
+        raise ReaderError(path, f"the file states its length unit ({stated!r}); do not pass file_units")
+    return stated or file_units or "m"
+
+
+def metres_assumed(path, what: str) -> dict:
+    """Warn (:class:`~xtopo.errors.MetadataWarning`) that ``path`` states no length unit and was read in
+    metres; return the ``units_assumed`` attribute that records it."""
+    warnings.warn(f"{path}: the {what} states no length unit; read as metres. Pass file_units= (e.g. "
+                  "file_units='um') to say what it is in, and physical_size= if its size is not right",
+                  MetadataWarning, stacklevel=3)
+    return {"units_assumed": f"the {what} states no length unit; metres assumed"}

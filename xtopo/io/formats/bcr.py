@@ -5,10 +5,17 @@ for the ``*_unicode`` variants, i.e. 2 bytes per character) with lines
 ``key = value`` (``%``/``#`` start comments), followed by the raster, row by
 row: int16 for ``bcrstm`` (height ``= raw * bit2nm`` nm-scaled, 32767 = void),
 float32 for ``bcrf`` (values above 1.7e38, or ``voidpixels``, are void).
-``xlength``/``ylength`` are the scanning range in ``xunit``/``yunit`` (default nm),
-measured from the first to the last pixel, i.e. ``(n - 1) Δ`` (verified with a
-Mountains document of the same measurement that stores the step explicitly);
+``xlength``/``ylength`` are the scanning range in ``xunit``/``yunit`` (default nm);
 heights are in ``zunit`` (default nm); ``intelmode = 1`` means little endian.
+
+Physical size: the format's reference (SPIP/Image Metrology, "BCR-STM File Format") defines
+``xlength`` and ``ylength`` as "the scanning range", i.e. the distance the scanner travels from
+the first sample of a line to the last: ``(n - 1) Δ`` for ``n`` pixels, so xtopo reads the pixel
+size as ``Δ = xlength / (n - 1)`` and the size of the measurement (paper §3.1, ``L = n Δ``) as
+``xlength · n / (n - 1)``.  A real pair confirms it: ``bcrf-1.bcrf`` and ``mnt-1.mnt`` (the same
+960 x 600 measurement, the Mountains document storing the step itself) agree in ``Δ`` to 1e-15
+with this reading and differ by 0.1 % with ``Δ = xlength / n``, the reading of Gwyddion's
+``bcrfile.c`` and SurfaceTopography's BCR reader (they set the size to ``xlength``).
 """
 
 from __future__ import annotations

@@ -14,7 +14,8 @@ import re
 
 from ...conventions import length_factor
 from ...errors import ReaderError
-from .._text import length_unit, line_measurement, looks_like_text, parse_quantity, parse_table, read_text, token_ulp
+from .._text import (column_precision, length_unit, line_measurement, looks_like_text, parse_quantity, parse_table,
+                     read_text)
 from ..registry import Format, register
 
 __all__ = ["read_dektak"]
@@ -77,8 +78,7 @@ def read_dektak(path, *, channel=None):
     if table.shape[1] < 2:
         raise ReaderError(path, "scan data need two columns (position, height)")
     _check_length(path, params, table[:, 0], xu)
-    first, last = data[0].split(","), data[-1].split(",")
-    tol = max(token_ulp(first[0]), token_ulp(last[0]))
+    precision = column_precision(ln.split(",", 1)[0] for ln in data)
     attrs = {"instrument": "Bruker Dektak stylus profilometer", "vendor": "Bruker"}
     m = re.search(r"Radius:\s*(.+)$", params.get("Stylus", ""))
     if m:
@@ -88,7 +88,7 @@ def read_dektak(path, *, channel=None):
     for key in ("Scan Type", "Length", "Duration", "Resolution", "Force", "Profile"):
         if key in params:
             attrs[f"dektak_{key.lower().replace(' ', '_')}"] = params[key]
-    return line_measurement(path, table[:, 0], table[:, 1] * length_factor(hu, xu), xu, tolerance=tol, **attrs)
+    return line_measurement(path, table[:, 0], table[:, 1] * length_factor(hu, xu), xu, precision=precision, **attrs)
 
 
 def _sniff(head: bytes, path: str) -> bool:

@@ -12,7 +12,8 @@ title in ``/<n>/data/title``.  A data field holds ``xres``, ``yres``, ``xreal``,
 ``yreal`` (physical size, in the unit of ``si_unit_xy``), ``si_unit_xy`` and
 ``si_unit_z`` (``GwySIUnit`` objects with a ``unitstr``) and ``data``
 (``xres·yres`` float64, row by row).  Gwyddion keeps values in base SI units;
-a field with an empty lateral unit is read in metres and flagged ``units_assumed``.
+a field with an empty lateral unit is read in ``file_units=`` if given, else in metres, flagged
+``units_assumed`` with a :class:`~xtopo.errors.MetadataWarning`.
 Rows are kept in file order (Gwyddion's first row is the top of the image).
 """
 
@@ -25,7 +26,8 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count, read_bytes
 from ..registry import Format, register
-from ._common import channel_info, guarded, length_unit, measurement, pick_channel, sniff_magic, value_unit
+from ._common import (channel_info, guarded, lateral_unit_or_given, length_unit, measurement, metres_assumed,
+                      pick_channel, sniff_magic, value_unit)
 
 _MAGIC = b"GWYP"
 _MAX_DEPTH = 64
@@ -95,7 +97,7 @@ def _unit(obj) -> str:
     return ""
 
 
-def _parse(path):
+def _parse(path, file_units=None):
     data = read_bytes(path)
     if not data.startswith(_MAGIC):
         raise ReaderError(path, "not a Gwyddion GWY file (no GWYP magic; the old GWYO format is not read)")
@@ -121,7 +123,7 @@ def _parse(path):
         uxy, uz = value_unit(_unit(f.get("si_unit_xy"))), value_unit(_unit(f.get("si_unit_z")))
         lunit = length_unit(uxy)
         assumed = lunit is None
-        lunit = lunit or "m"
+        lunit = lateral_unit_or_given(path, lunit, file_units)
         zunit = uz if uz else (lunit if assumed else "")
         title = root.get(f"/{n}/data/title")
         title = title if isinstance(title, str) and title else f"channel {n}"
@@ -136,13 +138,13 @@ def _parse(path):
 
 
 @guarded("GWY")
-def _channels(path):
-    return _parse(path)[0]
+def _channels(path, *, file_units=None):
+    return _parse(path, file_units)[0]
 
 
 @guarded("GWY")
-def _read(path, *, channel=None):
-    infos, fields = _parse(path)
+def _read(path, *, channel=None, file_units=None):
+    infos, fields = _parse(path, file_units)
     i = pick_channel(path, infos, channel)
     info, f = infos[i], fields[i]
     values = np.array(f["data"], dtype=np.float64).reshape(info.shape)
@@ -152,11 +154,11 @@ def _read(path, *, channel=None):
         for k, v in meta[1].items():
             if isinstance(v, str) and len(attrs) < 64:
                 attrs[f"meta_{re.sub(r'[^A-Za-z0-9_]+', '_', k).strip('_')}"] = v
-    if f["assumed"]:
-        attrs["units_assumed"] = "the file gives no lateral unit; metres assumed"
+    if f["assumed"] and file_units is None:
+        attrs.update(metres_assumed(path, "Gwyddion data field"))
     return measurement(path, values, info, size=info.size, lateral_units=f["lunit"],
                        value_units=f["zunit"] or f["lunit"], **attrs)
 
 
 FORMAT = register(Format("gwy", "Gwyddion native file (GwyContainer)", (".gwy",), _sniff, _read, _channels,
-                         priority=10))
+                         priority=10, options=("file_units",)))

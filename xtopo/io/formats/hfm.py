@@ -19,7 +19,7 @@ import numpy as np
 
 from ...conventions import length_factor
 from ...errors import ReaderError, UnsupportedFormatError
-from .._text import length_unit, line_measurement, looks_like_text, parse_table, read_text, token_ulp
+from .._text import column_precision, length_unit, line_measurement, looks_like_text, parse_table, read_text
 from ..registry import Format, register
 
 __all__ = ["read_hfm"]
@@ -48,10 +48,8 @@ def read_hfm(path, *, channel=None):
         if not np.all((v == 0) | (v == 1)):
             raise ReaderError(path, "the 'valid' column must contain only 0 and 1")
         mask = v == 0
-    first = next(ln for ln in lines[2:] if ln.strip())
-    last = next(ln for ln in reversed(lines) if ln.strip())
-    tol = max(token_ulp(first.split(";")[0]), token_ulp(last.split(";")[0]))
-    return line_measurement(path, table[:, 0], table[:, 1] * length_factor(hu, xu), xu, tolerance=tol,
+    precision = column_precision(ln.split(";", 1)[0] for ln in lines[2:] if ln.strip())
+    return line_measurement(path, table[:, 0], table[:, 1] * length_factor(hu, xu), xu, precision=precision,
                             mask=mask, columns=";".join(names))
 
 

@@ -19,7 +19,9 @@ Asylum images are ``(x, y, channel)`` waves: ``nDim[0]`` points per line (x),
 (``HeightTrace``, ``PhaseRetrace``, ...).  The note holds ``key: value`` lines
 separated by carriage returns (``ScanSize``, ``Date``, ``Time``, ``MicroscopeModel``).
 A wave without dimension units (e.g. one exported by Gwyddion from unit-less data)
-is read in metres and flagged with ``units_assumed``.
+states neither a length unit nor, in practice, a size (Igor's default step is 1): pass
+``file_units=`` to say what its positions and values are in; without it the wave is read in
+metres, flagged with ``units_assumed`` and a :class:`~xtopo.errors.MetadataWarning` is issued.
 """
 
 from __future__ import annotations
@@ -31,7 +33,8 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from ..registry import Format, register
-from ._common import channel_info, guarded, length_unit, measurement, parse_time, pick_channel
+from ._common import (channel_info, guarded, lateral_unit_or_given, length_unit, measurement, metres_assumed,
+                      parse_time, pick_channel)
 
 _TYPES = {2: "f4", 4: "f8", 8: "i1", 16: "i2", 32: "i4", 8 | 64: "u1", 16 | 64: "u2", 32 | 64: "u4"}
 #: Value units of Asylum channels whose wave unit (usually "m") does not apply.
@@ -55,7 +58,7 @@ def _text(raw: bytes) -> str:
     return raw.split(b"\0", 1)[0].decode("latin-1", errors="replace").strip()
 
 
-def _parse(path):
+def _parse(path, file_units=None):
     data = read_bytes(path)
     if len(data) < 2:
         raise ReaderError(path, "file too short for an Igor binary wave")
@@ -123,7 +126,7 @@ def _parse(path):
     nx, ny = shape[0], shape[1]
     lunit = length_unit(dim_units[0]) or length_unit(dim_units[1])
     assumed = lunit is None
-    lunit = lunit or "m"
+    lunit = lateral_unit_or_given(path, lunit, file_units)
     size = (abs(sfa[1]) * ny, abs(sfa[0]) * nx)
     infos = []
     for i in range(nchan):
@@ -140,13 +143,13 @@ def _parse(path):
 
 
 @guarded("IBW")
-def _channels(path):
-    return _parse(path)["infos"]
+def _channels(path, *, file_units=None):
+    return _parse(path, file_units)["infos"]
 
 
 @guarded("IBW")
-def _read(path, *, channel=None):
-    p = _parse(path)
+def _read(path, *, channel=None, file_units=None):
+    p = _parse(path, file_units)
     i = pick_channel(path, p["infos"], channel)
     info = p["infos"][i]
     arr = p["r"].array(p["dtype"], p["npnts"], what="IBW wave data", at=p["start"])
@@ -163,11 +166,11 @@ def _read(path, *, channel=None):
         wave_name=p["wave"] or None,
         software_version=notes.get("Version"),
     )
-    if p["assumed"]:
-        attrs["units_assumed"] = "the file gives no length unit; metres assumed"
+    if p["assumed"] and file_units is None:
+        attrs.update(metres_assumed(path, "Igor wave"))
     return measurement(path, arr, info, size=info.size, lateral_units=p["lunit"],
                        value_units=info.height_units or p["lunit"], **attrs)
 
 
 FORMAT = register(Format("ibw", "Igor Pro binary wave (Asylum Research AFM)", (".ibw",),
-                         _sniff, _read, _channels, priority=5))
+                         _sniff, _read, _channels, priority=5, options=("file_units",)))

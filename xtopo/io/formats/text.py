@@ -5,30 +5,49 @@ Three formats share one parser:
 ``gwyddion-text``
     Gwyddion's ASCII matrix export with a comment header ``# Channel:``, ``# Width: 10.00 µm``,
     ``# Height: 10.00 µm``, ``# Value units: m``. ``Width`` is the physical size along ``x``
-    (columns), ``Height`` along ``y`` (rows); values are in ``Value units``.
+    (columns), ``Height`` along ``y`` (rows); values are in ``Value units``. Gwyddion translates
+    the keys with its user interface (``# Breite:``, ``# Höhe:`` in German); the four lines come in
+    a fixed order, so they are recognised by their place and form, in any language.
 ``dhm-text``
     ASCII matrix with the header ``h=<rows> w=<columns>``, ``pixel size=<Δ> m``,
     ``data unit=rad`` and ``height conversion factor (-> m)=<f>``: height = value × f metres
     (phase maps exported by digital holographic microscopes).
 ``text``
-    Anything else that is a table of numbers: one column or one row → a uniform line scan,
-    two columns → a line scan ``(x, h)`` (uniform if ``x`` is equidistant within its printed
-    precision, else ``grid="nonuniform"``), more columns → a matrix (rows are ``y``). Lines
-    before the numbers (or starting with ``#``/``%``) are a header of ``key: value`` or
+    Anything else that is a table of numbers (UTF-8, Latin-1 or UTF-16 with a byte-order mark;
+    separated by blanks, tabs, commas or semicolons):
+
+    * one column or one row → a uniform line scan;
+    * two columns → a line scan ``(x, h)``: uniform if every ``x`` lies on one grid within the
+      printed precision of the ``x`` column (:func:`~xtopo.io._text.uniform_spacing`), else
+      ``grid="nonuniform"`` with the positions as printed;
+    * three columns ``index, x, h`` (the first column counts the rows) → a line scan ``(x, h)``;
+    * three columns ``x y z`` whose first two columns form a complete grid (written point by
+      point, ``x`` or ``y`` varying fastest) → an areal map on that grid, its size from the
+      coordinates (``N Δ``); x y z points that form no complete uniform grid (scattered points)
+      are refused: interpolate them onto a grid first;
+    * more columns → a matrix (rows are ``y``).
+
+    Lines before the numbers (or starting with ``#``/``%``) are a header of ``key: value`` or
     ``key = value`` pairs; ``Width``/``Height``/``Value units`` are understood as in Gwyddion's
-    export. Size and units the file lacks come from ``physical_size=``/``file_units=``.
+    export. A header line of length units only (``µm µm``, one per column) gives the unit of
+    each column; column titles stating units (``x in µm``, ``X (nm)``, ``z [um]``) do too when
+    every column used states one. A line holding a lone integer above a table of several columns (a count) is
+    skipped. Size and units the file lacks come from ``physical_size=``/``file_units=``.
 """
 
 from __future__ import annotations
 
 import re
 
+import numpy as np
+
 from ...conventions import length_factor
 from ...errors import ReaderError
 from .._generic import generic_measurement, resolve_units, single_channel
-from .._text import (header_value, is_number, line_measurement, looks_like_text, parse_quantity, parse_table,
-                     read_text, token_ulp)
+from .._text import (column_precision, header_value, is_number, line_measurement, looks_like_text, parse_quantity,
+                     parse_table, read_text, uniform_spacing)
 from ..registry import Format, register
+from ._common import length_unit as unit_or_none
 
 __all__ = ["read_text_measurement", "read_dhm", "split_header"]
 
@@ -44,10 +63,11 @@ def _is_data_line(line: str) -> bool:
 
 
 def split_header(lines, path=None):
-    """Split lines into ``(header dict, data lines)``.
+    """Split lines into ``(header dict, data lines, plain header lines)``.
 
     Header lines are the lines before the first all-numeric line, and any comment lines;
-    ``key: value`` or ``key = value`` pairs are collected (keys stripped of comment marks).
+    ``key: value`` or ``key = value`` pairs are collected (keys stripped of comment marks);
+    the other non-comment header lines (column titles, a unit line) are returned as they are.
 
     Raises
     ------
@@ -57,13 +77,15 @@ def split_header(lines, path=None):
         which must not silently become a header.
     """
     header = {}
+    plain = []
     start = len(lines)
     previous = None  # the last non-comment header line
     for i, line in enumerate(lines):
         s = line.strip()
         if not s:
             continue
-        if s.startswith(_COMMENT):
+        comment = s.startswith(_COMMENT)
+        if comment:
             s = s.lstrip("#%/ \t")
         elif _is_data_line(s):
             start = i
@@ -73,6 +95,8 @@ def split_header(lines, path=None):
         m = re.match(r"^([^:=]{1,80}?)\s*[:=]\s*(.*)$", s)
         if m:
             header.setdefault(m.group(1).strip(), m.group(2).strip())
+        elif not comment:
+            plain.append(s)
     data = [ln for ln in lines[start:] if ln.strip() and not ln.lstrip().startswith(_COMMENT)]
     if previous is not None and data:
         fields = _fields(previous)
@@ -82,7 +106,7 @@ def split_header(lines, path=None):
             bad = next(t for t in fields if not is_number(t))
             raise ReaderError(path, f"the first data row contains a token that is not a number: {bad[:40]!r} "
                                     "(corrupt row)")
-    return header, data
+    return header, data, plain
 
 
 def _fields(line: str) -> list:
@@ -106,10 +130,75 @@ def _read_table(path, data_lines):
     return parse_table(path, data_lines, sep=sep), sep
 
 
+#: Gwyddion's export keys as its translations spell them (its cs, de, es, fr, it, ko, ru catalogues; ja, pt as
+#: SurfaceTopography's text reader lists them).
+_GWYDDION_KEYS = {
+    "Channel": ("channel", "kanál", "kanal", "canal", "canale", "チャネル", "채널", "канал"),
+    "Width": ("width", "šířka", "breite", "anchura", "largeur", "larghezza", "幅", "폭", "largura", "ширина"),
+    "Height": ("height", "výška", "höhe", "altura", "hauteur", "altezza", "高さ", "높이", "высота"),
+    "Value units": ("value units", "jednotky hodnot", "einheiten", "unités", "unità valore", "値の単位", "값 단위",
+                    "unidades de valor", "единицы измерения"),
+}
+_GWYDDION_LOOKUP = {k: canonical for canonical, keys in _GWYDDION_KEYS.items() for k in keys}
+_COMMENT_PAIR = re.compile(r"^\s*#\s*([^:：]{1,40}?)\s*[:：]\s*(.*?)\s*$")  # Japanese: a full-width colon
+#: a unit stated in a column title: "x in µm", "X_(microns)", "z [nm]", "Height (um)"
+_TITLE_UNIT = re.compile(r"(?:\bin\s+|[\[(])\s*([^\[\]()\s]+)\s*[\])]?\s*$")
+
+
+def _gwyddion_header(lines) -> dict:
+    """The four header lines of a Gwyddion ASCII export under their English keys, in any language.
+
+    Gwyddion writes ``# <Channel>: name``, ``# <Width>: value unit``, ``# <Height>: value unit`` and
+    ``# <Value units>: unit`` in this order, the keys translated: a translated key is recognised by
+    its catalogue spelling, an unknown translation by the place and form of its line.
+    """
+    pairs = []
+    for line in lines[:4]:
+        m = _COMMENT_PAIR.match(line)
+        if not m:
+            return {}
+        pairs.append((m.group(1), m.group(2)))
+    if len(pairs) < 4 or not all(_is_quantity(v) for _, v in pairs[1:3]):
+        return {}
+    return {_GWYDDION_LOOKUP.get(key.lower(), canonical): value
+            for (key, value), canonical in zip(pairs, _GWYDDION_KEYS)}
+
+
+def _is_quantity(text: str) -> bool:
+    fields = text.split()
+    return len(fields) == 2 and is_number(fields[0]) and unit_or_none(fields[1]) is not None
+
+
+def _column_units(path, plain, ncols):
+    """Units of the table's columns from a unit line (``µm µm``) or column titles (``x in µm``), else None."""
+    for line in reversed(plain):
+        fields = _fields(line)
+        if len(fields) == ncols and all(unit_or_none(f) for f in fields):
+            return [unit_or_none(f) for f in fields]
+        titles = [t.strip() for t in re.split(r"[,;\t]", line) if t.strip()] if re.search(r"[,;\t]", line) \
+            else fields
+        if len(titles) == ncols:
+            found = [_TITLE_UNIT.search(t) for t in titles]
+            units = [unit_or_none(m.group(1)) if m else None for m in found]
+            return units if any(units) else None
+    return None
+
+
+def _drop_count_line(data):
+    """Data lines without a first line that holds a lone integer above a table of several columns (a count
+    or a record number some exports write, ``23``)."""
+    if len(data) > 2 and data[0].strip().isdigit() and len(_fields(data[1])) > 1:
+        return data[1:]
+    return data
+
+
 def read_text_measurement(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a ``text``/``gwyddion-text`` file (see the module docstring)."""
     single_channel(path, channel, _CHANNEL_NAMES)
-    header, data = split_header(read_text(path).splitlines(), path)
+    lines = read_text(path).splitlines()
+    header, data, plain = split_header(lines, path)
+    header.update(_gwyddion_header(lines))
+    data = _drop_count_line(data)
     if not data:
         raise ReaderError(path, "contains no table of numbers")
     table, sep = _read_table(path, data)
@@ -126,14 +215,16 @@ def read_text_measurement(path, *, channel=None, physical_size=None, file_units=
     if "Value units" in header:
         found_hu = header["Value units"].strip() or None
     attrs = {"channel": header.get("Channel")} if header.get("Channel") else {}
+    nrows, ncols = table.shape
+    units = _column_units(path, plain, ncols) if ncols in (2, 3) and not sizes else None
+    if units and units[-2] and units[-1] and found_units is None and found_hu is None:
+        found_units, found_hu = units[-2], units[-1]  # the x column (x h, index x h, x y z) and the heights
     common = dict(physical_size=physical_size, file_units=file_units, height_units=height_units,
                   found_units=found_units, found_height_units=found_hu, **attrs)
-    nrows, ncols = table.shape
-    if ncols == 2 and nrows > 2:  # (x, h) line scan
-        first = data[0].split(sep) if sep else data[0].split()
-        last = data[-1].split(sep) if sep else data[-1].split()
-        tol = max(token_ulp(first[0]), token_ulp(last[0]))
-        return _line_xy(path, table[:, 0], table[:, 1], tol, common)
+    if ncols in (2, 3) and nrows > 2 and not sizes:
+        xcol = _positions(path, table, data, sep, common)
+        if xcol is not None:
+            return xcol
     if nrows == 1 or ncols == 1:
         h = table.ravel()
         size = sizes.get("x")
@@ -142,13 +233,72 @@ def read_text_measurement(path, *, channel=None, physical_size=None, file_units=
     return generic_measurement(path, table, found_size=found_size, **common)
 
 
-def _line_xy(path, x, h, tolerance, common):
+def _tokens(data, sep, column):
+    return [(ln.split(sep) if sep else ln.split())[column] for ln in data]
+
+
+def _positions(path, table, data, sep, common):
+    """The measurement of a table whose columns hold positions: ``x h``, ``index x h`` or ``x y z``.
+
+    ``None`` where three columns are no such table and were given a ``physical_size`` (a height
+    matrix three pixels wide).
+    """
+    nrows, ncols = table.shape
+    if ncols == 2:
+        return _line_xy(path, table[:, 0], table[:, 1], column_precision(_tokens(data, sep, 0)), common)
+    first, second = table[:, 0], table[:, 1]
+    if np.array_equal(first, first[0] + np.arange(nrows)) and np.all(np.diff(second) > 0):  # index, x, h
+        return _line_xy(path, second, table[:, 2], column_precision(_tokens(data, sep, 1)), common)
+    grid = _xyz_grid(path, table, data, sep)
+    if grid is None:
+        if common["physical_size"] is not None:
+            return None
+        nx, ny = np.unique(first).size, np.unique(second).size
+        raise ReaderError(path, f"three columns read as x y z points: {nrows} points with {nx} distinct x and "
+                                f"{ny} distinct y do not form a complete grid (scattered points); interpolate "
+                                "them onto a uniform grid first. If the columns are a height matrix three pixels "
+                                "wide, pass physical_size=(Ly, Lx)")
+    if common["physical_size"] is not None:
+        raise ReaderError(path, "the file stores x y z positions on a grid; do not pass physical_size")
+    heights, size = grid
+    return generic_measurement(path, heights, found_size=size, **common)
+
+
+def _xyz_grid(path, table, data, sep):
+    """``(heights (ny, nx), (Ly, Lx))`` when the x y z points of ``table`` form a complete uniform grid, else None.
+
+    Raises
+    ------
+    ReaderError
+        For a complete grid whose x or y positions are not equally spaced.
+    """
+    n = table.shape[0]
+    ux, ix = np.unique(table[:, 0], return_inverse=True)
+    uy, iy = np.unique(table[:, 1], return_inverse=True)
+    if ux.size < 2 or uy.size < 2 or ux.size * uy.size != n:
+        return None
+    cell = iy.ravel() * ux.size + ix.ravel()
+    if np.unique(cell).size != n:
+        return None
+    steps = []
+    for axis, u in (("x", ux), ("y", uy)):
+        d = uniform_spacing(u, column_precision(_tokens(data, sep, 0 if axis == "x" else 1)))
+        if d is None:
+            raise ReaderError(path, f"the x y z points form a grid whose {axis} positions are not equally spaced; "
+                                    "xtopo reads areal maps on uniform grids only")
+        steps.append(d)
+    heights = np.empty(n)
+    heights[cell] = table[:, 2]
+    return heights.reshape(uy.size, ux.size), (uy.size * steps[1], ux.size * steps[0])
+
+
+def _line_xy(path, x, h, precision, common):
     lateral, factor = resolve_units(path, found_units=common["found_units"],
                                     found_height_units=common["found_height_units"],
                                     file_units=common["file_units"], height_units=common["height_units"])
     if common["physical_size"] is not None:
         raise ReaderError(path, "the file stores the positions of its line scan; do not pass physical_size")
-    return line_measurement(path, x, h * factor, lateral, tolerance=tolerance)
+    return line_measurement(path, x, h * factor, lateral, precision=precision)
 
 
 def read_dhm(path, *, channel=None):
@@ -159,7 +309,7 @@ def read_dhm(path, *, channel=None):
     if not m:
         raise ReaderError(path, "first line is not 'h=<rows> w=<columns>'")
     ny, nx = int(m.group(1)), int(m.group(2))
-    header, data = split_header(lines[1:], path)
+    header, data, _ = split_header(lines[1:], path)
     pixel, punit = parse_quantity(path, header.get("pixel size", ""), "header field 'pixel size'")
     factor_key = next((k for k in header if k.lower().startswith("height conversion factor")), None)
     if factor_key is None:
@@ -182,8 +332,11 @@ def _sniff_text(head: bytes, path: str) -> bool:
 
 
 def _sniff_gwyddion(head: bytes, path: str) -> bool:
-    return looks_like_text(head) and head.lstrip().startswith(b"#") and (
-        b"# Width:" in head[:1024] and b"# Height:" in head[:1024])
+    if not (looks_like_text(head) and head.lstrip().startswith(b"#")):
+        return False
+    text = head[:1024].decode("utf-8", errors="replace")
+    return (("# Width:" in text and "# Height:" in text)
+            or bool(_gwyddion_header(text.lstrip().splitlines())))
 
 
 def _sniff_dhm(head: bytes, path: str) -> bool:

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import posixpath
-import re
 import zipfile
 
 import numpy as np
@@ -31,15 +30,12 @@ from ...conventions import make_measurement
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS, check_count
 from .._xml import child, child_text, local_name, parse_xml
+from .._zip import MAX_MEMBER, open_zip, read_member, unsafe_name
 from ..registry import ChannelInfo, Format, register
 from ._common import pick_channel, reading
 
 _DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
-#: deflate cannot compress better than about 1032:1; a member claiming more is a bomb
-_MAX_RATIO = 1100
-_MAX_MEMBER = 1 << 30  # bytes decompressed per member
 _MAX_MAIN_XML = 16 << 20
-_DRIVE = re.compile(r"^[A-Za-z]:")
 
 
 def _sniff(head: bytes, path: str) -> bool:
@@ -54,11 +50,6 @@ def _sniff(head: bytes, path: str) -> bool:
         return False
 
 
-def _unsafe(name: str) -> bool:
-    n = name.replace("\\", "/")
-    return n.startswith("/") or bool(_DRIVE.match(n)) or ".." in n.split("/") or "\0" in n
-
-
 def _member(path, zf, name):
     try:
         return zf.getinfo(name)
@@ -66,38 +57,14 @@ def _member(path, zf, name):
         raise ReaderError(path, f"the X3P archive lacks the member {name!r} named in main.xml") from None
 
 
-def _read_member(path, zf, info, expected=None, limit=_MAX_MEMBER):
+def _read_member(path, zf, info, expected=None, limit=MAX_MEMBER):
     """Bytes of ``info``, refusing bombs and size mismatches; decompression is capped."""
-    declared = info.file_size
-    if declared > limit:
-        raise ReaderError(path, f"X3P member {info.filename!r} declares {declared} bytes, more than the "
-                                f"{limit} accepted (zip bomb?)")
-    if declared > max(_MAX_RATIO * info.compress_size, 1 << 16):
-        raise ReaderError(path, f"X3P member {info.filename!r} declares {declared} bytes from "
-                                f"{info.compress_size} compressed bytes, an impossible ratio (zip bomb)")
-    if expected is not None and declared != expected:
-        raise ReaderError(path, f"X3P member {info.filename!r} has {declared} bytes but main.xml implies "
-                                f"{expected}")
-    cap = declared if expected is None else expected
-    with zf.open(info) as f:
-        data = f.read(cap + 1)
-    if len(data) != cap:
-        raise ReaderError(path, f"X3P member {info.filename!r} decompresses to {len(data)} bytes, "
-                                f"not the declared {cap}")
-    return data
+    return read_member(path, zf, info, "X3P", expected=expected, limit=limit, expected_from="main.xml")
 
 
 def _open(path):
-    try:
-        zf = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError) as exc:
-        raise ReaderError(path, f"not a readable X3P (zip) archive: {exc}") from None
+    zf = open_zip(path, "X3P")
     names = zf.namelist()
-    bad = [n for n in names if _unsafe(n)]
-    if bad:
-        zf.close()
-        raise ReaderError(path, f"X3P archive member name {bad[0]!r} is absolute or leaves the archive "
-                                "(path traversal); refused")
     mains = sorted((n for n in names if posixpath.basename(n) == "main.xml" and not n.startswith("__MACOSX/")),
                    key=lambda n: (n.count("/"), n))
     if not mains:
@@ -173,14 +140,14 @@ def _read(path, *, channel=None):
             link = child_text(rec3, "DataLink", "PointDataLink")
             valid = None
             if link is not None:
-                if _unsafe(link):
+                if unsafe_name(link):
                     raise ReaderError(path, f"X3P PointDataLink {link!r} leaves the archive (path traversal)")
                 info = _member(path, zf, posixpath.join(base, link.replace("\\", "/")))
-                check_count(path, n, dtype.itemsize, _MAX_MEMBER, "X3P point data")
+                check_count(path, n, dtype.itemsize, MAX_MEMBER, "X3P point data")
                 raw = np.frombuffer(_read_member(path, zf, info, expected=n * dtype.itemsize), dtype=dtype)
                 vlink = child_text(rec3, "DataLink", "ValidPointsLink")
                 if vlink is not None:
-                    if _unsafe(vlink):
+                    if unsafe_name(vlink):
                         raise ReaderError(path, f"X3P ValidPointsLink {vlink!r} leaves the archive")
                     vinfo = _member(path, zf, posixpath.join(base, vlink.replace("\\", "/")))
                     bits = np.frombuffer(_read_member(path, zf, vinfo, expected=(n + 7) // 8), dtype=np.uint8)

@@ -1,0 +1,136 @@
+"""The ISO parameter sets that the command line (``--iso``), ``xtopo info`` and the report show: one lookup.
+
+:data:`ISO_SETS` names each set, the scans it applies to and how its per-measurement values
+are made. A set is used when its module exists (:func:`available_sets`), so the areal set
+(``xtopo.analysis.iso25178``, issue 22's areal part) is switched on by its module landing,
+without a change here. Not public API.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+
+import numpy as np
+import xarray as xr
+
+from ..conventions import HEIGHT, X, convert_length, lateral_dims
+from ..errors import XtopoError
+
+__all__ = ["ISO_SETS", "available_sets", "iso_values", "iso_table", "format_iso_table"]
+
+#: set name (the module and function in xtopo.analysis) → (what it is, the scans it applies to)
+ISO_SETS = {
+    "iso21920": ("ISO 21920-2 profile parameters (profiles along x; maps: mean over the lines)", ("line", "area")),
+    "iso25178": ("ISO 25178-2 areal parameters", ("area",)),
+}
+
+
+def available_sets() -> tuple[str, ...]:
+    """The sets of :data:`ISO_SETS` whose module is installed."""
+    return tuple(n for n in ISO_SETS if importlib.util.find_spec(f"xtopo.analysis.{n}") is not None)
+
+
+def _scalar_vars(res: xr.Dataset, profiles: str | None) -> dict:
+    """The 0-d values of ``res``; per-profile values are averaged over ``profiles`` (the other lateral dim)."""
+    out = {}
+    for name, v in res.data_vars.items():
+        if profiles is not None and profiles in v.dims:
+            v = v.mean(profiles).assign_attrs(v.attrs, long_name=f"{v.attrs.get('long_name', name)}, mean over "
+                                                                   "the profiles")
+        if v.ndim == 0:
+            out[name] = v
+    return out
+
+
+def iso_values(ds: xr.Dataset, name: str, *, lambda_s=None, lambda_c=None) -> xr.Dataset:
+    """The parameters of the ISO set ``name`` of one measurement as 0-d variables (empty if it does not apply).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        One measurement (no batch dims).
+    name : str
+        A set of :data:`ISO_SETS`.
+    lambda_s, lambda_c : float, str or None
+        Nesting indices for the profile set (see :func:`xtopo.analysis.iso21920.iso21920`).
+
+    Returns
+    -------
+    xarray.Dataset
+        One variable per parameter, with ``units`` and ``long_name``.
+    """
+    kind = "area" if len(lateral_dims(ds[HEIGHT])) == 2 else "line"
+    if kind not in ISO_SETS[name][1]:
+        return xr.Dataset()
+    func = getattr(importlib.import_module(f"xtopo.analysis.{name}"), name)
+    if name == "iso21920":
+        res = func(ds, dim=X, lambda_s=lambda_s, lambda_c=lambda_c)
+        used = {k: xr.DataArray(float(res.attrs[k]), attrs={"units": res.attrs["length_units"], "long_name": text})
+                for k, text in (("lambda_s", "S-filter nesting index used (NaN: none)"),
+                                ("lambda_c", "L-filter cut-off used (NaN: none)"))}  # "auto" says which
+        return xr.Dataset({**used, **_scalar_vars(res, "y" if kind == "area" else None)})
+    return xr.Dataset(_scalar_vars(func(ds), None))
+
+
+def iso_table(measurements: dict, *, lambda_s=None, lambda_c=None) -> tuple[xr.Dataset, dict]:
+    """The ISO parameters of each measurement along a ``measurement`` dim (lengths in m), and the errors.
+
+    Parameters
+    ----------
+    measurements : dict of str to xarray.Dataset
+        Name → measurement.
+    lambda_s, lambda_c : float, str or None
+        As :func:`iso_values`; a bare number is in metres (the table's unit).
+
+    Returns
+    -------
+    tuple
+        The table (NaN where a parameter does not apply or could not be computed) and
+        ``{name: message}`` for each measurement and set that failed (e.g. a cut-off longer
+        than the measurement); the other sets of that measurement are still in the table.
+    """
+    rows, errors = {}, {}
+    columns = {iso: {} for iso in available_sets()}  # per set, its variables in order (a dict as ordered set)
+    for name, ds in measurements.items():
+        ds = convert_length(ds, "m")
+        parts = []
+        for iso in columns:
+            try:
+                parts.append(iso_values(ds, iso, lambda_s=lambda_s, lambda_c=lambda_c))
+                columns[iso].update(dict.fromkeys(parts[-1].data_vars))
+            except XtopoError as exc:
+                errors[name] = f"{errors[name]}; {exc}" if name in errors else str(exc)
+        rows[name] = xr.merge(parts, combine_attrs="drop") if parts else xr.Dataset()
+        for part in parts:  # merge keeps variable attrs, but be explicit: units and long_name travel
+            for v in part.data_vars:
+                rows[name][v].attrs = part[v].attrs
+    names = list(rows)
+    table = xr.concat([rows[n].expand_dims(measurement=[n]) for n in names], dim="measurement", join="outer",
+                      combine_attrs="drop") if names else xr.Dataset()
+    # columns set by set, whichever measurement a set failed for (the first row decides concat's order)
+    table = table[[v for cols in columns.values() for v in cols if v in table.data_vars]] if names else table
+    for n in table.data_vars:  # concat keeps the attrs of the first; take them from any row that has the variable
+        table[n].attrs = next(rows[m][n].attrs for m in names if n in rows[m].data_vars)
+    table.attrs = {"title": "ISO parameters", "lambda_s": str(lambda_s), "lambda_c": str(lambda_c)}
+    return table, errors
+
+
+def format_iso_table(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
+    """Header and cells of :func:`iso_table`, one row per measurement.
+
+    Lengths are in readable units, material ratios in %; ``-`` where a value is missing.
+    """
+    from ..summary import _fmt_len
+
+    names = list(table.data_vars)
+    header = ["measurement"] + [f"{n}/%" if table[n].attrs.get("units") == "%" else n for n in names]
+    rows = []
+    for i in range(table.sizes.get("measurement", 0)):
+        cells = [str(table.measurement.values[i])]
+        for n in names:
+            v = float(table[n].values[i])
+            cells.append("-" if not np.isfinite(v) else _fmt_len(v) if table[n].attrs.get("units") == "m"
+                         else f"{v:.3g}")
+        rows.append(cells)
+    return header, rows

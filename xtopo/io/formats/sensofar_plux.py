@@ -1,0 +1,87 @@
+"""Sensofar PLUX files (SensoSCAN / SensoVIEW, S neox and S lynx profilers): a zip archive.
+
+Layout (facts from SurfaceTopography's ``PLUX.py`` and surfalize's ``plux.py``): ``index.xml``
+holds ``GENERAL`` (``IMAGE_SIZE_X``, ``IMAGE_SIZE_Y``, the pixel sizes ``FOV_X``, ``FOV_Y`` in µm,
+and ``DATE``), ``INFO`` (``ITEM_n`` elements with ``NAME`` and ``VALUE``: ``Device``, ``Objective``,
+``Technique``, ...) and one ``LAYER_n`` element per height layer whose ``FILENAME_Z`` names the
+member holding it: ``IMAGE_SIZE_Y × IMAGE_SIZE_X`` little-endian float32 heights in µm, row by row,
+NaN where undefined. The size is ``N × FOV``. The XML is parsed without DTDs or entities.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import ReaderError
+from .._binary import MAX_PIXELS
+from .._xml import child_text, local_name, parse_xml
+from .._zip import open_zip, read_member
+from ..registry import Format, register
+from ._common import channel_info, guarded, measurement, parse_time, pick_channel, to_float, to_int
+
+_WHAT = "Sensofar PLUX"
+_MAX_XML = 16 << 20
+
+
+def _sniff(head: bytes, path: str) -> bool:
+    return head.startswith(b"PK\x03\x04") and b"index.xml" in head and b"main.xml" not in head
+
+
+def _parse(path, zf):
+    try:
+        info = zf.getinfo("index.xml")
+    except KeyError:
+        raise ReaderError(path, "the zip archive has no index.xml, so it is not a Sensofar PLUX file") from None
+    root = parse_xml(read_member(path, zf, info, _WHAT, limit=_MAX_XML), path, "PLUX index.xml")
+    nx = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_X"), "GENERAL/IMAGE_SIZE_X", minimum=1)
+    ny = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_Y"), "GENERAL/IMAGE_SIZE_Y", minimum=1)
+    if nx * ny > MAX_PIXELS:
+        raise ReaderError(path, f"implausible PLUX image size {nx} x {ny}")
+    dx = to_float(path, child_text(root, "GENERAL", "FOV_X"), "GENERAL/FOV_X")
+    dy = to_float(path, child_text(root, "GENERAL", "FOV_Y"), "GENERAL/FOV_Y")
+    if not (dx > 0 and dy > 0):
+        raise ReaderError(path, f"invalid PLUX pixel size {dx} x {dy} µm")
+    items = {}
+    for elem in root:
+        if local_name(elem.tag) == "INFO":
+            for item in elem:
+                name, value = child_text(item, "NAME"), child_text(item, "VALUE")
+                if name and value:
+                    items.setdefault(name, value)
+    layers = [(local_name(e.tag), child_text(e, "FILENAME_Z")) for e in root
+              if local_name(e.tag).startswith("LAYER_") and child_text(e, "FILENAME_Z")]
+    if not layers:
+        raise ReaderError(path, "the PLUX index.xml names no height layer (LAYER_n/FILENAME_Z)")
+    infos = [channel_info(i, name.replace("LAYER_", "Layer "), (ny, nx), (ny * dy, nx * dx), "um", "um", height=True)
+             for i, (name, _member) in enumerate(layers)]
+    return infos, [m for _n, m in layers], items, child_text(root, "GENERAL", "DATE", default="")
+
+
+@guarded(_WHAT)
+def _channels(path):
+    with open_zip(path, _WHAT) as zf:
+        return _parse(path, zf)[0]
+
+
+@guarded(_WHAT)
+def _read(path, *, channel=None):
+    with open_zip(path, _WHAT) as zf:
+        infos, members, items, date = _parse(path, zf)
+        i = pick_channel(path, infos, channel)
+        info = infos[i]
+        ny, nx = info.shape
+        try:
+            member = zf.getinfo(members[i])
+        except KeyError:
+            raise ReaderError(path, f"the PLUX archive lacks the layer member {members[i]!r}") from None
+        raw = read_member(path, zf, member, _WHAT, expected=4 * nx * ny)
+    z = np.frombuffer(raw, dtype="<f4").astype(np.float64).reshape(ny, nx)
+    return measurement(path, z, info, size=info.size, lateral_units="um", value_units="um", mask=~np.isfinite(z),
+                       vendor="Sensofar", instrument=items.get("Device"), objective=items.get("Objective"),
+                       technique=items.get("Technique"), comment=items.get("Comment"),
+                       acquisition_time=parse_time(date, "%Y-%m-%dT%H:%M:%S", "%Y-%m-%d %H:%M:%S",
+                                                   "%d/%m/%Y %H:%M:%S", "%a %b %d %H:%M:%S %Y"))
+
+
+register(Format("plux", "Sensofar PLUX (zip with index.xml and float32 layers)", (".plux",), _sniff, _read,
+                _channels, priority=10))
