@@ -38,3 +38,43 @@ def batch(ds, n=3, dask=False):
     if dask:
         out = out.chunk({"sample": 1})
     return out
+
+
+_MISSING = object()
+
+
+def _default_client():
+    try:
+        from distributed import default_client
+    except ImportError:
+        return None
+    try:
+        return default_client()
+    except ValueError:
+        return None
+
+
+@pytest.fixture(autouse=True)
+def _no_leaked_dask_scheduler():
+    """Fail the test that leaves dask's scheduler setting or a default distributed client behind.
+
+    A failed ``distributed.Client(...)`` once stayed the process's default client with
+    ``scheduler="dask.distributed"`` set; a cache test run after it (in another module) failed with
+    "missing port number in address ''". The setting is undone for the tests that follow.
+    """
+    import dask
+
+    before = {k: dask.config.config.get(k, _MISSING) for k in ("scheduler", "shuffle")}
+    client = _default_client()
+    yield
+    leaked = _default_client()
+    if leaked is not None and leaked is not client:
+        pytest.fail(f"the test left a default distributed client behind: {leaked!r}")
+    after = {k: dask.config.config.get(k, _MISSING) for k in before}
+    if after != before:
+        for key, value in before.items():
+            if value is _MISSING:
+                dask.config.config.pop(key, None)
+            else:
+                dask.config.config[key] = value
+        pytest.fail(f"the test left dask's config changed: {({k: v for k, v in after.items() if v is not _MISSING})}")

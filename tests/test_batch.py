@@ -7,6 +7,7 @@ import signal
 import threading
 import time
 
+import dask
 import numpy as np
 import pytest
 import xarray as xr
@@ -198,9 +199,11 @@ def test_progress_bar_local(capsys):
 
 @pytest.fixture(scope="module")
 def cluster():
+    """A 2-worker LocalCluster and a client to it that is not the process's default one: as the default it made
+    every test of this module that ran after the first distributed one (in random order) compute on it."""
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                  silence_logs=50) as cl, distributed.Client(cl) as client:
+                                  silence_logs=50) as cl, distributed.Client(cl, set_as_default=False) as client:
         yield cl, client
 
 
@@ -239,11 +242,12 @@ def test_distributed_worker_killed_mid_run(tmp_path, cluster):
 
 
 def test_distributed_active_client_and_resume(tmp_path, cluster):
-    _, client = cluster  # the active client is found without passing it
+    _, client = cluster
     ms = _surfaces(4)
     store = tmp_path / "store"
-    a = batch.run(fft_work, ms, LOADS, store=store, progress=False)
-    b = batch.run(fft_work, ms, LOADS, store=store, progress=False)
+    with client.as_current():  # the active client is found without passing it
+        a = batch.run(fft_work, ms, LOADS, store=store, progress=False)
+        b = batch.run(fft_work, ms, LOADS, store=store, progress=False)
     assert a.attrs["chunks_computed"] == 4 and b.attrs["chunks_reused"] == 4
     xr.testing.assert_identical(_data(a), _data(b))
 

@@ -616,3 +616,125 @@ def test_float32_input_stays_accurate(dtype):
         out = func(ds)
         assert_finite(out)
         np.testing.assert_allclose(out.values, func(ref).values, rtol=1e-3)
+
+
+# ------------------------------------------------------------------------------------------
+# 6. extreme height scales (issue 24): heights ×1e±300, ×1e±200 — finite and right, or an XtopoError
+# ------------------------------------------------------------------------------------------
+
+def _fill(ds):
+    return ds.assign(height=ds.height.where((ds.x > ds.x[3]) | (ds.x < ds.x[1]))).topo.fill_missing()
+
+
+#: name -> (function, {variable: height power} or a power for every float variable; None: no scaling law)
+EXTREME_CASES = {
+    "scalars": (lambda ds: ds.topo.scalars(), "scalars"),
+    "psd_1d": (lambda ds: ds.topo.psd(), 2),
+    "psd_iso": (lambda ds: ds.topo.psd("iso"), 2),
+    "acf": (lambda ds: ds.topo.acf(), 2),
+    "vbm": (lambda ds: ds.topo.vbm(), 1),
+    "sdrp_1": (lambda ds: ds.topo.sdrp(), 1),
+    "sdrp_2": (lambda ds: ds.topo.sdrp(order=2), 1),
+    "hurst_sdrp": (lambda ds: ds.topo.hurst("sdrp"), {"hurst": 0, "hurst_stderr": 0, "prefactor": 1}),
+    "hurst_psd": (lambda ds: ds.topo.hurst(), {"hurst": 0, "hurst_stderr": 0, "prefactor": 2}),
+    "distribution_height": (lambda ds: ds.topo.distribution("height"), {"probability_density": -1, "bin_center": 1}),
+    "distribution_slope": (lambda ds: ds.topo.distribution("slope"), {"probability_density": -1, "bin_center": 1}),
+    "reliability": (lambda ds: xtopo.analysis.reliability.reliability_cutoff(
+        ds.assign_attrs(tip_radius=1e-7, tip_radius_units="m")), None),
+    "detrend": (lambda ds: ds.topo.detrend("plane").height, 1),
+    "fill_missing": (lambda ds: _fill(ds).height, 1),
+}
+EXTREME_SCALES = [1e300, 1e200, 1e-200, 1e-300]
+#: decimal exponents float64 holds as normal numbers
+_RANGE = (np.log10(np.finfo(float).tiny), np.log10(np.finfo(float).max))
+
+
+def _powers(out, law):
+    variables = out.data_vars if isinstance(out, xr.Dataset) else {out.name: out}
+    if law == "scalars":
+        return {k: 0 if k.endswith(("sk", "ku")) else 1 for k in variables}
+    if isinstance(law, dict):
+        return law
+    return {k: law for k in variables}
+
+
+def _values(obj, name):
+    return np.asarray((obj[name] if isinstance(obj, xr.Dataset) or name in obj.coords else obj).values, float)
+
+
+@pytest.mark.parametrize("shape", [(64, 64), (256,)], ids=["area", "line"])
+@pytest.mark.parametrize("scale", EXTREME_SCALES, ids=lambda v: f"x{v:g}")
+@pytest.mark.parametrize("name", list(EXTREME_CASES))
+def test_extreme_height_scales(name, scale, shape):
+    """PSDs of heights 1e300 were inf, Sq inf, ACF/VBM/Hurst NaN with only numpy warnings; at 1e-300
+    Hurst and Ssk were NaN silently; fill_missing left NaN. Now every result is the reference result
+    (heights of order 1) times scale**power, finite — or, exactly where that lies beyond float64,
+    an XtopoError. Any warning fails the test (never silent)."""
+    func, law = EXTREME_CASES[name]
+    base = fractal_surface(shape, 1e-4, hurst=0.8, rms_height=1.0, seed=3)
+    if name == "psd_iso" and len(shape) == 1:
+        pytest.skip("area analysis")
+    ref = func(base)
+    ds = base.assign(height=base.height * scale)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            out = func(ds)
+        except xtopo.XtopoError as exc:
+            out, error = None, exc
+    if law is None:  # no scaling law: finite or a clear error
+        if out is not None:
+            assert_finite(out)
+        return
+    powers = _powers(ref, law)
+    beyond = False
+    for var, p in powers.items():
+        r = _values(ref, var)
+        r = r[np.isfinite(r) & (r != 0)]
+        exponent = np.log10(np.abs(r)) + p * np.log10(scale)
+        beyond |= bool(np.any((exponent < _RANGE[0]) | (exponent > _RANGE[1])))
+    if out is None:
+        assert beyond, f"refused although representable: {error}"
+        check_xtopo_error(type("E", (), {"value": error}), "float64")
+        return
+    assert not beyond, "a result beyond float64 came back"
+    assert_finite(out)
+    for var, p in powers.items():
+        r, o = _values(ref, var), _values(out, var)
+        np.testing.assert_array_equal(np.sign(o), np.sign(r), err_msg=var)
+        nz = r != 0
+        np.testing.assert_allclose(np.log10(np.abs(o[nz])), np.log10(np.abs(r[nz])) + p * np.log10(scale),
+                                   rtol=0, atol=1e-9, err_msg=var)
+
+
+def test_skewness_of_a_flat_surface_is_nan_with_a_warning():
+    ds = make_surface((8, 8), "flat")
+    with pytest.warns(xtopo.UndefinedValueWarning, match="flat surface"):
+        s = ds.topo.scalars()
+    assert np.isnan(float(s.Ssk)) and np.isnan(float(s.Sku)) and float(s.Sq) == 0
+
+
+@pytest.mark.parametrize("periodic", [False, True], ids=["free", "periodic"])
+@pytest.mark.parametrize("scale", EXTREME_SCALES, ids=lambda v: f"x{v:g}")
+def test_contact_at_extreme_height_scales(scale, periodic):
+    """Heights 1e300 overflowed the solver's float32 operators (a RuntimeWarning, then garbage); at 1e-200 it did
+    not converge. The solver runs in scaled units: (h, p) → (αh, αp) gives the same contact, pressures and gaps
+    times α — or an XtopoError where those leave float64's range."""
+    base = fractal_surface((32, 32), 1e-4, hurst=0.8, rms_height=1e-6, seed=3, periodic=periodic)
+    ref = Scene(base).solve(mean_pressure=0.01)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            r = Scene(base.assign(height=base.height * scale)).solve(mean_pressure=0.01 * scale)
+        except xtopo.XtopoError as exc:
+            smallest = np.min(np.abs(ref.gap.values[ref.gap.values != 0]))
+            assert np.log10(smallest * scale) < _RANGE[0], exc  # refused only where the gaps leave float64
+            check_xtopo_error(type("E", (), {"value": exc}), "float64")
+            return
+    assert bool(r.converged) and float(r.area_fraction) == float(ref.area_fraction)
+    assert_finite(r)
+    for name in ("penetration", "load", "mean_pressure"):
+        np.testing.assert_allclose(float(r[name]) / scale, float(ref[name]), rtol=1e-6, err_msg=name)
+    for name in ("pressure", "gap", "displacement"):
+        np.testing.assert_allclose(r[name].values / scale, ref[name].values, rtol=1e-6,
+                                   atol=1e-6 * float(np.abs(ref[name]).max()), err_msg=name)

@@ -14,14 +14,15 @@ import sys
 
 from ._version import __version__
 from .errors import (ChunkError, ContactError, ConvergenceWarning, GridError, MetadataWarning, ReaderError,
-                     UnitsError, UnsupportedFormatError, ValidationError, WriteError, XtopoError)
+                     UndefinedValueWarning, UnitsError, UnsupportedFormatError, ValidationError, WriteError,
+                     XtopoError)
 
 __all__ = [
     "__version__", "conventions", "datasets", "errors", "make_measurement", "validate",
     "open_topography", "open_contact", "to_netcdf", "twin", "open_twin", "to_container", "cache", "io", "preprocess",
     "batch",
     "XtopoError", "ReaderError", "UnsupportedFormatError", "UnitsError", "GridError", "ChunkError",
-    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "MetadataWarning",
+    "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "MetadataWarning", "UndefinedValueWarning",
 ]
 
 #: public name → (module, attribute or None for the module itself), imported on first access

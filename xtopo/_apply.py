@@ -4,6 +4,14 @@ Kernels take arrays with the lateral core dims last; extra (batch) dims broadcas
 and dask arrays stay lazy. Global transforms need the lateral dims in one chunk.
 Results have the declared output dtypes (float64 by default) whatever the input
 precision, so numpy and dask agree and a lazy result's ``dtype`` is what it computes to.
+
+Extreme height scales are handled here, once, for every analysis and preprocessing step
+(``height_power=``): results are linear or power-law in the height scale (a PSD goes as h², an
+RMS height as h, a skewness as h⁰), so a kernel given heights of order 1e±300 computes on
+``h / 2**e`` (``2**e`` near the largest |h|: an exact rescaling) and its results are multiplied
+by ``2**(e·p)``. Where the true result lies beyond float64 (the PSD of heights 1e300 m is
+1e600 m³) it is refused with an :class:`~xtopo.errors.XtopoError` instead of turning into inf or
+an underflowed 0: results are finite and right, or an error.
 """
 
 from __future__ import annotations
@@ -12,9 +20,9 @@ import numpy as np
 import xarray as xr
 
 from .conventions import lateral_dims
-from .errors import ChunkError
+from .errors import ChunkError, XtopoError
 
-__all__ = ["check_core_chunks", "apply_lateral"]
+__all__ = ["check_core_chunks", "apply_lateral", "scale_exponent", "rescaled"]
 
 
 def check_core_chunks(da: xr.DataArray, core_dims, what: str = "this analysis") -> None:
@@ -28,19 +36,62 @@ def check_core_chunks(da: xr.DataArray, core_dims, what: str = "this analysis") 
                 f"rechunk with .chunk({{{dim!r}: -1}}) and chunk along batch dimensions instead")
 
 
-def _declared(kernel, dtypes):
-    """``kernel`` with its output(s) cast to ``dtypes`` (a float32 FFT would otherwise give float32)."""
-    def run(*args, **kwargs):
-        out = kernel(*args, **kwargs)
-        if len(dtypes) == 1:
-            return np.asarray(out, dtype=dtypes[0])
-        return tuple(np.asarray(o, dtype=d) for o, d in zip(out, dtypes))
+#: heights beyond 2**±SCALED_FROM (about 1e±19) are analysed in scaled units: the squares, cubes and
+#: fourth powers the kernels form stay inside float64 below that
+SCALED_FROM = 64
+
+
+def scale_exponent(h: np.ndarray) -> int:
+    """``e`` with ``2**e`` near the largest finite |h| when that is beyond ``2**±SCALED_FROM``, else 0."""
+    if h.dtype.kind not in "fc" or h.size == 0:
+        return 0
+    hi, lo = float(h.real.max()), float(h.real.min())  # one pass each, no temporaries (~2 % of an FFT's time)
+    if np.isnan(hi) or np.isnan(lo):  # missing data: the NaN-skipping reductions (all NaN gives NaN: 0 below)
+        hi, lo = float(np.fmax.reduce(h.real, axis=None)), float(np.fmin.reduce(h.real, axis=None))
+    top = max(abs(hi), abs(lo))
+    if not np.isfinite(top) or top == 0.0:
+        return 0
+    e = int(np.frexp(top)[1])
+    return e if abs(e) > SCALED_FROM else 0
+
+
+def rescaled(out, e: int, power, what: str) -> np.ndarray:
+    """``out · 2**(e·power)``; an XtopoError where a finite nonzero value leaves float64's normal range."""
+    if power is None or e == 0:
+        return out
+    out = np.asarray(out)
+    exponent = e * np.asarray(power)
+    if not np.any(exponent):
+        return out
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):  # an overflow is what is checked next
+        scaled = np.ldexp(out, exponent.astype(np.int64)) if out.dtype.kind == "f" else out * 2.0 ** exponent
+        lost = np.isfinite(out) & (out != 0) & ~(np.abs(scaled) >= np.finfo(scaled.dtype).tiny) | \
+            (np.isfinite(out) & ~np.isfinite(scaled))
+    if lost.any():
+        raise XtopoError(f"{what}: heights of order 2**{e} (1e{e * np.log10(2):+.0f}) give results beyond the range "
+                         f"of float64 (about 1e±308): the result goes as height**{np.max(np.abs(power))}; express "
+                         "the heights in a unit that brings them nearer to 1 (xtopo.convert_length)")
+    return scaled
+
+
+def _declared(kernel, dtypes, height_power=None, what: str = "this analysis"):
+    """``kernel`` with its output(s) cast to ``dtypes`` (a float32 FFT would otherwise give float32),
+    computed in scaled units when ``height_power`` (one entry per output) says how each output scales."""
+    def run(h, *args, **kwargs):
+        e = scale_exponent(h) if height_power is not None else 0
+        out = kernel(np.ldexp(h, -e) if e else h, *args, **kwargs)
+        outs = (out,) if len(dtypes) == 1 else tuple(out)
+        powers = height_power if height_power is not None else (None,) * len(outs)
+        res = tuple(np.asarray(rescaled(np.asarray(o, dtype=d), e, p, what), dtype=d)
+                    for o, p, d in zip(outs, powers, dtypes))
+        return res[0] if len(dtypes) == 1 else res
 
     return run
 
 
 def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_sizes=None, output_dtypes=None,
-                  kwargs=None, what: str = "this analysis", core_dims=None, exclude_dims=frozenset()):
+                  kwargs=None, what: str = "this analysis", core_dims=None, exclude_dims=frozenset(),
+                  height_power=None):
     """Apply ``kernel(values, **kwargs)`` over the lateral dims of ``da``.
 
     Parameters
@@ -55,12 +106,17 @@ def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_si
         Sizes of new output dims (needed for dask).
     core_dims : tuple of str, optional
         Input core dims; default the lateral dims of ``da``.
+    height_power : sequence, optional
+        For each output, how it scales with the heights: a number (2 for a PSD, 0 for a skewness),
+        an array along the output's last axis (one power per parameter), or ``None`` (not a
+        function of the height scale alone). Given, extreme heights are analysed in scaled units
+        (module docstring).
     """
     core = tuple(core_dims) if core_dims is not None else lateral_dims(da)
     check_core_chunks(da, core, what)
     dtypes = list(output_dtypes or [float] * len(output_core_dims))
     return xr.apply_ufunc(
-        _declared(kernel, dtypes), da,
+        _declared(kernel, dtypes, height_power, what), da,
         input_core_dims=[list(core)],
         output_core_dims=[list(c) for c in output_core_dims],
         exclude_dims=set(exclude_dims),

@@ -129,9 +129,19 @@ def with_units(da: xr.DataArray, units: str, long_name: str, **attrs) -> xr.Data
     return da
 
 
+#: attributes of a coordinate or a length variable that hold lengths in its ``units`` (converted with it)
+_LENGTH_VALUED = ("valid_min", "valid_max", "actual_range", "spacing")
+
+
 def _scale_attr_units(attrs: dict, factor_units: str, to: str) -> dict:
+    """``attrs`` of a length variable in ``factor_units`` moved to ``to``: ``units`` and every length-valued attr.
+
+    ``spacing`` (the step of a coordinate, read by :func:`spacing` for a single-pixel axis) was left in
+    the file's unit while the positions were converted: di-3 read in m had spacing 0.039 (µm) against
+    positions 3.9e-8 apart.
+    """
     out = dict(attrs)
-    for key in ("valid_min", "valid_max", "actual_range"):
+    for key in _LENGTH_VALUED:
         if key in out:
             out[key] = np.asarray(out[key]) * length_factor(factor_units, to)
     out["units"] = to

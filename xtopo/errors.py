@@ -22,6 +22,7 @@ __all__ = [
     "ConvergenceWarning",
     "warn",
     "MetadataWarning",
+    "UndefinedValueWarning",
 ]
 
 
@@ -79,6 +80,11 @@ class WriteError(XtopoError, OSError):
 
     def __str__(self) -> str:
         return self.strerror if self.strerror is not None else super().__str__()
+
+
+class UndefinedValueWarning(UserWarning):
+    """A result is NaN because it is mathematically undefined for this input (the skewness of a flat
+    surface), not because a computation failed."""
 
 
 class ConvergenceWarning(UserWarning):

@@ -94,11 +94,11 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
     dims = lateral_dims(h)
     breaks_periodicity = degree > 0 and is_periodic(h)
     if dims == (Y, X):
-        out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], what="detrend",
+        out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], height_power=(1,), what="detrend",
                             kwargs={"y": _positions(h, Y), "x": _positions(h, X), "degree": degree,
                                     "per_line": bool(per_line)})
     else:
-        out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], what="detrend",
+        out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], height_power=(1,), what="detrend",
                             kwargs={"x": _positions(h, X), "degree": degree})
     line = f"detrend(mode={mode!r}, per_line={bool(per_line)})"
     if breaks_periodicity:
@@ -143,12 +143,12 @@ def fill_missing(obj):
         dy, dx = _fill_spacings(h)
         kwargs = {"periodic": periodic, "dy": dy, "dx": dx}
         out = apply_lateral(_checked(_fill.harmonic_fill_2d), h, output_core_dims=[dims], kwargs=kwargs,
-                            what="fill_missing")
+                            height_power=(1,), what="fill_missing")
     else:
         period = None
         if periodic and not is_nonuniform(obj):
             period = h.sizes[X] * spacing(h, X)
-        out = apply_lateral(_checked(_fill.linear_fill_1d), h, output_core_dims=[dims], what="fill_missing",
+        out = apply_lateral(_checked(_fill.linear_fill_1d), h, output_core_dims=[dims], height_power=(1,), what="fill_missing",
                             kwargs={"x": _positions(h, X), "periodic": period is not None, "period": period})
     res = _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
                   "fill_missing(harmonic)" if dims == (Y, X) else "fill_missing(linear)")

@@ -18,7 +18,7 @@ from ._checks import path as checked_path
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import ValidationError, XtopoError
-from .io.netcdf import read_netcdf, tree_to_netcdf
+from .io.netcdf import READ_ENGINES, read_netcdf, tree_to_netcdf
 
 __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
 
@@ -182,7 +182,8 @@ def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
     path : str or os.PathLike
         The archive (NetCDF) or the container (ZIP).
     engine : {"netcdf4", "h5netcdf"}, optional
-        NetCDF library (default: xarray's choice).
+        NetCDF library (default ``h5netcdf``: a damaged archive cannot crash the interpreter, see
+        :data:`xtopo.io.netcdf.READ_ENGINES`).
     surface : str or int, optional
         For a container: the surface's name or index.
     """
@@ -194,7 +195,7 @@ def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
     if surface is not None:
         raise ValidationError(f"surface= applies to contact.engineering containers (ZIP); {path} is not one")
     try:
-        tree = xr.open_datatree(path, engine=engine)
+        tree = xr.open_datatree(path, engine=engine or READ_ENGINES["hdf5"])
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:
         from .errors import ReaderError
 

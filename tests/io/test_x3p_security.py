@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import struct
-import time
 import zipfile
 
 import numpy as np
@@ -101,10 +100,8 @@ def test_zip_bomb_declared_size_refused(tmp_path):
     # main.xml asks for 20000 x 20000 doubles (3.2 GB); the member claims ~4 GB from a few bytes
     p = _zip(tmp_path / "bomb.x3p", {"main.xml": _main(nx=20000, ny=20000), "bindata/data.bin": bytes(1000)})
     _patch_declared_size(p, "bindata/data.bin", 0xFFFFFFF0)
-    t0 = time.perf_counter()
-    with pytest.raises(ReaderError, match="bomb"):
+    with pytest.raises(ReaderError, match="bomb"):  # refused from the declared sizes, before inflating
         _read(p)
-    assert time.perf_counter() - t0 < 2
 
 
 def test_zip_bomb_ratio_refused(tmp_path):

@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 
 from .derivatives import forward_difference, second_difference
+from ..errors import UndefinedValueWarning
 
 __all__ = ["AREA_PARAMETERS", "LINE_PARAMETERS", "area_parameters", "profile_parameters", "nonuniform_parameters"]
 
@@ -21,6 +22,8 @@ __all__ = ["AREA_PARAMETERS", "LINE_PARAMETERS", "area_parameters", "profile_par
 AREA_PARAMETERS = ("Sq", "Sdq", "Sddq", "Sa", "Sz", "Ssk", "Sku")
 #: Names and order of the outputs of :func:`profile_parameters` (per direction).
 LINE_PARAMETERS = ("Rq", "Rdq", "Rddq", "Ra", "Rz", "Rsk", "Rku")
+#: how each parameter (both lists) scales with the heights: h¹, skewness and kurtosis h⁰
+HEIGHT_POWERS = (1, 1, 1, 1, 1, 0, 0)
 
 
 def _nanmean(a, axis):
@@ -36,10 +39,22 @@ def _moments(d, axis):
         q = np.sqrt(np.nanmean(d**2, axis=axis))
         a = np.nanmean(np.abs(d), axis=axis)
         z = np.nanmax(d, axis=axis) - np.nanmin(d, axis=axis)
+    sk, ku = _shape(d, q, axis)
+    return q, a, z, sk, ku
+
+
+def _shape(d, q, axis):
+    """Skewness and kurtosis of deviations ``d`` with RMS ``q``: NaN where ``q`` is 0 (a flat surface, where
+    they are undefined), with an :class:`~xtopo.errors.UndefinedValueWarning` saying so."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
         with np.errstate(invalid="ignore", divide="ignore"):
             sk = np.where(q > 0, np.nanmean(d**3, axis=axis) / q**3, np.nan)
             ku = np.where(q > 0, np.nanmean(d**4, axis=axis) / q**4, np.nan)
-    return q, a, z, sk, ku
+    if np.any(q == 0):
+        warnings.warn("skewness and kurtosis of a flat surface (RMS height 0) are undefined: NaN",
+                      UndefinedValueWarning, stacklevel=3)
+    return sk, ku
 
 
 def area_parameters(h: np.ndarray, dy: float, dx: float, periodic: bool) -> np.ndarray:
@@ -77,9 +92,7 @@ def _line(h, dx, periodic, rows):
         a = np.nanmean(np.abs(d), axis=axes)
         z = np.nanmean(np.nanmax(d, -1) - np.nanmin(d, -1), axis=tuple(range(-rows, 0)) or None) if rows else \
             np.nanmax(d, -1) - np.nanmin(d, -1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            sk = np.where(q > 0, np.nanmean(d**3, axis=axes) / q**3, np.nan)
-            ku = np.where(q > 0, np.nanmean(d**4, axis=axes) / q**4, np.nan)
+    sk, ku = _shape(d, q, axes)
     g = forward_difference(h, dx, periodic=periodic, axis=-1)
     dq = np.sqrt(_nanmean(g**2, axes))
     c = second_difference(h, dx, periodic=periodic, axis=-1)

@@ -69,7 +69,7 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
         k = n // 2 + 1 if prep.periodic else n
         out = apply_lateral(_k.acf_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
                             output_sizes={"distance": k},
-                            kwargs=dict(dx=dx, periodic=prep.periodic, rows=len(other)), what="acf")
+                            kwargs=dict(dx=dx, periodic=prep.periodic, rows=len(other)), height_power=(2,), what="acf")
         out = out.assign_coords(distance=length_coord("distance", np.arange(k) * dx, u, "distance"))
         if nb_points is not None:
             out = log_bin(out, "distance", nb_points)
@@ -82,7 +82,7 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
         plan = _iso_plan(ny, nx, dy, dx, prep.periodic, nb_points)
         out = apply_lateral(_acf_iso_kernel, h, output_core_dims=[["distance"]],
                             output_sizes={"distance": len(plan)}, kwargs=dict(periodic=prep.periodic, plan=plan),
-                            what="acf")
+                            height_power=(2,), what="acf")
         out = out.assign_coords(distance=length_coord("distance", plan.centers, u, "distance"))
         out = finish(out, "acf", f"{u}2", "radially averaged height-difference autocorrelation function", prep,
                      "acf", kind="iso")

@@ -83,7 +83,7 @@ def distribution(obj, kind: str = "height", *, dim: str = X, bins: int = 100) ->
     dens, centers = apply_lateral(
         _histogram, h, output_core_dims=[["bin"], ["bin"]], output_sizes={"bin": bins},
         kwargs=dict(kind=kind, bins=bins, dx=dx, axis=axis, periodic=is_periodic(h), ndim=len(lat)),
-        what="distribution")
+        height_power=(-1, 1), what="distribution")
     dens.attrs = {"units": dunits, "long_name": f"probability density of {long_name}"}
     centers.attrs = {"units": qunits, "long_name": f"{long_name} (bin centre)"}
     ds = xr.Dataset({"probability_density": dens}, coords={"bin_center": centers})

@@ -101,7 +101,7 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
         n, dx = h.sizes[dim], prep.spacing(dim)
         out = apply_lateral(_k.psd_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["q"]],
                             output_sizes={"q": n // 2 + 1}, kwargs=dict(dx=dx, window=win, rows=len(other)),
-                            what="psd")
+                            height_power=(2,), what="psd")
         q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
         out = out.assign_coords(q=length_coord("q", q, qunits, "angular wavevector"))
         if nb_points is not None:
@@ -111,7 +111,7 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
         ny, nx = h.sizes[Y], h.sizes[X]
         dy, dx = prep.spacing(Y), prep.spacing(X)
         out = apply_lateral(_k.psd_map, h, output_core_dims=[["q_y", "q_x"]], output_sizes={"q_y": ny, "q_x": nx},
-                            kwargs=dict(dy=dy, dx=dx, window=win), what="psd")
+                            kwargs=dict(dy=dy, dx=dx, window=win), height_power=(2,), what="psd")
         qy = 2 * np.pi * np.fft.fftshift(np.fft.fftfreq(ny, d=dy))
         qx = 2 * np.pi * np.fft.fftshift(np.fft.fftfreq(nx, d=dx))
         out = out.assign_coords(q_y=length_coord("q_y", qy, qunits, "angular wavevector y"),
@@ -124,7 +124,7 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
         dy, dx = prep.spacing(Y), prep.spacing(X)
         plan = _iso_plan(ny, nx, dy, dx, nb_points)
         out = apply_lateral(_k.psd_iso, h, output_core_dims=[["q"]], output_sizes={"q": len(plan)},
-                            kwargs=dict(dy=dy, dx=dx, window=win, plan=plan), what="psd")
+                            kwargs=dict(dy=dy, dx=dx, window=win, plan=plan), height_power=(2,), what="psd")
         out = out.assign_coords(q=length_coord("q", plan.centers, qunits, "magnitude of the angular wavevector"))
         if equivalent_1d:
             out = out * (out["q"] / np.pi)

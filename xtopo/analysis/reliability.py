@@ -116,7 +116,7 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
         curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
                              output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
                              kwargs=dict(dx=dx, etas=etas, periodic=prep.periodic, rows=len(other)),
-                             what="reliability_cutoff")
+                             height_power=(1,), what="reliability_cutoff")
         parts.append(curv.assign_coords(_eta=2 * etas * dx))
     if not parts:
         raise GridError(f"reliability_cutoff: the tip-radius criterion (eq. 13) needs at least 3 points along "

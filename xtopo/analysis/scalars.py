@@ -68,10 +68,14 @@ def scalars(obj) -> xr.Dataset:
 
     Notes
     -----
-    A parameter is NaN exactly where it is undefined, never from a numerical failure:
+    Heights of any representable scale (1e±300 included) are analysed in scaled units: the parameters
+    are finite, or an :class:`~xtopo.errors.XtopoError` says they lie beyond float64 (a curvature of
+    heights 1e300 m on µm pixels). A parameter is NaN exactly where it is undefined, never from a
+    numerical failure:
 
     * all parameters, when every height is missing;
-    * skewness and kurtosis (Ssk, Sku, Rsk, Rku), when the RMS height is 0 (a flat surface);
+    * skewness and kurtosis (Ssk, Sku, Rsk, Rku), when the RMS height is 0 (a flat surface), with an
+      :class:`~xtopo.errors.UndefinedValueWarning` (when the kernel runs: at ``.compute()`` for dask data);
     * slopes (Sdq, Rdq) of nonperiodic data with fewer than 2 samples along a direction,
       curvatures (Sddq, Rddq) with fewer than 3 (SΔq and SΔ²q need both directions).
     """
@@ -84,25 +88,25 @@ def scalars(obj) -> xr.Dataset:
         dy, dx = spacing(h, Y), spacing(h, X)
         s = apply_lateral(_k.area_parameters, h, output_core_dims=[["parameter"]],
                           output_sizes={"parameter": len(_k.AREA_PARAMETERS)},
-                          kwargs=dict(dy=dy, dx=dx, periodic=periodic), what="scalars")
+                          kwargs=dict(dy=dy, dx=dx, periodic=periodic), height_power=(_k.HEIGHT_POWERS,), what="scalars")
         for i, name in enumerate(_k.AREA_PARAMETERS):
             out[name] = _annotate(name, s.isel(parameter=i, drop=True), units)
         rx = apply_lateral(_k.profile_parameters, h, output_core_dims=[["parameter"]],
                            output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
-                           kwargs=dict(dx=dx, periodic=periodic, rows=1), what="scalars")
+                           kwargs=dict(dx=dx, periodic=periodic, rows=1), height_power=(_k.HEIGHT_POWERS,), what="scalars")
         ry = apply_lateral(_k.profile_parameters, h, core_dims=(X, Y), output_core_dims=[["parameter"]],
                            output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
-                           kwargs=dict(dx=dy, periodic=periodic, rows=1), what="scalars")
+                           kwargs=dict(dx=dy, periodic=periodic, rows=1), height_power=(_k.HEIGHT_POWERS,), what="scalars")
         r = xr.concat([rx, ry], dim="direction")
     elif is_nonuniform(h):
         xv = np.asarray(h[X].values, dtype=float)
         r = apply_lateral(_k.nonuniform_parameters, h, output_core_dims=[["parameter"]],
-                          output_sizes={"parameter": len(_k.LINE_PARAMETERS)}, kwargs=dict(x=xv), what="scalars")
+                          output_sizes={"parameter": len(_k.LINE_PARAMETERS)}, kwargs=dict(x=xv), height_power=(_k.HEIGHT_POWERS,), what="scalars")
         r = r.expand_dims("direction")
     else:
         r = apply_lateral(_k.profile_parameters, h, output_core_dims=[["parameter"]],
                           output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
-                          kwargs=dict(dx=spacing(h, X), periodic=periodic, rows=0), what="scalars")
+                          kwargs=dict(dx=spacing(h, X), periodic=periodic, rows=0), height_power=(_k.HEIGHT_POWERS,), what="scalars")
         r = r.expand_dims("direction")
     # a fixed-width unicode label for line and area scans alike (expand_dims would make it an object array)
     r = r.assign_coords(direction=("direction", np.array([X, Y][: r.sizes["direction"]]),

@@ -73,7 +73,7 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
     out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
                         output_sizes={"distance": etas.size},
                         kwargs=dict(dx=dx, etas=etas, order=order, periodic=prep.periodic, rows=len(other)),
-                        what="sdrp")
+                        height_power=(1,), what="sdrp")
     out = out.assign_coords(distance=length_coord("distance", distances, u, "stencil length"))
     if order == 1:
         out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, "sdrp", order=1, direction=dim)

@@ -46,7 +46,7 @@ def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
     levels = _k.vbm_levels(sizes, min_pixels)
     kwargs = dict(dx=prep.spacing(X), levels=levels, ndim=len(prep.lat))
     out = apply_lateral(_k.vbm, h, output_core_dims=[["bandwidth"]], output_sizes={"bandwidth": levels.size},
-                        kwargs=kwargs, what="vbm")
+                        kwargs=kwargs, height_power=(1,), what="vbm")
     length = float(np.prod([prep.size(d) for d in prep.lat]) ** (1 / len(prep.lat)))  # sqrt(Lx Ly), or L
     out = out.assign_coords(bandwidth=length_coord("bandwidth", length / levels, u, "bandwidth"),
                             magnification=("bandwidth", levels, {"units": "1", "long_name": "magnification ζ"}))

@@ -107,6 +107,13 @@ def _client_for(client, scheduler, workers):
 
 
 def _execute_distributed(client, chunks, progress, retries) -> dict:
+    """Run ``chunks`` on ``client``, made the current client meanwhile: distributed's ``as_completed`` and
+    ``progress`` look the client up, and one given as ``client=`` need not be the process's default."""
+    with client.as_current():
+        return _gather_distributed(client, chunks, progress, retries)
+
+
+def _gather_distributed(client, chunks, progress, retries) -> dict:
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]

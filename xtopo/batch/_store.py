@@ -120,7 +120,8 @@ class Store:
         if not os.path.exists(path):
             return None
         try:
-            ds = read_netcdf(path)
+            with IO_LOCK:  # read with h5netcdf (HDF5), written with netCDF4 (netCDF-C): see IO_LOCK
+                ds = read_netcdf(path)
         except Exception:  # a damaged file is recomputed, never trusted
             return None
         if ds.attrs.get(KEY_ATTR) != key or int(ds.attrs.get(FAILED_ATTR, 1)) != 0:
@@ -145,7 +146,8 @@ class Store:
 
     def read(self, key: str) -> xr.Dataset:
         """A stored chunk, loaded, without the store's bookkeeping attributes."""
-        return _strip(read_netcdf(self.path(key)))
+        with IO_LOCK:
+            return _strip(read_netcdf(self.path(key)))
 
     def write_manifest(self, manifest: dict) -> str:
         """Write ``manifest.json`` (what the batch is, which chunk files make it up) atomically."""

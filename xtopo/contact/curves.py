@@ -88,7 +88,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
     ds = xr.concat([st.set_coords(dim) for st in steps], dim=dim, data_vars="all", coords="minimal",
                    compat="override", combine_attrs="override")
     # penetrations are known to the solver tolerance (relative to the roughness, or the pixel for a flat)
-    scale = float(-scene.w.min()) or max(scene.spacing)
+    scale = float(np.ldexp(-scene.w.min(), scene.height_exponent)) or max(scene.spacing)
     ds["stiffness"] = stiffness(ds, dim=dim, atol=tol * scale)
     if gap_bins:
         ds["gap_distribution"] = gap_distribution(ds, bins=gap_bins)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from .._apply import scale_exponent
 from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
@@ -148,8 +149,12 @@ class Scene:
         #: what the results carry of the measurement: its file, checksum and processing history
         self.provenance = provenance_of(topography)
         self.heights = values
-        # rigid surface relative to its highest point (≤ 0): first contact at penetration 0
-        self.w = (values - values.max()).astype(self.dtype)
+        # rigid surface relative to its highest point (≤ 0): first contact at penetration 0, in scaled units
+        # w · 2**-height_exponent when its heights are extreme (see xtopo._apply: the solver's results are linear
+        # in the heights, so solve.run_solver scales the controls down and the results back up)
+        w = values - values.max()
+        self.height_exponent = scale_exponent(w)
+        self.w = np.ldexp(w, -self.height_exponent).astype(self.dtype)
         self.pixel_area = float(np.prod(self.spacing))
         self.nominal_area = self.pixel_area * int(np.prod(self.shape))
         self.backend_request = backend

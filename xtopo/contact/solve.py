@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from .._apply import rescaled
 from .._checks import integer, positive_number
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
@@ -91,7 +92,8 @@ def _control(scene, load, mean_pressure, penetration):
         if v is not None:
             control_value(name, v, scene.hardness)  # a mean pressure is compared with the hardness itself
     if penetration is not None and scene.periodic and scene.hardness is None:
-        limit = 0.0 - float(np.mean(scene.w, dtype=np.float64))  # 0.0 - : a flat surface's is 0, not -0
+        # 0.0 - : a flat surface's is 0, not -0; scene.w is in units of 2**height_exponent
+        limit = 0.0 - float(np.ldexp(np.mean(scene.w, dtype=np.float64), scene.height_exponent))
         if float(penetration) >= limit:
             raise ContactError(
                 f"penetration {float(penetration):g} reaches the mean plane of the periodic surface (its highest "
@@ -189,21 +191,36 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
     """
     from .._kernels.pk_solver import COUNTERS, polonsky_keer  # lazy: numba (startup time, issue 26)
 
-    kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=initial)
+    e = scene.height_exponent  # scene.w is in units of 2**e: so are the controls given to the solver
+
+    def down(v):
+        return None if v is None else np.ldexp(np.asarray(v, dtype=np.float64), -e)
+
+    load, penetration, hardness = (float(down(v)) if v is not None else None
+                                   for v in (load, penetration, scene.hardness))
+    kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=down(initial))
     elastic = None
-    if scene.hardness is not None and load is not None and load > 0:
+    res = None
+    if hardness is not None and load is not None and load > 0:
         elastic = polonsky_keer(scene.convolution, scene.w, load=load, callback=callback, **kw)
-        if elastic.converged and float(np.max(elastic.pressure)) < scene.hardness:
-            return elastic
-        kw["maxiter"] = max(int(maxiter) - elastic.iterations, 0)
-        if initial is None and np.any(elastic.pressure):
-            kw["initial"] = elastic.pressure  # its penetration is a lower bound of the capped one's
-    if scene.hardness is None or load is None:
-        kw["callback"] = callback
-    res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=scene.hardness, **kw)
+        if elastic.converged and float(np.max(elastic.pressure)) < hardness:
+            res, elastic = elastic, None
+        else:
+            kw["maxiter"] = max(int(maxiter) - elastic.iterations, 0)
+            if initial is None and np.any(elastic.pressure):
+                kw["initial"] = elastic.pressure  # its penetration is a lower bound of the capped one's
+    if res is None:
+        if hardness is None or load is None:
+            kw["callback"] = callback
+        res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=hardness, **kw)
     if elastic is not None:
         for key in COUNTERS:
             res[key] += elastic[key]
+    if e:  # pressures, displacements and gaps are linear in the heights (E* fixed)
+        for key in ("pressure", "displacement", "gap"):
+            res[key] = rescaled(res[key], e, 1, "contact")
+        for key in ("penetration", "load"):
+            res[key] = float(rescaled(np.float64(res[key]), e, 1, "contact"))
     return res
 
 

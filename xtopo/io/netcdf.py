@@ -20,8 +20,10 @@ from .._checks import path as checked_path
 from .._version import __version__
 from ..conventions import CONVENTIONS, provenance_of
 from ..errors import ReaderError, ValidationError, WriteError, XtopoError
+from ._netcdf3 import check_netcdf3_header
 
-__all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "open_contact", "is_contact_result", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
+__all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "read_engine", "READ_ENGINES", "open_contact",
+           "is_contact_result", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
            "ENGINES"]
 
 ENGINES = ("netcdf4", "h5netcdf")
@@ -231,13 +233,46 @@ def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
     return atomic_write(path, write)
 
 
+#: The engines that read files xtopo did not just write (archives, cache entries, twins, batch stores, files
+#: from elsewhere). Why (issue 24; measured with tests/io/test_netcdf_fuzz.py's mutants, each read in a
+#: child process):
+#:
+#: * netCDF-C (the netCDF4 library) is never handed an untrusted file: a NetCDF-3 header whose dimension
+#:   count reads 2**31 kills the interpreter (SIGSEGV) — xtopo reached it through the SurfaceTopography
+#:   reader's engine fallback — another header mutant made it allocate 14 GB, and an outside audit saw
+#:   NetCDF-4 mutants crash it, one only at the next garbage collection. It parses NetCDF-4's own layer
+#:   (dimension scales, hidden attributes) on top of HDF5, so h5py's attack surface is a subset of it.
+#: * NetCDF-4/HDF5 files are read with h5netcdf (h5py): 0 crashes in the fuzz runs (1,100+ HDF5 mutants of
+#:   measurements and twins, and the slow test's). Cost: a read takes 20-40 ms more (64²: 50 ms against
+#:   12 ms median; 1024²: 61 against 40), paid once per file; the cache avoids it (NetCDF-3 entries).
+#: * NetCDF-3 files are read with scipy (pure Python) once :func:`check_netcdf3_header` has bounded every
+#:   size in the header by the file's size (scipy allocated up to 16 GB for a 14 kB file).
+#: * Isolating every read in a subprocess was the alternative: 2-5 s per read for the imports here, and a
+#:   result copied across processes; refused.
+READ_ENGINES = {"netcdf3": "scipy", "hdf5": "h5netcdf"}
+
+
+def read_engine(path) -> str:
+    """The engine that reads ``path`` safely: ``scipy`` for NetCDF-3 (header checked first), else ``h5netcdf``."""
+    with open(path, "rb") as f:
+        head = f.read(4)
+    if head[:3] == b"CDF":
+        check_netcdf3_header(path)
+        return READ_ENGINES["netcdf3"]
+    return READ_ENGINES["hdf5"]
+
+
 def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
-    """Open an xtopo NetCDF file; loaded into memory unless ``lazy``."""
+    """Open an xtopo NetCDF file; loaded into memory unless ``lazy``.
+
+    Without ``engine``, NetCDF-4/HDF5 files are read with h5netcdf and NetCDF-3 files with scipy after
+    a check of their header (:data:`READ_ENGINES`): no file can crash the interpreter or make the reader
+    allocate more than the file holds.
+    """
     path = checked_path(path, "path", kind="file path")  # an int would be opened (and closed) as a descriptor
     try:
         if engine is None:  # naming the engine skips xarray's guessing over every backend (ours included)
-            with open(path, "rb") as f:
-                engine = "scipy" if f.read(3) == b"CDF" else _default_engine()
+            engine = read_engine(path)
         ds = xr.open_dataset(path, engine=engine)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError) as exc:
         raise ReaderError(path, f"not a readable NetCDF/HDF5 file: {exc}") from None

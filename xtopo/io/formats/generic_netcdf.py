@@ -17,6 +17,7 @@ import os
 import numpy as np
 
 from ...errors import ReaderError
+from .._netcdf3 import check_netcdf3_header
 from .._generic import check_array_bytes, container_channels, read_container_array
 from ..registry import Format, register
 
@@ -30,6 +31,7 @@ _ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, OverflowError, 
 def _open(path):
     from scipy.io import netcdf_file
 
+    check_netcdf3_header(path)  # sizes bounded by the file's before scipy allocates them
     try:
         return netcdf_file(path, "r", mmap=False, maskandscale=True)
     except _ERRORS as exc:

@@ -37,7 +37,7 @@ from ...conventions import (height_of, is_nonuniform, is_periodic, lateral_dims,
                             physical_size, shared_length_unit)
 from ...errors import ReaderError, UnitsError, UnsupportedFormatError, ValidationError
 from .._generic import check_array_bytes, generic_measurement, single_channel
-from ..netcdf import atomic_write
+from ..netcdf import atomic_write, read_engine
 from ..registry import Format, register
 
 __all__ = ["read_st_netcdf", "to_surfacetopography_netcdf"]
@@ -47,14 +47,12 @@ _OPEN_ERRORS = (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexErr
 
 
 def _open(path):
-    for engine in ("scipy", "netcdf4", "h5netcdf"):
-        try:
-            return xr.open_dataset(path, engine=engine, mask_and_scale=True, decode_times=False)
-        except _OPEN_ERRORS:
-            continue
-        except ImportError:
-            continue
-    raise UnsupportedFormatError(path, "not a NetCDF file any installed engine can open")
+    """The file through the engine that reads it safely (:func:`xtopo.io.netcdf.read_engine`)."""
+    engine = read_engine(path)  # a NetCDF-3 header claiming more than the file holds: ReaderError
+    try:
+        return xr.open_dataset(path, engine=engine, mask_and_scale=True, decode_times=False)
+    except _OPEN_ERRORS:
+        raise UnsupportedFormatError(path, "not a NetCDF file any installed engine can open") from None
 
 
 def _attr(var, key, default=None):
