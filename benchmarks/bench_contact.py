@@ -19,6 +19,7 @@ Usage::
     python benchmarks/bench_contact.py                    # periodic 256 512 1024, free 256 512
     python benchmarks/bench_contact.py --periodic 256 --free  # quick
     python benchmarks/bench_contact.py --big 4096          # one 4096² free solve: time and peak RSS
+    python benchmarks/bench_contact.py --memory            # bytes per point of a scene set up and solved
 
 Tolerances: xtopo ``tol`` (largest contact violation / peak-to-valley height); the same
 length ``tol·PtV`` is ContactMechanics' ``pentol``; tamaas gets its own relative ``tol``.
@@ -179,7 +180,54 @@ def run_tamaas(n, periodic, tol, repeat):
                 iterations=-1, converged=True, rss=peak_rss_mb())
 
 
-RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas}
+def _status_kb(field):
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    return 0
+
+
+def run_memory(n, periodic, tol, repeat, dtype="float64"):
+    """Peak memory of one scene set up and solved, over the process's memory before (bytes per point).
+
+    The surface and a 32² warm-up solve (imports, compiled kernels) come first; then the kernel's peak
+    RSS mark is reset (``/proc/self/clear_refs``) and the scene is built and solved once (``setup``) and
+    again with the first result released (the scene's operators exist). Bytes per measurement point =
+    (peak - before) / n².
+    Independent of the machine's load.
+    """
+    from xtopo.contact import Scene
+
+    Scene(surface(32, periodic)).solve(mean_pressure=MEAN_PRESSURE, tol=tol)
+    ds = surface(n, periodic)
+    import gc
+
+    gc.collect()
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+    except OSError:
+        return {"error": "cannot reset the peak RSS mark (/proc/self/clear_refs)"}
+    before = _status_kb("VmRSS")
+    t0 = time.perf_counter()
+    scene = Scene(ds, dtype=dtype)
+    r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+    cold = time.perf_counter() - t0
+    peak_first = _status_kb("VmHWM")
+    r = None   # the repeat solve is measured on its own (a user keeping both results holds both)
+    t0 = time.perf_counter()
+    r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+    warm = time.perf_counter() - t0
+    peak = _status_kb("VmHWM")
+    points = n * n
+    return dict(time=warm, cold=cold, area=float(r.area_fraction), iterations=int(r.iterations),
+                converged=bool(r.converged), before_mb=before / 1024, peak_mb=peak / 1024,
+                bytes_per_point_first=(peak_first - before) * 1024 / points,
+                bytes_per_point=(peak - before) * 1024 / points, rss=peak / 1024)
+
+
+RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas, "memory": run_memory}
 
 
 def case(pkg, n, boundary, tol, repeat, show_progress=False):
@@ -200,11 +248,26 @@ def main():
     ap.add_argument("--peer-tol", type=float, default=None, help="tamaas tolerance (default: --tol)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--big", type=int, default=None, help="run one free-boundary solve of this size only")
+    ap.add_argument("--memory", action="store_true",
+                    help="peak memory per measurement point of xtopo (setup + solve, over the memory before)")
     ap.add_argument("--case", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
         pkg, n, boundary, tol, repeat = args.case
         print(json.dumps(RUNNERS[pkg](int(n), boundary == "periodic", float(tol), int(repeat))))
+        return
+    if args.memory:
+        print(f"peak memory over the process's memory before, per measurement point (tol {args.tol})")
+        for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
+            for n in sizes:
+                r = case("memory", n, boundary, args.tol, 1)
+                if "error" in r:
+                    print(f"{boundary} {n}: failed: {r['error']}")
+                    continue
+                print(f"{boundary + ' ' + str(n):>14}: {r['bytes_per_point_first']:6.1f} B/point (scene set up and "
+                      f"solved once), {r['bytes_per_point']:6.1f} B/point after a second solve; peak "
+                      f"{r['peak_mb']:.0f} MB over {r['before_mb']:.0f} MB; {r['iterations']} iterations; cold "
+                      f"{r['cold']:.2f} s, warm {r['time']:.2f} s")
         return
     if args.big:
         r = case("xtopo", args.big, "free", args.tol, 1, show_progress=True)
