@@ -22,11 +22,13 @@ convolution of the pressures per iteration):
 Backends (``backend=``): ``"pyfftw"`` (FFTW plans built once on preallocated, aligned
 buffers; no allocation per call) or ``"scipy"`` (``scipy.fft``, pocketfft caches its
 plans but allocates its outputs). ``"auto"`` takes pyFFTW when it is installed: planned
-FFTW transforms run 1.4–2× faster than pocketfft on 256²–2048² grids. FFTW plans are
-measured (``FFTW_MEASURE``) from 256² on and estimated below, where measuring costs more
-than it saves in one solve; ``XTOPO_FFTW_PLANNER=estimate|measure`` overrides. Measured
-plans are remembered in the user cache directory (FFTW wisdom), so a grid is measured
-once per machine.
+FFTW transforms run 1.4–2× faster than pocketfft on 256²–2048² grids. Measured plans
+(``FFTW_MEASURE``, from 256² on) run about 1.25× faster than estimated ones, but measuring
+the three plans of a 1024² solve costs 8 s, twice the solve: a grid FFTW's wisdom (kept in the
+user cache directory) does not know yet is planned by estimate, and measured once the operator
+has served :data:`_MEASURE_AFTER` solves (load curves, batches), which stores the wisdom for
+every later process. ``XTOPO_FFTW_PLANNER=estimate|measure`` overrides. One FFT thread unless
+``XTOPO_FFT_THREADS`` says otherwise (:func:`_threads`).
 """
 
 from __future__ import annotations
@@ -45,27 +47,31 @@ __all__ = ["Convolution"]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
 _MEASURE_FROM = 256 * 256
-_THREADS_FROM = 2048 * 2048
+#: solves on one operator after which estimated plans are replaced by measured ones (saved as wisdom)
+_MEASURE_AFTER = 3
 _WISDOM = {"loaded": False}
 
 
 def _threads(fft_shape) -> int:
-    """FFT threads: ``XTOPO_FFT_THREADS`` when set, else all CPUs from 2048² on and one below.
+    """FFT threads: ``XTOPO_FFT_THREADS`` when set, else one.
 
-    Below 2048² a transform takes milliseconds and FFTW's threads synchronise more than they
-    compute: on a busy 2-core machine two threads made 256²–512² solves 5–8× slower
-    (benchmarks/tradeoffs.py), and on an idle one they gain little.
+    FFTW's threads synchronise every transform: where the cores are busy (other processes, a
+    batch of parallel solves) a thread that waits for a core stalls the others, and two threads
+    made 1024² solves 17–22× slower on a loaded 2-core machine (issue 27), while on an idle one
+    they gain at most 1.6× from 2048² on (benchmarks/bench_contact.py --threads). Parallel solves
+    (:func:`xtopo.batch.contact`) use the cores without that risk.
     """
-    if os.environ.get("XTOPO_FFT_THREADS"):
-        return _fft.workers()
-    return _fft.workers() if int(np.prod(fft_shape)) >= _THREADS_FROM else 1
+    return _fft.workers() if os.environ.get("XTOPO_FFT_THREADS") else 1
 
 
 def _planner(fft_shape) -> str:
+    """``FFTW_MEASURE`` (``XTOPO_FFTW_PLANNER=measure``), ``FFTW_ESTIMATE`` (``=estimate``) or the default
+    ``"auto"``: measured plans where FFTW's wisdom knows them, estimated ones otherwise (see
+    :meth:`Convolution.begin_solve`)."""
     env = os.environ.get("XTOPO_FFTW_PLANNER", "").lower()
     if env in ("estimate", "measure"):
         return "FFTW_" + env.upper()
-    return "FFTW_MEASURE" if int(np.prod(fft_shape)) >= _MEASURE_FROM else "FFTW_ESTIMATE"
+    return "auto" if int(np.prod(fft_shape)) >= _MEASURE_FROM else "FFTW_ESTIMATE"
 
 
 def _wisdom_path() -> str:
@@ -166,6 +172,9 @@ class Convolution:
         self._workspaces = {}
         self._scratch = {}
         self._self_stiffness = None
+        self._estimated = False   # planned by estimate for want of wisdom
+        self._measure = False     # plan by measurement (this operator has served enough solves)
+        self._solves = 0
         self.lock = _owner.lock if _owner is not None else threading.RLock()
 
     def _multiplier(self, dtype) -> np.ndarray:
@@ -216,6 +225,16 @@ class Convolution:
                                                 _owner=self, _in_place=in_place)
         return self._workspaces[key]
 
+    def begin_solve(self) -> None:
+        """Count a solve on this operator; the :data:`_MEASURE_AFTER`-th replaces estimated plans (the grid
+        was new to FFTW's wisdom) by measured ones and stores the wisdom. Call with :attr:`lock` held, before
+        the buffers hold anything (planning overwrites them)."""
+        self._solves += 1
+        ops = [self, *self._workspaces.values()]
+        if self._solves >= _MEASURE_AFTER and any(op._estimated for op in ops):
+            for op in ops:   # all of them: the workspaces' spectra live in this operator's buffer
+                op._measure, op._estimated, op._plan, op._buffers = True, False, None, None
+
     def scratch(self, name: str, size: int, dtype) -> np.ndarray:
         """A 1-D work array of ``size`` kept under ``name`` (contents undefined; allocated once).
 
@@ -264,8 +283,20 @@ class Convolution:
 
         _load_wisdom(pyfftw)
         flag = _planner(self.fft_shape)
-        kw = dict(threads=self.workers, flags=(flag,))
-        destroy = dict(threads=self.workers, flags=(flag, "FFTW_DESTROY_INPUT"))
+        if flag == "auto":
+            flag = "FFTW_MEASURE" if self._measure else "FFTW_ESTIMATE"
+            try:   # plans the wisdom knows are measured at no cost
+                self._plan_pyfftw(pyfftw, ("FFTW_MEASURE", "FFTW_WISDOM_ONLY"))
+                return
+            except RuntimeError:   # not known: estimate now, measure once the operator has proved its use
+                self._estimated = not self._measure
+        self._plan_pyfftw(pyfftw, (flag,))
+        if flag == "FFTW_MEASURE":
+            _save_wisdom(pyfftw)
+
+    def _plan_pyfftw(self, pyfftw, flags):
+        kw = dict(threads=self.workers, flags=flags)
+        destroy = dict(threads=self.workers, flags=(*flags, "FFTW_DESTROY_INPUT"))
         nxc = self.fft_shape[-1] // 2 + 1
         nfx = self.fft_shape[-1]
         spec_shape = self.fft_shape[:-1] + (nxc,)
@@ -294,8 +325,6 @@ class Convolution:
                    pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_FORWARD", **kw)]
             bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **kw),
                    pyfftw.FFTW(spec[:ny], real[:ny, :nfx], axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
-        if flag == "FFTW_MEASURE":
-            _save_wisdom(pyfftw)
         self._plan = (fwd, bwd)
         n = self.shape[-1]
         # an in-place input shares its row with the output: the zero padding of a free grid is restored

@@ -310,6 +310,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     if (load is None) == (penetration is None):
         raise ValueError("give exactly one of load and penetration")
     with conv.lock:  # the operator's buffers hold this solve's state until it returns
+        conv.begin_solve()
         return _solve(conv, w, pixel_area=pixel_area, load=load, penetration=penetration, hardness=hardness,
                       tol=tol, maxiter=maxiter, initial=initial, callback=callback)
 
