@@ -61,7 +61,7 @@ def _threads(fft_shape) -> int:
     they gain at most 1.6× from 2048² on (benchmarks/bench_contact.py --threads). Parallel solves
     (:func:`xtopo.batch.contact`) use the cores without that risk.
     """
-    return _fft.workers() if os.environ.get("XTOPO_FFT_THREADS") else 1
+    return _fft.workers()
 
 
 def _planner(fft_shape) -> str:
