@@ -41,8 +41,17 @@ displacements, and the returned ``u`` is exact. Everything else works on the ind
 of the contact and plastic sets (a fraction of the grid) but for one pass over the grid
 (the float32 overlap test, which skips row segments without overlaps on a vectorised
 count). These passes are compiled (:mod:`xtopo._kernels.compiled`, numba): one pass each
-where numpy needed a chain of gathers, temporaries and reductions. The transform buffers
-are written only where the pressures or the direction changed. In a float32 scene the increments are in the
+where numpy needed a chain of gathers, temporaries and reductions. The increment's input
+buffer is written only where the pressures changed; the direction is written whole (a zero
+fill and the CG set) into the shared spectrum buffer, which its forward transform consumes
+in place.
+
+Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 63 B per grid point
+for setup and solve): the scene's heights ``w`` (8 B), the folded Green's functions (2 + 1 B),
+one in-place float64 transform buffer that the float32 operators share for their spectra and
+outputs (8 B), the increment's float32 input (4 B), ``c``/``c_low``/``p_ref`` (8 + 4 + 8 B),
+int32 index sets and compact overlap lists; the result takes over ``p_ref`` (the pressures)
+and ``c`` (the gaps) instead of copying them. In a float32 scene the increments are in the
 working precision already: the reference is computed at the start and refreshed only at the end.
 
 Convergence: ``residual ≤ tol`` where
