@@ -74,7 +74,51 @@ def _stencil(eta, order, periodic, n, pad):
     return k, f, start, n - reach - start
 
 
-@njit(nogil=True, cache=True, fastmath={"reassoc", "nsz"})
+_SUM = dict(nogil=True, cache=True, fastmath={"reassoc", "nsz"})   # sums may be vectorised (reordered)
+
+
+@njit(**_SUM)
+def _diff1(row, start, a, count, g, f, squares):
+    """``Σ d²`` or ``min d`` of ``d = h(m+η) - h(m)`` (interpolated: ``g·h[a+m] + f·h[a+1+m]``).
+
+    The loops run over contiguous slices (no index arithmetic in them), which vectorises them.
+    """
+    acc = 0.0 if squares else np.inf
+    c = row[start:start + count]
+    x = row[a:a + count]
+    if f == 0.0:
+        for m in range(count):
+            d = x[m] - c[m]
+            acc = acc + d * d if squares else min(acc, d)
+    else:
+        y = row[a + 1:a + 1 + count]
+        for m in range(count):
+            d = (g * x[m] + f * y[m]) - c[m]
+            acc = acc + d * d if squares else min(acc, d)
+    return acc
+
+
+@njit(**_SUM)
+def _diff2(row, start, a, b, count, g, f, squares):
+    """As :func:`_diff1` for ``d = h(m+η) - 2h(m) + h(m-η)`` (``b`` the backward point, ``b-1`` beyond)."""
+    acc = 0.0 if squares else np.inf
+    c = row[start:start + count]
+    x = row[a:a + count]
+    z = row[b:b + count]
+    if f == 0.0:
+        for m in range(count):
+            d = x[m] - 2 * c[m] + z[m]
+            acc = acc + d * d if squares else min(acc, d)
+    else:
+        y = row[a + 1:a + 1 + count]
+        w = row[b - 1:b - 1 + count]
+        for m in range(count):
+            d = (g * x[m] + f * y[m]) - 2 * c[m] + (g * z[m] + f * w[m])
+            acc = acc + d * d if squares else min(acc, d)
+    return acc
+
+
+@njit(nogil=True, cache=True)
 def _row_stats(row, etas, order, periodic, n, pad, squares, out):
     """Fold the scaled differences of one profile ``row`` (wrapped by ``pad`` values on each side when
     periodic) into ``out[e]``: ``Σ d²`` (``squares``) or ``min d``, with ``d`` not yet divided by
@@ -83,28 +127,10 @@ def _row_stats(row, etas, order, periodic, n, pad, squares, out):
         k, f, start, count = _stencil(etas[e], order, periodic, n, pad)
         if count <= 0:
             continue
-        a = start + k
-        b = start - k
-        g = 1.0 - f
-        acc = 0.0 if squares else np.inf
-        for m in range(count):
-            c = row[start + m]
-            if f == 0.0:
-                fwd = row[a + m]
-            else:
-                fwd = g * row[a + m] + f * row[a + 1 + m]
-            if order == 1:
-                d = fwd - c
-            else:
-                if f == 0.0:
-                    bwd = row[b + m]
-                else:
-                    bwd = g * row[b + m] + f * row[b - 1 + m]
-                d = fwd - 2 * c + bwd
-            if squares:
-                acc += d * d
-            else:
-                acc = min(acc, d)
+        if order == 1:
+            acc = _diff1(row, start, start + k, count, 1.0 - f, f, squares)
+        else:
+            acc = _diff2(row, start, start + k, start - k, count, 1.0 - f, f, squares)
         if squares:
             out[e] += acc
         else:
