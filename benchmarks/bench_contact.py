@@ -255,6 +255,7 @@ def run_cold(n, periodic, tol, repeat, dtype="float64"):
 
 
 RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas, "memory": run_memory, "cold": run_cold}
+PACKAGES = ("xtopo", "ContactMechanics", "tamaas")   # the side-by-side table
 
 
 def case(pkg, n, boundary, tol, repeat, show_progress=False):
@@ -322,14 +323,14 @@ def main():
         r = case("memory", args.big, args.boundary, args.tol, 0, show_progress=True)
         print(f"{args.boundary} {args.big}²: {json.dumps(r)}")
         return
-    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', 'auto: 1 below 2048²')}, "
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', '1 (default)')}, "
           f"cpus {os.cpu_count()}")
     head = (f"{'grid':>14} {'package':>16} {'time s':>9} {'area':>9} {'iters':>6} {'conv':>5} {'RSS MB':>8}")
     print(head)
     for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
         for n in sizes:
             rows = {}
-            for pkg in RUNNERS:
+            for pkg in PACKAGES:
                 if pkg == "tamaas" and boundary == "free":
                     continue
                 tol = args.tol if pkg != "tamaas" or args.peer_tol is None else args.peer_tol
