@@ -18,7 +18,11 @@ Usage::
 
     python benchmarks/bench_contact.py                    # periodic 256 512 1024, free 256 512
     python benchmarks/bench_contact.py --periodic 256 --free  # quick
-    python benchmarks/bench_contact.py --big 4096          # one 4096² free solve: time and peak RSS
+    python benchmarks/bench_contact.py --big 4096          # one 4096² free solve: time and peak memory
+    python benchmarks/bench_contact.py --big 8192 --boundary periodic
+    python benchmarks/bench_contact.py --memory            # bytes per point of a scene set up and solved
+    python benchmarks/bench_contact.py --cold --periodic 1024 2048 --free  # first solve vs warm ones
+    python benchmarks/bench_contact.py --cold --periodic 2048 --free --threads 1 2 2 1  # FFT threads
 
 Tolerances: xtopo ``tol`` (largest contact violation / peak-to-valley height); the same
 length ``tol·PtV`` is ContactMechanics' ``pentol``; tamaas gets its own relative ``tol``.
@@ -179,7 +183,79 @@ def run_tamaas(n, periodic, tol, repeat):
                 iterations=-1, converged=True, rss=peak_rss_mb())
 
 
-RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas}
+def _status_kb(field):
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    return 0
+
+
+def run_memory(n, periodic, tol, repeat, dtype="float64"):
+    """Peak memory of one scene set up and solved, over the process's memory before (bytes per point).
+
+    The surface and a 32² warm-up solve (imports, compiled kernels) come first; then the kernel's peak
+    RSS mark is reset (``/proc/self/clear_refs``) and the scene is built and solved once (``setup``) and
+    again with the first result released (the scene's operators exist). Bytes per measurement point =
+    (peak - before) / n².
+    Independent of the machine's load.
+    """
+    from xtopo.contact import Scene
+
+    Scene(surface(32, periodic)).solve(mean_pressure=MEAN_PRESSURE, tol=tol)
+    ds = surface(n, periodic)
+    import gc
+
+    gc.collect()
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+    except OSError:
+        return {"error": "cannot reset the peak RSS mark (/proc/self/clear_refs)"}
+    before = _status_kb("VmRSS")
+    t0 = time.perf_counter()
+    scene = Scene(ds, dtype=dtype)
+    r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000, callback=progress if n >= 2048 else None)
+    cold = time.perf_counter() - t0
+    peak = peak_first = _status_kb("VmHWM")
+    warm = float("nan")
+    if repeat:
+        r = None   # the repeat solve is measured on its own (a user keeping both results holds both)
+        t0 = time.perf_counter()
+        r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+        warm = time.perf_counter() - t0
+        peak = _status_kb("VmHWM")
+    points = n * n
+    return dict(time=warm, cold=cold, area=float(r.area_fraction), iterations=int(r.iterations),
+                converged=bool(r.converged), before_mb=before / 1024, peak_mb=peak / 1024,
+                bytes_per_point_first=(peak_first - before) * 1024 / points,
+                bytes_per_point=(peak - before) * 1024 / points, rss=peak / 1024)
+
+
+def run_cold(n, periodic, tol, repeat, dtype="float64"):
+    """The first solve of a fresh process (scene set up, plans, compiled kernels loaded) beside warm ones.
+
+    Imports and the surface are not counted; FFTW wisdom on disk is what a machine that has run xtopo
+    before has. ``XTOPO_FFT_THREADS`` in the environment sets the FFT threads.
+    """
+    from xtopo.contact import Scene
+
+    ds = surface(n, periodic)
+    t0 = time.perf_counter()
+    scene = Scene(ds, dtype=dtype)
+    r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+    cold = time.perf_counter() - t0
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        r = scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+        times.append(time.perf_counter() - t0)
+    return dict(cold=cold, time=statistics.median(times), min=min(times), max=max(times), iterations=int(r.iterations),
+                area=float(r.area_fraction), threads=scene.convolution.workers, rss=peak_rss_mb())
+
+
+RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas, "memory": run_memory, "cold": run_cold}
+PACKAGES = ("xtopo", "ContactMechanics", "tamaas")   # the side-by-side table
 
 
 def case(pkg, n, boundary, tol, repeat, show_progress=False):
@@ -199,25 +275,62 @@ def main():
     ap.add_argument("--tol", type=float, default=1e-6)
     ap.add_argument("--peer-tol", type=float, default=None, help="tamaas tolerance (default: --tol)")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--big", type=int, default=None, help="run one free-boundary solve of this size only")
+    ap.add_argument("--big", type=int, default=None,
+                    help="one solve of this size only (--boundary): time and peak memory per point")
+    ap.add_argument("--boundary", choices=("free", "periodic"), default="free", help="boundary of --big")
+    ap.add_argument("--memory", action="store_true",
+                    help="peak memory per measurement point of xtopo (setup + solve, over the memory before)")
+    ap.add_argument("--cold", action="store_true",
+                    help="first solve of a fresh process beside the warm median (--periodic/--free sizes)")
+    ap.add_argument("--threads", type=int, nargs="*", default=None,
+                    help="with --cold: run each case with these XTOPO_FFT_THREADS, interleaved")
     ap.add_argument("--case", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
         pkg, n, boundary, tol, repeat = args.case
         print(json.dumps(RUNNERS[pkg](int(n), boundary == "periodic", float(tol), int(repeat))))
         return
-    if args.big:
-        r = case("xtopo", args.big, "free", args.tol, 1, show_progress=True)
-        print(f"free {args.big}²: {json.dumps(r)}")
+    if args.cold:
+        print(f"fresh process per row: first solve (scene, plans, compiled kernels) vs warm solves "
+              f"(median [min, max] of {args.repeat}); tol {args.tol}")
+        for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
+            for n in sizes:
+                for threads in args.threads or [None]:
+                    if threads is not None:
+                        os.environ["XTOPO_FFT_THREADS"] = str(threads)
+                    r = case("cold", n, boundary, args.tol, args.repeat)
+                    if "error" in r:
+                        print(f"{boundary} {n}: failed: {r['error']}")
+                        continue
+                    print(f"{boundary + ' ' + str(n):>14} threads {r['threads']}: cold {r['cold']:7.2f} s, warm "
+                          f"{r['time']:7.2f} s [{r['min']:.2f}, {r['max']:.2f}], cold/warm {r['cold'] / r['time']:.2f}"
+                          f", {r['iterations']} iterations")
         return
-    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', 'auto: 1 below 2048²')}, "
+    if args.memory:
+        print(f"peak memory over the process's memory before, per measurement point (tol {args.tol})")
+        for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
+            for n in sizes:
+                r = case("memory", n, boundary, args.tol, 1)
+                if "error" in r:
+                    print(f"{boundary} {n}: failed: {r['error']}")
+                    continue
+                print(f"{boundary + ' ' + str(n):>14}: {r['bytes_per_point_first']:6.1f} B/point (scene set up and "
+                      f"solved once), {r['bytes_per_point']:6.1f} B/point after a second solve; peak "
+                      f"{r['peak_mb']:.0f} MB over {r['before_mb']:.0f} MB; {r['iterations']} iterations; cold "
+                      f"{r['cold']:.2f} s, warm {r['time']:.2f} s")
+        return
+    if args.big:
+        r = case("memory", args.big, args.boundary, args.tol, 0, show_progress=True)
+        print(f"{args.boundary} {args.big}²: {json.dumps(r)}")
+        return
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, threads {os.environ.get('XTOPO_FFT_THREADS', '1 (default)')}, "
           f"cpus {os.cpu_count()}")
     head = (f"{'grid':>14} {'package':>16} {'time s':>9} {'area':>9} {'iters':>6} {'conv':>5} {'RSS MB':>8}")
     print(head)
     for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
         for n in sizes:
             rows = {}
-            for pkg in RUNNERS:
+            for pkg in PACKAGES:
                 if pkg == "tamaas" and boundary == "free":
                     continue
                 tol = args.tol if pkg != "tamaas" or args.peer_tol is None else args.peer_tol

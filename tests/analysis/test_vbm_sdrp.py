@@ -125,3 +125,41 @@ def test_vbm_line_bandwidth_is_length_over_zeta(size):
     np.testing.assert_allclose(float(v.bandwidth.min()) / float(ds.x[1] - ds.x[0]), 4)
     area = fractal_surface((32, 128), (size / 4, size), hurst=0.7, periodic=False, seed=1).topo.vbm(reliable=False)
     np.testing.assert_allclose(area.bandwidth.values, np.sqrt(size**2 / 4) / area.magnification.values, rtol=1e-12)
+
+
+def _reference_stats(h, etas, order, periodic, rows):
+    """RMS of D^(η) h and the minimum of D²^(η) h from the whole difference fields (numpy, one η at a time)."""
+    from xtopo._kernels.scaled import scaled_difference
+
+    lead = h.shape[: h.ndim - 1 - rows]
+    rms = np.full(lead + (len(etas),), np.nan)
+    low = np.full(lead + (len(etas),), np.inf)
+    for i, eta in enumerate(etas):
+        d = scaled_difference(h, float(eta), order=order, periodic=periodic)
+        if d.shape[-1]:
+            flat = d.reshape(lead + (-1,))
+            rms[..., i] = np.sqrt(np.mean(flat * flat, axis=-1))
+            low[..., i] = flat.min(axis=-1)
+    return rms, low
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("shape,rows", [((3, 40, 257), 1), ((64, 200), 1), ((500,), 0), ((4, 300), 0)])
+def test_compiled_scale_passes_equal_the_difference_fields(shape, rows, order, periodic):
+    """The one-pass compiled SDRP and curvature kernels give the values of the difference fields to 1e-13,
+    at integer and fractional η, stencils longer than the profile (NaN / no curvature) included."""
+    from xtopo._kernels.scaled import max_negative_curvature, sdrp_rms
+
+    h = np.cumsum(np.random.default_rng(1).standard_normal(shape), axis=-1)
+    n = shape[-1]
+    etas = np.concatenate([np.geomspace(1, n - 1, 25), [1.0, 2.0, 3.5, n / 2 - 0.5, n + 3.0]])
+    rms, low = _reference_stats(h, etas, order, periodic, rows)
+    np.testing.assert_allclose(sdrp_rms(h, 0.3, etas, order=order, periodic=periodic, rows=rows), rms / 0.3**order,
+                               rtol=1e-13, atol=1e-13 * np.nanmax(rms) / 0.3**order)
+    if order == 2:
+        curv = max_negative_curvature(h, 0.3, etas, periodic=periodic, rows=rows)
+        expect = -low / 0.09
+        assert np.array_equal(np.isinf(curv), np.isinf(expect))
+        fin = np.isfinite(expect)
+        np.testing.assert_allclose(curv[fin], expect[fin], rtol=1e-13, atol=1e-13 * np.abs(expect[fin]).max())

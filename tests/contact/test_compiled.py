@@ -55,6 +55,11 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     np.testing.assert_array_equal(where[:k], expect)
     np.testing.assert_allclose(gaps[:k], expect_gaps, rtol=1e-12, atol=0)
     assert low == pytest.approx(expect_gaps.min(), rel=1e-12)
+    # a shorter output pair receives the first overlaps and the count of all (the caller grows it)
+    short, short_gaps = np.empty(7, np.int32), np.empty(7)
+    assert compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, short, short_gaps) == (k, low)
+    np.testing.assert_array_equal(short, expect[:7])
+    np.testing.assert_allclose(short_gaps, expect_gaps[:7], rtol=1e-12, atol=0)
 
 
 @pytest.mark.parametrize("shape,row", LAYOUTS)
@@ -96,6 +101,16 @@ def test_writes_land_in_the_active_part(shape, row):
     assert not buf.reshape(rows, nx + pad)[:, nx:].any()        # the padding stays zero
 
 
+@pytest.mark.parametrize("hardness", [None, 0.8, 2.0])
+def test_split_sets(hardness):
+    p = np.random.default_rng(5).random(300) * 1.6 - 0.3
+    H = np.inf if hardness is None else hardness
+    cg, pl = compiled.split_sets(p, H)
+    assert cg.dtype == pl.dtype == np.int32
+    np.testing.assert_array_equal(cg, np.flatnonzero((p > 0) & (p < H)))
+    np.testing.assert_array_equal(pl, np.flatnonzero(p >= H))
+
+
 @pytest.mark.parametrize("hardness", [None, 0.8])
 def test_step_project_compacts_in_order(hardness):
     rng = np.random.default_rng(6)
@@ -113,7 +128,7 @@ def test_step_project_compacts_in_order(hardness):
     np.testing.assert_allclose(p[:m], new[keep])
     np.testing.assert_array_equal(t[:m], t0[keep])
     np.testing.assert_array_equal(gone, i0[~keep])
-    expect_capped = new[~keep] >= hardness if hardness is not None else np.zeros((~keep).sum(), bool)
+    expect_capped = new[~keep] >= hardness if hardness is not None else np.zeros(0, bool)
     np.testing.assert_array_equal(capped, expect_capped)
     assert capped.any() == (hardness is not None)
 
@@ -143,16 +158,28 @@ def test_set_direction_conjugates_and_restarts(zero_sum):
     assert slope == pytest.approx(g @ g)
 
 
+@pytest.mark.parametrize("rows", [16, 15, 1])
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
-def test_spectrum_energy_and_scaling(dtype):
+def test_spectrum_energy_and_scaling(dtype, rows):
+    """A folded operator (rows 0 … M//2 stored) stands for the full one; the energy counts each rfft
+    mode as often as it occurs in the full spectrum (once in the first and, for an even length, the
+    last column)."""
+    from xtopo._kernels.greens import unfold
+
     rng = np.random.default_rng(8)
     ctype = np.complex64 if dtype == np.float32 else np.complex128
-    spec = (rng.standard_normal((16, 9)) + 1j * rng.standard_normal((16, 9))).astype(ctype)
-    w = rng.random((16, 9)).astype(dtype)
-    e = compiled.energy(w.reshape(-1), spec.view(dtype).reshape(-1))
-    assert e == pytest.approx(float(np.sum(w * np.abs(spec) ** 2)), rel=1e-6)
-    expect = spec * w
-    compiled.scale_spectrum(spec.view(dtype).reshape(-1), w.reshape(-1))
+    spec = (rng.standard_normal((rows, 9)) + 1j * rng.standard_normal((rows, 9))).astype(ctype)
+    g = rng.random((rows // 2 + 1, 9)).astype(dtype)
+    full = unfold(g, rows)
+    m = np.full(9, 2.0)
+    m[0] = m[-1] = 1.0        # a transform length of 16 (9 = 16 // 2 + 1)
+    e = compiled.energy(g.reshape(-1), spec.view(dtype).reshape(-1), rows, True)
+    assert e == pytest.approx(float(np.sum(m * full * np.abs(spec) ** 2)), rel=1e-6)
+    m[-1] = 2.0               # a length of 17
+    e = compiled.energy(g.reshape(-1), spec.view(dtype).reshape(-1), rows, False)
+    assert e == pytest.approx(float(np.sum(m * full * np.abs(spec) ** 2)), rel=1e-6)
+    expect = spec * full
+    compiled.scale_spectrum(spec.view(dtype).reshape(-1), g.reshape(-1), rows)
     np.testing.assert_allclose(spec, expect, rtol=1e-6)
 
 

@@ -70,6 +70,34 @@ def test_measured_plans_are_remembered(tmp_path, monkeypatch):
         assert stored["arr_0"].tobytes() == pyfftw.export_wisdom()[0]
 
 
+def test_plans_estimated_until_the_operator_proves_its_use(tmp_path, monkeypatch):
+    """A grid the wisdom does not know is planned by estimate (measuring costs more than a solve); the
+    operator's third solve measures its plans and stores them, and a new operator finds them known."""
+    import pyfftw
+
+    from xtopo import datasets
+    from xtopo.contact import Scene
+
+    monkeypatch.setenv("XTOPO_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("XTOPO_FFTW_PLANNER", raising=False)
+    monkeypatch.setitem(conv_mod._WISDOM, "loaded", True)        # nothing read from disk
+    monkeypatch.setattr(conv_mod, "_MEASURE_FROM", 1)
+    pyfftw.forget_wisdom()
+    ds = datasets.fractal_surface((24, 40), 1.0, hurst=0.8, rms_slope=0.1, seed=4, periodic=True, units="um")
+    scene = Scene(ds, backend="pyfftw")
+    results = [scene.solve(mean_pressure=0.02, tol=1e-8) for _ in range(conv_mod._MEASURE_AFTER)]
+    ops = [scene.convolution, *scene.convolution._workspaces.values()]
+    assert len(ops) == 3 and all(op._measure and not op._estimated for op in ops)
+    assert (tmp_path / "fftw-wisdom.npz").stat().st_size > 0
+    for r in results[1:]:     # the plans change the float32 rounding, not the solution
+        for name in ("pressure", "gap", "displacement"):
+            np.testing.assert_allclose(r[name], results[0][name], rtol=0, atol=1e-7 * float(abs(results[0][name]).max()))
+        assert float(r.residual) <= 1e-8
+    fresh = Scene(ds, backend="pyfftw")
+    fresh.solve(mean_pressure=0.02, tol=1e-8)
+    assert not any(op._estimated for op in [fresh.convolution, *fresh.convolution._workspaces.values()])
+
+
 @pytest.mark.parametrize("backend", ["scipy", "pyfftw"])
 @pytest.mark.parametrize("periodic", [True, False])
 def test_solver_satisfies_complementarity(periodic, backend):

@@ -10,6 +10,7 @@ plane fit stays well conditioned.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .spectra import check_finite
 
@@ -25,15 +26,45 @@ def vbm_levels(sizes, min_pixels: int = 4) -> np.ndarray:
     return 2 ** np.arange(k + 1)
 
 
-def _finest(h, axis, zeta):
-    """Sums Σh, Σx̂h over blocks along ``axis`` (x̂ about the block centre, in pixels) and block geometry."""
-    n = h.shape[axis]
+@njit(nogil=True, cache=True)
+def _row_blocks(h, starts, xl):
+    """Σh, Σx̂h and Σh² over the blocks of each row of ``h`` (2D, rows × n) in one pass, summed in order."""
+    rows, n = h.shape
+    zeta = starts.size
+    s0 = np.empty((rows, zeta))
+    s1 = np.empty((rows, zeta))
+    s2 = np.empty((rows, zeta))
+    for r in range(rows):
+        for j in range(zeta):
+            lo = starts[j]
+            hi = starts[j + 1] if j + 1 < zeta else n
+            a = 0.0
+            b = 0.0
+            c = 0.0
+            for i in range(lo, hi):
+                v = h[r, i]
+                a += v
+                b += v * xl[i]
+                c += v * v
+            s0[r, j] = a
+            s1[r, j] = b
+            s2[r, j] = c
+    return s0, s1, s2
+
+
+def _geometry(n, zeta):
+    """Block starts, widths, centres and each pixel's offset x̂ from its block's centre (pixels)."""
     b = (np.arange(zeta) * n) // zeta
     w = np.diff(np.append(b, n))
     centre = b + (w - 1) / 2
-    xl = np.arange(n) - np.repeat(centre, w)
+    return b, w, centre, np.arange(n) - np.repeat(centre, w)
+
+
+def _finest(h, axis, zeta):
+    """Sums Σh, Σx̂h over blocks along ``axis`` (x̂ about the block centre, in pixels) and block geometry."""
+    b, w, centre, xl = _geometry(h.shape[axis], zeta)
     shape = [1] * h.ndim
-    shape[axis] = n
+    shape[axis] = h.shape[axis]
     s0 = np.add.reduceat(h, b, axis=axis)
     s1 = np.add.reduceat(h * xl.reshape(shape), b, axis=axis)
     return s0, s1, w.astype(float), centre
@@ -94,9 +125,11 @@ def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None)
     levels = [int(z) for z in levels]
     zmax = levels[-1]
     geo = {}
-    # reduce along the last axis first (the expensive pass), then along y
-    s0, s1x, wx, cx = _finest(h, h.ndim - 1, zmax)
-    s2 = np.add.reduceat(h * h, (np.arange(zmax) * h.shape[-1]) // zmax, axis=-1)
+    # reduce along the last axis first (the expensive pass: one compiled sweep), then along y
+    bx, wx, cx, xl = _geometry(h.shape[-1], zmax)
+    s0, s1x, s2 = (s.reshape(h.shape[:-1] + (zmax,))
+                   for s in _row_blocks(h.reshape(-1, h.shape[-1]), bx.astype(np.int64), xl))
+    wx = wx.astype(float)
     geo[h.ndim - 1] = (wx, cx)
     if ndim == 2:
         ay = h.ndim - 2

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["slots", "scatter", "gather_gaps", "center", "scan_overlaps", "set_direction", "energy", "scale_spectrum", "step_project",
-           "write_increment", "write_values"]
+__all__ = ["slots", "scatter", "gather_gaps", "center", "scan_overlaps", "set_direction", "energy", "scale_spectrum",
+           "split_sets", "step_project", "write_increment", "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -116,8 +116,11 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps):
     the precision of ``c_low`` (``shift`` rounded to it). The first ``count`` entries of
     ``where`` receive the indices, of ``gaps`` their gaps ``c + inc - shift`` (working
     precision). Row segments of :data:`_BLOCK` points without overlaps are passed on a
-    vectorised count.
+    vectorised count. ``where``/``gaps`` may be shorter than the grid (overlaps are few): only
+    the first ``len(where)`` are written, and a count above it asks the caller for a longer
+    pair and another scan.
     """
+    cap = where.size
     rounded = np.empty(1, c_low.dtype)
     rounded[0] = shift
     level_low = rounded[0]
@@ -146,8 +149,9 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps):
                     if not cl + v < level_low:
                         continue
                     g = (cs[j] + v) - shift
-                where[k] = a0 + lo + j
-                gaps[k] = g
+                if k < cap:
+                    where[k] = a0 + lo + j
+                    gaps[k] = g
                 low = min(low, g)
                 k += 1
     return k, low
@@ -186,24 +190,80 @@ def set_direction(t, g, beta, zero_sum, idx, gone, nx, pad, buf):
     return slope
 
 
+@njit(inline="always")
+def _folded_row(r, rows, stored):
+    """Row of a folded operator (rows ``0 … M//2`` stored) that stands for spectrum row ``r`` of ``rows``."""
+    return r if r < stored else rows - r
+
+
 @njit(**_FAST)
-def energy(weights, spectrum):
-    """``Σ_k w_k |x̂_k|²`` in float64; ``spectrum`` holds the interleaved real and imaginary parts."""
+def energy(g, spectrum, rows, halve_last):
+    """``Σ_k m_k g_k |x̂_k|²`` in float64 over an rfft spectrum of ``rows`` rows.
+
+    ``g`` is a folded operator (:mod:`xtopo._kernels.greens`: ``rows//2 + 1`` rows of the spectrum's
+    row length), ``spectrum`` the interleaved real and imaginary parts; ``m_k`` counts the modes of
+    the full spectrum an rfft mode stands for (1 in the first column, and in the last when
+    ``halve_last``: an even transform length; 2 elsewhere).
+    """
+    nc = spectrum.size // (2 * rows)
+    stored = g.size // nc
     e = 0.0
-    for k in range(weights.size):
-        a = spectrum[2 * k]
-        b = spectrum[2 * k + 1]
-        e += float(weights[k]) * (float(a) * float(a) + float(b) * float(b))
+    for r in range(rows):
+        gr = _folded_row(r, rows, stored) * nc
+        base = r * nc
+        s = 0.0
+        for k in range(nc):
+            a = spectrum[2 * (base + k)]
+            b = spectrum[2 * (base + k) + 1]
+            s += float(g[gr + k]) * (float(a) * float(a) + float(b) * float(b))
+        s *= 2
+        a = spectrum[2 * base]
+        b = spectrum[2 * base + 1]
+        s -= float(g[gr]) * (float(a) * float(a) + float(b) * float(b))
+        if halve_last and nc > 1:
+            a = spectrum[2 * (base + nc - 1)]
+            b = spectrum[2 * (base + nc - 1) + 1]
+            s -= float(g[gr + nc - 1]) * (float(a) * float(a) + float(b) * float(b))
+        e += s
     return e
 
 
 @njit(**_FAST)
-def scale_spectrum(spectrum, weights):
-    """``x̂_k *= w_k`` in place for real weights (interleaved real and imaginary parts)."""
-    for k in range(weights.size):
-        w = weights[k]
-        spectrum[2 * k] *= w
-        spectrum[2 * k + 1] *= w
+def scale_spectrum(spectrum, g, rows):
+    """``x̂_k *= g_k`` in place for a folded real operator ``g`` (see :func:`energy`)."""
+    nc = spectrum.size // (2 * rows)
+    stored = g.size // nc
+    for r in range(rows):
+        gr = _folded_row(r, rows, stored) * nc
+        base = 2 * r * nc
+        for k in range(nc):
+            w = g[gr + k]
+            spectrum[base + 2 * k] *= w
+            spectrum[base + 2 * k + 1] *= w
+
+
+@njit(nogil=True, cache=True)
+def split_sets(p, hardness):
+    """Flat int32 indices of the CG set ``0 < p < H`` and of the plastic set ``p ≥ H`` (``H = inf``: none)."""
+    n_cg = 0
+    n_pl = 0
+    for i in range(p.size):
+        v = p[i]
+        n_pl += v >= hardness
+        n_cg += (v > 0) & (v < hardness)
+    cg = np.empty(n_cg, np.int32)
+    pl = np.empty(n_pl, np.int32)
+    a = 0
+    b = 0
+    for i in range(p.size):
+        v = p[i]
+        if v >= hardness:
+            pl[b] = i
+            b += 1
+        elif v > 0:
+            cg[a] = i
+            a += 1
+    return cg, pl
 
 
 @njit(nogil=True, cache=True)
@@ -212,7 +272,7 @@ def step_project(idx, p, t, tau, hardness, capped_flag):
 
     The points that stay are moved to the front of ``idx``, ``p`` and ``t`` (order kept).
     Returns ``(count, gone, capped)``: how many stay, the flat indices of those that left and
-    flags of the latter that left at the cap (``p ≥ H``; only when ``capped_flag``).
+    flags of the latter that left at the cap (``p ≥ H``; empty unless ``capped_flag``).
     """
     n = idx.size
     m = 0
@@ -220,8 +280,8 @@ def step_project(idx, p, t, tau, hardness, capped_flag):
         v = p[j] - tau * t[j]
         p[j] = v
         m += (v > 0) & ((not capped_flag) | (v < hardness))
-    gone = np.empty(n - m, np.intp)
-    capped = np.zeros(n - m, np.bool_)
+    gone = np.empty(n - m, idx.dtype)
+    capped = np.zeros(n - m if capped_flag else 0, np.bool_)
     if m == n:
         return m, gone, capped
     a = 0
@@ -235,7 +295,8 @@ def step_project(idx, p, t, tau, hardness, capped_flag):
             a += 1
         else:
             gone[b] = idx[j]
-            capped[b] = capped_flag and v >= hardness
+            if capped_flag:
+                capped[b] = v >= hardness
             b += 1
     return m, gone, capped
 

@@ -22,11 +22,13 @@ convolution of the pressures per iteration):
 Backends (``backend=``): ``"pyfftw"`` (FFTW plans built once on preallocated, aligned
 buffers; no allocation per call) or ``"scipy"`` (``scipy.fft``, pocketfft caches its
 plans but allocates its outputs). ``"auto"`` takes pyFFTW when it is installed: planned
-FFTW transforms run 1.4–2× faster than pocketfft on 256²–2048² grids. FFTW plans are
-measured (``FFTW_MEASURE``) from 256² on and estimated below, where measuring costs more
-than it saves in one solve; ``XTOPO_FFTW_PLANNER=estimate|measure`` overrides. Measured
-plans are remembered in the user cache directory (FFTW wisdom), so a grid is measured
-once per machine.
+FFTW transforms run 1.4–2× faster than pocketfft on 256²–2048² grids. Measured plans
+(``FFTW_MEASURE``, from 256² on) run about 1.25× faster than estimated ones, but measuring
+the three plans of a 1024² solve costs 8 s, twice the solve: a grid FFTW's wisdom (kept in the
+user cache directory) does not know yet is planned by estimate, and measured once the operator
+has served :data:`_MEASURE_AFTER` solves (load curves, batches), which stores the wisdom for
+every later process. ``XTOPO_FFTW_PLANNER=estimate|measure`` overrides. One FFT thread unless
+``XTOPO_FFT_THREADS`` says otherwise (:func:`_threads`).
 """
 
 from __future__ import annotations
@@ -40,33 +42,36 @@ import scipy.fft as sfft
 from . import fft as _fft
 from . import compiled
 from .greens import free_greens, padded_shape, periodic_greens
-from .spectra import rfft_multiplicity
 
 __all__ = ["Convolution"]
 
 _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex128}
 _MEASURE_FROM = 256 * 256
-_THREADS_FROM = 2048 * 2048
+#: solves on one operator after which estimated plans are replaced by measured ones (saved as wisdom)
+_MEASURE_AFTER = 3
 _WISDOM = {"loaded": False}
 
 
 def _threads(fft_shape) -> int:
-    """FFT threads: ``XTOPO_FFT_THREADS`` when set, else all CPUs from 2048² on and one below.
+    """FFT threads: ``XTOPO_FFT_THREADS`` when set, else one.
 
-    Below 2048² a transform takes milliseconds and FFTW's threads synchronise more than they
-    compute: on a busy 2-core machine two threads made 256²–512² solves 5–8× slower
-    (benchmarks/tradeoffs.py), and on an idle one they gain little.
+    FFTW's threads synchronise every transform: where the cores are busy (other processes, a
+    batch of parallel solves) a thread that waits for a core stalls the others, and two threads
+    made 1024² solves 17–22× slower on a loaded 2-core machine (issue 27), while on an idle one
+    they gain at most 1.6× from 2048² on (benchmarks/bench_contact.py --threads). Parallel solves
+    (:func:`xtopo.batch.contact`) use the cores without that risk.
     """
-    if os.environ.get("XTOPO_FFT_THREADS"):
-        return _fft.workers()
-    return _fft.workers() if int(np.prod(fft_shape)) >= _THREADS_FROM else 1
+    return _fft.workers()
 
 
 def _planner(fft_shape) -> str:
+    """``FFTW_MEASURE`` (``XTOPO_FFTW_PLANNER=measure``), ``FFTW_ESTIMATE`` (``=estimate``) or the default
+    ``"auto"``: measured plans where FFTW's wisdom knows them, estimated ones otherwise (see
+    :meth:`Convolution.begin_solve`)."""
     env = os.environ.get("XTOPO_FFTW_PLANNER", "").lower()
     if env in ("estimate", "measure"):
         return "FFTW_" + env.upper()
-    return "FFTW_MEASURE" if int(np.prod(fft_shape)) >= _MEASURE_FROM else "FFTW_ESTIMATE"
+    return "auto" if int(np.prod(fft_shape)) >= _MEASURE_FROM else "FFTW_ESTIMATE"
 
 
 def _wisdom_path() -> str:
@@ -119,6 +124,12 @@ class Convolution:
 
     Notes
     -----
+    Memory (pyFFTW): the operator keeps its Green's function folded (half the rows, one array per
+    precision, shared by its workspaces) and one spectrum-sized buffer that its transforms run in
+    place in: :meth:`forward` consumes the input. Its :meth:`workspace` operators keep an input
+    buffer of their own (written point by point, never consumed) and transform into the same
+    buffer, so their spectra and outputs are valid only until the next transform of any of them.
+
     The buffers, work arrays and replicas are shared state: a caller that uses them across
     several calls (the contact solver) holds :attr:`lock` meanwhile, and ``conv(p)`` takes it
     itself, so solves on one operator from several threads run one after the other instead
@@ -126,7 +137,7 @@ class Convolution:
     """
 
     def __init__(self, shape, spacing, modulus: float = 1.0, *, periodic: bool, dtype="float64",
-                 backend: str = "auto", greens: np.ndarray | None = None):
+                 backend: str = "auto", _owner: "Convolution | None" = None, _in_place: bool = False):
         self.shape = tuple(int(n) for n in shape)
         self._geometry = (tuple(spacing), modulus)
         self.ndim = len(self.shape)
@@ -134,23 +145,44 @@ class Convolution:
         self.dtype = np.dtype(dtype)
         self.cdtype = np.dtype(_COMPLEX[self.dtype])
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
-        self.backend = _fft.choose_backend(self.fft_shape, backend, planned=True)
+        self._owner = _owner  # a workspace transforms in its owner's buffer, with its owner's operator
+        self._in_place = _owner is None or _in_place
+        self.backend = _owner.backend if _owner is not None else _fft.choose_backend(self.fft_shape, backend,
+                                                                                     planned=True)
         self.workers = _threads(self.fft_shape)
-        if greens is None:
-            make = periodic_greens if self.periodic else free_greens
-            greens = make(self.shape, spacing, modulus)
-        self.greens = np.ascontiguousarray(greens, dtype=self.dtype)  # one pass over it per transform
         m = float(np.prod(self.fft_shape))
-        weights = rfft_multiplicity(1, self.fft_shape[-1])
-        # Parseval: Σ x (G*x) = Σ_k w_k G_k |x̂_k|² / M
-        self._energy_weights = self.greens * (weights / m).astype(self.dtype)
+        self._rows = self.fft_shape[0] if self.ndim == 2 else 1      # rows of the spectrum
+        self._halve_last = self.fft_shape[-1] % 2 == 0
+        # FFTW does not normalise the inverse: 1/M goes into the multiplier; Parseval takes 1/M where the
+        # transform normalises itself (scipy)
+        self._energy_scale = 1.0 if self.backend == "pyfftw" else 1.0 / m
+        if _owner is not None:
+            self._gmul = _owner._multiplier(self.dtype)
+        else:
+            make = periodic_greens if self.periodic else free_greens
+            g = make(self.shape, spacing, modulus)
+            if self.backend == "pyfftw":
+                g *= 1.0 / m
+            self._gmul = g.astype(self.dtype, copy=False)
+            del g
+        self._multipliers = {self.dtype: self._gmul}
         self._real_shape = self.shape[:-1] + (self.fft_shape[-1],)
         self._plan = None
         self._buffers = None
         self._workspaces = {}
         self._scratch = {}
         self._self_stiffness = None
-        self.lock = threading.RLock()
+        self._estimated = False   # planned by estimate for want of wisdom
+        self._measure = False     # plan by measurement (this operator has served enough solves)
+        self._solves = 0
+        self.lock = _owner.lock if _owner is not None else threading.RLock()
+
+    def _multiplier(self, dtype) -> np.ndarray:
+        """The folded spectral multiplier in ``dtype`` (one array per precision, shared with the workspaces)."""
+        dtype = np.dtype(dtype)
+        if dtype not in self._multipliers:
+            self._multipliers[dtype] = self._gmul.astype(dtype)
+        return self._multipliers[dtype]
 
     @property
     def self_stiffness(self) -> float:
@@ -160,7 +192,10 @@ class Convolution:
         the Green's function over the FFT grid (rfft multiplicities counted) — no transform needed.
         """
         if self._self_stiffness is None:
-            self._self_stiffness = float(np.sum(self._energy_weights, dtype=np.float64))
+            nc = self.fft_shape[-1] // 2 + 1
+            ones = np.ones(2 * self._rows * nc)
+            self._self_stiffness = self._energy_scale * compiled.energy(
+                self._gmul.reshape(-1), ones, self._rows, self._halve_last) / 2
         return self._self_stiffness
 
     def single_precision(self) -> "Convolution":
@@ -171,17 +206,34 @@ class Convolution:
         """
         return self if self.dtype == np.float32 else self.workspace("single", "float32")
 
-    def workspace(self, name: str, dtype=None) -> "Convolution":
-        """A :meth:`replica` kept under ``name``: built (planned, allocated) once, then reused.
+    def workspace(self, name: str, dtype=None, *, in_place: bool = False) -> "Convolution":
+        """A work operator kept under ``name``: built (planned, allocated) once, then reused.
 
-        The solver's float32 operators live here, so that repeated solves on one scene (load
-        curves, benchmarks) plan, allocate and write FFTW wisdom nothing. Callers own the
-        buffers' contents only while they use them.
+        It transforms in this operator's buffer (see the class notes), from an input buffer of its own
+        that :meth:`forward` leaves intact, or (``in_place``) from that buffer itself, which its
+        :meth:`forward` consumes; ``dtype`` (default this one's) may not be wider than this operator's. The solver's float32 operators live here, so that repeated solves on one scene
+        (load curves, benchmarks) plan, allocate and write FFTW wisdom nothing. Callers own the buffers'
+        contents only while they use them.
         """
-        key = (name, np.dtype(dtype or self.dtype).name)
+        dtype = np.dtype(dtype or self.dtype)
+        if dtype.itemsize > self.dtype.itemsize:
+            raise ValueError(f"a {dtype} workspace does not fit the buffer of a {self.dtype} operator")
+        key = (name, dtype.name, in_place)
         if key not in self._workspaces:
-            self._workspaces[key] = self.replica(dtype)
+            spacing, modulus = self._geometry
+            self._workspaces[key] = Convolution(self.shape, spacing, modulus, periodic=self.periodic, dtype=dtype,
+                                                _owner=self, _in_place=in_place)
         return self._workspaces[key]
+
+    def begin_solve(self) -> None:
+        """Count a solve on this operator; the :data:`_MEASURE_AFTER`-th replaces estimated plans (the grid
+        was new to FFTW's wisdom) by measured ones and stores the wisdom. Call with :attr:`lock` held, before
+        the buffers hold anything (planning overwrites them)."""
+        self._solves += 1
+        ops = [self, *self._workspaces.values()]
+        if self._solves >= _MEASURE_AFTER and any(op._estimated for op in ops):
+            for op in ops:   # all of them: the workspaces' spectra live in this operator's buffer
+                op._measure, op._estimated, op._plan, op._buffers = True, False, None, None
 
     def scratch(self, name: str, size: int, dtype) -> np.ndarray:
         """A 1-D work array of ``size`` kept under ``name`` (contents undefined; allocated once).
@@ -195,11 +247,9 @@ class Convolution:
             a = self._scratch[name] = np.empty(size, dtype)
         return a
 
-    def replica(self, dtype=None) -> "Convolution":
-        """A new operator on the same grid (own buffers and plans; ``dtype`` defaults to this one's)."""
-        spacing, modulus = self._geometry
-        return Convolution(self.shape, spacing, modulus, periodic=self.periodic, dtype=dtype or self.dtype,
-                           backend=self.backend, greens=self.greens)
+    def release(self, name: str) -> np.ndarray:
+        """Take the work array ``name`` out of :meth:`scratch` (the caller keeps it; the next use allocates anew)."""
+        return self._scratch.pop(name)
 
     # -- plans and buffers ----------------------------------------------------------------------
     def __getstate__(self):
@@ -208,6 +258,7 @@ class Convolution:
         state["_buffers"] = None
         state["_workspaces"] = {}
         state["_scratch"] = {}
+        state["_multipliers"] = {self.dtype: self._gmul}
         del state["lock"]
         return state
 
@@ -225,40 +276,64 @@ class Convolution:
 
     def _build_scipy(self):
         r_in = np.zeros(self._real_shape, dtype=self.dtype)
-        self._buffers = {"in": r_in, "active": r_in[..., : self.shape[-1]], "spec": None, "gmul": self.greens}
+        self._buffers = {"in": r_in, "active": r_in[..., : self.shape[-1]], "spec": None}
 
     def _build_pyfftw(self):
         import pyfftw
 
         _load_wisdom(pyfftw)
         flag = _planner(self.fft_shape)
-        kw = dict(threads=self.workers, flags=(flag,))
-        destroy = dict(threads=self.workers, flags=(flag, "FFTW_DESTROY_INPUT"))
+        if flag == "auto":
+            flag = "FFTW_MEASURE" if self._measure else "FFTW_ESTIMATE"
+            try:   # plans the wisdom knows are measured at no cost
+                self._plan_pyfftw(pyfftw, ("FFTW_MEASURE", "FFTW_WISDOM_ONLY"))
+                return
+            except RuntimeError:   # not known: estimate now, measure once the operator has proved its use
+                self._estimated = not self._measure
+        self._plan_pyfftw(pyfftw, (flag,))
+        if flag == "FFTW_MEASURE":
+            _save_wisdom(pyfftw)
+
+    def _plan_pyfftw(self, pyfftw, flags):
+        kw = dict(threads=self.workers, flags=flags)
+        destroy = dict(threads=self.workers, flags=(*flags, "FFTW_DESTROY_INPUT"))
         nxc = self.fft_shape[-1] // 2 + 1
-        r_in = pyfftw.zeros_aligned(self._real_shape, dtype=self.dtype)
-        r_out = pyfftw.empty_aligned(self._real_shape, dtype=self.dtype)
+        nfx = self.fft_shape[-1]
+        spec_shape = self.fft_shape[:-1] + (nxc,)
+        if self._owner is None:
+            arena = pyfftw.zeros_aligned(spec_shape, dtype=self.cdtype)
+        else:
+            arena = self._owner._ensure()["arena"]
+        # this operator's spectrum at the start of the buffer, and its real view (rows of 2·nxc values)
+        spec = arena.reshape(-1).view(np.uint8)[: int(np.prod(spec_shape)) * self.cdtype.itemsize]
+        spec = spec.view(self.cdtype).reshape(spec_shape)
+        real = spec.view(self.dtype).reshape(self.fft_shape[:-1] + (2 * nxc,))
+        ny = self.shape[0]
+        if self._in_place:
+            r_in = real   # transforms in place: the input is consumed
+        else:
+            r_in = pyfftw.zeros_aligned(self.shape[:-1] + (2 * nxc,), dtype=self.dtype)
         if self.ndim == 1 or self.periodic:
-            spec = pyfftw.empty_aligned(self.fft_shape[:-1] + (nxc,), dtype=self.cdtype)
             axes = tuple(range(-self.ndim, 0))
-            fwd = [pyfftw.FFTW(r_in, spec, axes=axes, direction="FFTW_FORWARD", **kw)]
-            bwd = [pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD", **destroy)]
+            fwd = [pyfftw.FFTW(r_in[..., :nfx], spec, axes=axes, direction="FFTW_FORWARD", **kw)]
+            bwd = [pyfftw.FFTW(spec, real[..., :nfx], axes=axes, direction="FFTW_BACKWARD", **destroy)]
         else:
             # rows along x into the top half, the bottom half zeroed, then columns in place
             # (in-place column transforms run ~3x faster than out-of-place ones here)
-            ny = self.shape[0]
-            spec = pyfftw.zeros_aligned((self.fft_shape[0], nxc), dtype=self.cdtype)
-            fwd = [pyfftw.FFTW(r_in, spec[:ny], axes=(-1,), direction="FFTW_FORWARD", **kw),
+            fwd = [pyfftw.FFTW(r_in[:ny, :nfx], spec[:ny], axes=(-1,), direction="FFTW_FORWARD", **kw),
                    spec[ny:],
                    pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_FORWARD", **kw)]
             bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **kw),
-                   pyfftw.FFTW(spec[:ny], r_out, axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
-        if flag == "FFTW_MEASURE":
-            _save_wisdom(pyfftw)
+                   pyfftw.FFTW(spec[:ny], real[:ny, :nfx], axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
         self._plan = (fwd, bwd)
-        # FFTW does not normalise the inverse: fold 1/M into the Green's function
-        gmul = (self.greens / self.dtype.type(np.prod(self.fft_shape))).astype(self.dtype)
-        self._buffers = {"in": r_in, "active": r_in[..., : self.shape[-1]], "spec": spec, "gmul": gmul,
-                         "out": r_out[..., : self.shape[-1]], "out_full": r_out}
+        n = self.shape[-1]
+        # an in-place input shares its row with the output: the zero padding of a free grid is restored
+        # before each forward transform
+        zero = [r_in[n:] if self.ndim == 1 else r_in[:ny, n:]] if self._in_place and not self.periodic else []
+        r_in.fill(0)
+        self._buffers = {"in": r_in, "active": r_in[..., :n] if self.ndim == 1 else r_in[:ny, :n], "spec": spec,
+                         "out": real[..., :n] if self.ndim == 1 else real[:ny, :n], "out_full": real,
+                         "arena": arena, "zero": zero}
 
     # -- the two halves ---------------------------------------------------------------------------
     @property
@@ -275,25 +350,33 @@ class Convolution:
     def output_flat(self) -> np.ndarray:
         """The whole real output buffer of :meth:`inverse`, flattened (index it with :meth:`buffer_index`).
 
-        Valid after :meth:`inverse` (its values are those of the last call).
+        Valid after :meth:`inverse` (its values are those of the last call) until the next transform.
         """
         return self._ensure()["out_full"].reshape(-1)
 
     @property
     def buffer_layout(self) -> tuple[int, int]:
-        """``(nx, pad)``: active row length and the extra columns of a buffer row (0 on periodic and line
-        grids). Flat active index ``i`` sits at ``i + (i // nx) * pad`` in the buffers."""
-        pad = 0 if self.ndim == 1 else self._real_shape[-1] - self.shape[-1]
-        return self.shape[-1], pad
+        """``(nx, pad)``: active row length and the extra values of a buffer row (0 on line grids). Flat
+        active index ``i`` sits at ``i + (i // nx) * pad`` in the input and output buffers."""
+        if self.ndim == 1:
+            return self.shape[-1], 0
+        row = self._ensure()["in"].shape[-1]
+        return self.shape[-1], row - self.shape[-1]
 
     def buffer_index(self, flat_index: np.ndarray) -> np.ndarray:
         """Positions in :attr:`input_flat` of flat indices of the active grid."""
         return compiled.slots(np.asarray(flat_index, dtype=np.intp).reshape(-1), *self.buffer_layout)
 
     def forward(self) -> np.ndarray:
-        """Spectrum of the input buffer on the FFT grid (unnormalised, ``rfft`` layout)."""
+        """Spectrum of the input buffer on the FFT grid (unnormalised, ``rfft`` layout).
+
+        With pyFFTW the operator's own input is consumed (the transform runs in place); a
+        workspace's input stays.
+        """
         b = self._ensure()
         if self.backend == "pyfftw":
+            for z in b["zero"]:
+                z.fill(0)
             for plan in self._plan[0]:
                 if isinstance(plan, np.ndarray):
                     plan.fill(0)  # the zero padding rows of a free-boundary spectrum
@@ -311,17 +394,20 @@ class Convolution:
     def energy(self, spectrum: np.ndarray) -> float:
         """``Σ x (G * x)`` over the grid for the input ``x`` whose spectrum is given (Parseval)."""
         v = np.ascontiguousarray(spectrum).view(self.dtype).reshape(-1)
-        return compiled.energy(self._energy_weights.reshape(-1), v)
+        return self._energy_scale * compiled.energy(self._gmul.reshape(-1), v, self._rows, self._halve_last)
 
     def inverse(self, spectrum: np.ndarray) -> np.ndarray:
         """``G * x`` on the active grid from the spectrum of ``x`` (which is overwritten).
 
-        With pyFFTW the result is a view of an internal buffer, valid until the next call.
+        With pyFFTW the result is a view of an internal buffer, valid until the next transform.
         """
         b = self._ensure()
         if not spectrum.flags.c_contiguous:  # scaled in place through a flat view: a copy would be lost
             raise ValueError("the spectrum must be C-contiguous (as forward() returns it)")
-        compiled.scale_spectrum(spectrum.view(self.dtype).reshape(-1), b["gmul"].reshape(-1))
+        if self.backend == "pyfftw" and spectrum is not b["spec"]:
+            b["spec"][...] = spectrum
+            spectrum = b["spec"]
+        compiled.scale_spectrum(spectrum.view(self.dtype).reshape(-1), self._gmul.reshape(-1), self._rows)
         if self.backend == "pyfftw":
             for plan in self._plan[1]:
                 plan.execute()

@@ -21,14 +21,16 @@ _PYFFTW_THRESHOLD = 2048 * 2048
 
 
 def workers() -> int:
-    """Threads for FFTs: ``XTOPO_FFT_THREADS`` or the CPUs available to this process."""
+    """Threads for FFTs: ``XTOPO_FFT_THREADS``, else one.
+
+    Threaded transforms synchronise on every call: where the cores are busy (other processes,
+    parallel tasks) a waiting thread stalls the others. On the loaded 2-core development machine
+    a 1024-point batch of 1024² row transforms took 2.8 ms at best on one thread and 12–20 ms on
+    two; contact solves were up to 22× slower (issue 27). Parallel work (:mod:`xtopo.batch`) uses
+    the cores without that risk; set ``XTOPO_FFT_THREADS`` on a machine of one's own.
+    """
     env = os.environ.get("XTOPO_FFT_THREADS")
-    if env:
-        return max(1, int(env))
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return os.cpu_count() or 1
+    return max(1, int(env)) if env else 1
 
 
 def choose_backend(shape, backend: str = "auto", *, planned: bool = False) -> str:

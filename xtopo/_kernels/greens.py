@@ -4,7 +4,9 @@ Displacements ``u`` (positive into the solid) follow from pressures ``p`` (posit
 compression) by ``u = G * p`` (eq. 14). Every function here returns the *Fourier
 coefficients* of the discrete convolution operator in ``rfft`` layout, real-valued
 (the kernels are even), such that ``u = irfftn(G̃ · rfftn(p))`` on the grid that
-function describes. Units: ``G̃`` has units of length / modulus when the spacing is
+function describes — *folded*: the kernels are even along ``y`` too, so row ``r`` of an
+``M``-row spectrum equals row ``M - r`` and only rows ``0 … M//2`` are stored (half the
+memory; :func:`unfold` gives the full layout). Units: ``G̃`` has units of length / modulus when the spacing is
 given in length units and ``modulus`` in pressure units.
 
 * periodic, area: eq. (17), ``G̃(q) = 2/(E*|q|)`` on the native grid, ``G̃(0) = 0``
@@ -24,10 +26,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.fft as sfft
 
 from .derivatives import wavevectors
 
-__all__ = ["love_rectangle", "strip_displacement", "periodic_greens", "free_greens", "padded_shape"]
+__all__ = ["love_rectangle", "strip_displacement", "periodic_greens", "free_greens", "padded_shape", "unfold"]
 
 
 def love_rectangle(x, y, a: float, b: float, modulus: float = 1.0) -> np.ndarray:
@@ -86,10 +89,17 @@ def padded_shape(shape) -> tuple[int, ...]:
     return tuple(2 * int(n) for n in shape)
 
 
-def periodic_greens(shape, spacing, modulus: float = 1.0, dtype=np.float64) -> np.ndarray:
-    """``G̃ = 2/(E*|q|)`` (eq. 17) in rfft layout of a periodic grid ``shape`` with ``spacing``.
+def unfold(folded: np.ndarray, rows: int) -> np.ndarray:
+    """The full ``rows``-row rfft layout of a folded 2D operator (row ``r`` is row ``min(r, rows - r)``)."""
+    r = np.arange(rows)
+    return folded[np.minimum(r, rows - r)]
 
-    ``shape``/``spacing`` are ``(ny, nx)``/``(dy, dx)`` or ``(nx,)``/``(dx,)``.
+
+def periodic_greens(shape, spacing, modulus: float = 1.0, dtype=np.float64) -> np.ndarray:
+    """``G̃ = 2/(E*|q|)`` (eq. 17) in folded rfft layout of a periodic grid ``shape`` with ``spacing``.
+
+    ``shape``/``spacing`` are ``(ny, nx)``/``(dy, dx)`` or ``(nx,)``/``(dx,)``; an area's
+    result has ``ny//2 + 1`` rows (``|q_y|`` of rows ``r`` and ``ny - r`` are equal).
     The ``q = 0`` entry is 0.
     """
     shape = tuple(int(n) for n in shape)
@@ -98,11 +108,11 @@ def periodic_greens(shape, spacing, modulus: float = 1.0, dtype=np.float64) -> n
     if len(shape) == 1:
         q = np.abs(qx)
     else:
-        qy = wavevectors(shape[0], spacing[0])
-        q = np.sqrt(qy[:, None] ** 2 + qx[None, :] ** 2)
-    with np.errstate(divide="ignore"):
-        g = np.where(q > 0, 2.0 / (modulus * np.where(q > 0, q, 1.0)), 0.0)
-    return g.astype(dtype, copy=False)
+        qy = wavevectors(shape[0], spacing[0])[: shape[0] // 2 + 1]
+        q = np.hypot(qy[:, None], qx[None, :])
+    q[q == 0] = np.inf  # G̃(0) = 0
+    np.divide(2.0 / modulus, q, out=q)
+    return q.astype(dtype, copy=False)
 
 
 def _signed_index(n_fft: int) -> np.ndarray:
@@ -112,31 +122,26 @@ def _signed_index(n_fft: int) -> np.ndarray:
 
 
 def free_greens(shape, spacing, modulus: float = 1.0, dtype=np.float64) -> np.ndarray:
-    """Fourier coefficients (rfft layout, real) of the free-boundary operator on the padded grid.
+    """Fourier coefficients (folded rfft layout, real) of the free-boundary operator on the padded grid.
 
     The real-space kernel eq. (19) (areas) or the strip solution (lines) is sampled at
     pixel distances ``m Δx`` with ``m ∈ [0, N-1] ∪ [-(N-1), -1]`` on a ``2N`` grid; the
     remaining entry ``m = N`` is filled symmetrically and never couples two active pixels.
+    The sampled kernel is even along both axes, so its transform is the type-I discrete cosine
+    transform of one quadrant (``m ∈ [0, N]``): ``(N_y + 1) × (N_x + 1)`` values for an area,
+    without building the padded kernel.
     """
     shape = tuple(int(n) for n in shape)
     spacing = tuple(float(d) for d in spacing)
-    pshape = padded_shape(shape)
-    ix = np.abs(_signed_index(pshape[-1]))
     if len(shape) == 1:
         reference = math.e * shape[0] * spacing[0]
-        g = strip_displacement(ix * spacing[0], spacing[0] / 2, reference, modulus)
-        gt = np.fft.rfft(g).real
-    else:
-        # the kernel is even: evaluate one quadrant and index it (keeps temporaries small)
-        iy = np.abs(_signed_index(pshape[0]))
-        xq = np.arange(shape[1] + 1) * spacing[1]
-        quad = np.empty((shape[0] + 1, shape[1] + 1))
-        rows = max(1, 2**22 // (shape[1] + 1))
-        for start in range(0, shape[0] + 1, rows):
-            yq = np.arange(start, min(start + rows, shape[0] + 1)) * spacing[0]
-            quad[start:start + yq.size] = love_rectangle(xq[None, :], yq[:, None], spacing[1] / 2,
-                                                         spacing[0] / 2, modulus)
-        g = quad[iy][:, ix]
-        del quad
-        gt = np.fft.rfft2(g).real
-    return gt.astype(dtype, copy=False)
+        g = strip_displacement(np.arange(shape[0] + 1) * spacing[0], spacing[0] / 2, reference, modulus)
+        return sfft.dct(g, type=1, overwrite_x=True).astype(dtype, copy=False)
+    xq = np.arange(shape[1] + 1) * spacing[1]
+    quad = np.empty((shape[0] + 1, shape[1] + 1))
+    rows = max(1, 2**22 // (shape[1] + 1))   # evaluated in row blocks: temporaries stay small
+    for start in range(0, shape[0] + 1, rows):
+        yq = np.arange(start, min(start + rows, shape[0] + 1)) * spacing[0]
+        quad[start:start + yq.size] = love_rectangle(xq[None, :], yq[:, None], spacing[1] / 2, spacing[0] / 2,
+                                                     modulus)
+    return sfft.dctn(quad, type=1, overwrite_x=True).astype(dtype, copy=False)

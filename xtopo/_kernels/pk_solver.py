@@ -41,8 +41,17 @@ displacements, and the returned ``u`` is exact. Everything else works on the ind
 of the contact and plastic sets (a fraction of the grid) but for one pass over the grid
 (the float32 overlap test, which skips row segments without overlaps on a vectorised
 count). These passes are compiled (:mod:`xtopo._kernels.compiled`, numba): one pass each
-where numpy needed a chain of gathers, temporaries and reductions. The transform buffers
-are written only where the pressures or the direction changed. In a float32 scene the increments are in the
+where numpy needed a chain of gathers, temporaries and reductions. The increment's input
+buffer is written only where the pressures changed; the direction is written whole (a zero
+fill and the CG set) into the shared spectrum buffer, which its forward transform consumes
+in place.
+
+Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 63 B per grid point
+for setup and solve): the scene's heights ``w`` (8 B), the folded Green's functions (2 + 1 B),
+one in-place float64 transform buffer that the float32 operators share for their spectra and
+outputs (8 B), the increment's float32 input (4 B), ``c``/``c_low``/``p_ref`` (8 + 4 + 8 B),
+int32 index sets and compact overlap lists; the result takes over ``p_ref`` (the pressures)
+and ``c`` (the gaps) instead of copying them. In a float32 scene the increments are in the
 working precision already: the reference is computed at the start and refreshed only at the end.
 
 Convergence: ``residual ≤ tol`` where
@@ -65,7 +74,7 @@ from . import compiled
 
 __all__ = ["polonsky_keer", "PKResult", "COUNTERS"]
 
-_NONE = np.empty(0, np.intp)
+_NONE = np.empty(0, np.int32)   # flat indices are int32 (grids above 2**30 points are refused)
 #: The work counters of a :class:`PKResult`, summed when one solve is made of several.
 COUNTERS = ("iterations", "convolutions", "transforms", "exact_convolutions")
 #: A float32 increment is trusted while the residual stays above this fraction of its value at the last
@@ -76,7 +85,7 @@ _REFRESH = 1e-3
 class PKResult(dict):
     """Dict with keys ``pressure``, ``displacement``, ``gap``, ``penetration``, ``load``,
     ``iterations``, ``residual``, ``converged``, ``convolutions``, ``transforms``,
-    ``exact_convolutions`` (those in the working precision), ``plastic``."""
+    ``exact_convolutions`` (those in the working precision), ``plastic`` (None without a hardness)."""
 
     __getattr__ = dict.__getitem__
 
@@ -114,23 +123,24 @@ class _Displacements:
         self.conv = conv
         self.mixed = conv.dtype != np.float32
         self.low = conv.single_precision() if self.mixed else conv.workspace("increment")
-        self.direction = conv.workspace("direction", self.low.dtype)
+        # the direction is written whole before each transform, which may then consume it (in place)
+        self.direction = conv.workspace("direction", self.low.dtype, in_place=True)
         self.w = w.reshape(-1)
         self.counts = counts
         n = self.w.size
         work = conv.scratch                                # kept with the operator: paged in once
         self.c = work("gaps", n, w.dtype)
         self.c_low = work("gaps_low", n, self.low.dtype)
-        self.where = work("overlaps", n, np.intp)        # the overlap scan's output
-        self.where_gaps = work("overlap_gaps", n, w.dtype)
+        # the overlap scan's output: overlaps are a few per cent of the grid; grown when more
+        self.where = np.empty(min(n, max(1024, n // 64)), np.int32)
+        self.where_gaps = np.empty(self.where.size, w.dtype)
         self.nx, self.pad = self.low.buffer_layout
         self.p_ref = work("reference_pressure", n, w.dtype)
         self.p_ref.fill(0)
         self.support = _NONE
         self.delta_ref = 0.0
         self.fresh = True                                 # no increment since the last refresh
-        for c in (self.low, self.direction):
-            c.input_flat.fill(0)
+        self.low.input_flat.fill(0)
         self._no_increment = np.zeros(1, self.low.dtype)
 
     # -- the reference ------------------------------------------------------------------------
@@ -198,15 +208,20 @@ class _Displacements:
 
     def overlaps(self, shift):
         """Free points where ``u - w - δ_ref < shift`` (the gap is negative), their gaps and the lowest."""
-        k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
-                                        shift, self.where, self.where_gaps)
-        return self.where[:k].copy(), self.where_gaps[:k].copy(), low
+        while True:
+            k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
+                                            shift, self.where, self.where_gaps)
+            if k <= self.where.size:
+                return self.where[:k].copy(), self.where_gaps[:k].copy(), low
+            self.where = np.empty(min(self.c.size, 2 * k), np.int32)
+            self.where_gaps = np.empty(self.where.size, self.c.dtype)
 
-    def set_direction(self, idx, tI, gI, beta, zero_sum, gone):
+    def set_direction(self, idx, tI, gI, beta, zero_sum):
         """Make ``tI`` the conjugate direction (:func:`compiled.set_direction`), write it into the
-        direction operator (zero on the points ``gone`` from the set) and return ``(slope, energy)``:
-        ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
-        slope = compiled.set_direction(tI, gI, beta, zero_sum, idx, gone, self.nx, self.pad,
+        direction operator (zero elsewhere) and return ``(slope, energy)``: ``Σ g t`` and
+        ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
+        self.direction.input.fill(0)
+        slope = compiled.set_direction(tI, gI, beta, zero_sum, idx, _NONE, self.nx, self.pad,
                                        self.direction.input_flat)
         if not slope > 0:
             return slope, 0.0
@@ -215,21 +230,26 @@ class _Displacements:
 
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
-        transform); the direction buffer is cleared — the next :meth:`set_direction` rewrites it."""
+        transform in the direction operator, which the next :meth:`set_direction` rewrites)."""
         flat, nx, pad = self.direction.input_flat, self.nx, self.pad
-        flat.fill(0)
+        self.direction.input.fill(0)
         for where, value in pairs:
             compiled.scatter(where, value, nx, pad, flat)
         self.counts["fft"] += 1
-        e = self.direction.energy(self.direction.forward())
-        zero = np.zeros(1, flat.dtype)
-        for where, _ in pairs:
-            compiled.scatter(where, zero, nx, pad, flat)
-        return e
+        return self.direction.energy(self.direction.forward())
 
     def displacement(self):
         """Dense exact displacements ``u`` (right after a refresh)."""
         return self.c + self.w + self.c.dtype.type(self.delta_ref)
+
+    def take_result(self, delta):
+        """``(p, u, g)`` right after a refresh: the reference pressures, displacements and gaps
+        ``u - w - δ`` (not clipped). The pressures and gaps are the operator's work arrays, handed
+        over (the next solve allocates them anew) rather than copied."""
+        u = self.displacement()
+        g = self.conv.release("gaps")
+        g -= g.dtype.type(delta - self.delta_ref)
+        return self.conv.release("reference_pressure"), u, g
 
 
 def _initial_pressure(conv, w, *, pixel_area, load, penetration, H, initial):
@@ -299,6 +319,7 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
     if (load is None) == (penetration is None):
         raise ValueError("give exactly one of load and penetration")
     with conv.lock:  # the operator's buffers hold this solve's state until it returns
+        conv.begin_solve()
         return _solve(conv, w, pixel_area=pixel_area, load=load, penetration=penetration, hardness=hardness,
                       tol=tol, maxiter=maxiter, initial=initial, callback=callback)
 
@@ -315,30 +336,29 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     load_control = load is not None
     counts = {"conv": 0, "fft": 0, "exact": 0}
 
-    def result(p, u, delta, it, res, ok):
-        g = u - w - dtype.type(delta)
-        plastic = (p >= H) if H is not None else np.zeros(shape, bool)
-        return PKResult(pressure=p, displacement=u, gap=np.maximum(g, 0), penetration=float(delta),
+    def result(p, u, g, delta, it, res, ok):
+        """The result from pressures ``p``, displacements ``u`` and gaps ``g = u - w - δ`` (clipped at 0 in place)."""
+        plastic = (p >= H) if H is not None else None
+        return PKResult(pressure=p, displacement=u, gap=np.maximum(g, 0, out=g), penetration=float(delta),
                         load=float(pixel_area * np.sum(p, dtype=np.float64)), iterations=it, residual=float(res),
                         converged=bool(ok), convolutions=counts["conv"], transforms=counts["fft"],
                         exact_convolutions=counts["exact"], plastic=plastic)
 
     if load_control and load <= 0:
         z = np.zeros(shape, dtype)
-        return result(z, z.copy(), 0.0, 0, 0.0, True)
+        return result(z, z.copy(), -w, 0.0, 0, 0.0, True)
     p0 = _initial_pressure(conv, w, pixel_area=pixel_area, load=load, penetration=penetration, H=H,
                            initial=initial)
     if p0 is None:
         z = np.zeros(shape, dtype)
-        return result(z, z.copy(), penetration, 0, 0.0, True)
+        return result(z, z.copy(), -w - dtype.type(penetration), penetration, 0, 0.0, True)
 
     # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
     p0 = p0.reshape(-1)
-    idx = np.flatnonzero(p0 > 0) if H is None else np.flatnonzero((p0 > 0) & (p0 < H))
-    pl = np.empty(0, np.intp) if H is None else np.flatnonzero(p0 >= H)
+    idx, pl = compiled.split_sets(p0, np.inf if H is None else H)
     pI = p0[idx]
     del p0
-    tI = np.zeros(idx.size, dtype)
+    tI = None   # the first direction is the gradient: it takes the gaps' array
     disp = _Displacements(conv, w, counts)
 
     # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
@@ -355,7 +375,6 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         p_mean = (float(np.sum(pI, dtype=np.float64)) + (H or 0) * pl.size) / w.size
         scale = max(float(np.max(np.abs(disp.displacement()))), p_mean * kii) or 1.0
     G_old = 0.0
-    gone = _NONE
     residual = math.inf
     converged = False
     it = 0
@@ -397,9 +416,11 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         # points that just joined); one that is no longer downhill — the sets moved under it —
         # restarts from g
         tau = 0.0
+        if tI is None:
+            tI = gI
         if nI:
             beta = G / G_old if G_old > 0 else 0.0
-            slope, denom = disp.set_direction(idx, tI, gI, dtype.type(beta), load_control, gone)
+            slope, denom = disp.set_direction(idx, tI, gI, dtype.type(beta), load_control)
             G_old = G
             if denom > 0 and slope > 0:
                 tau = slope / denom
@@ -463,15 +484,10 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         disp.update(idx, pI, changed, scale_p)
     if not disp.fresh:  # the returned displacements are exact convolutions of the pressures
         disp.refresh(idx, pI, pl, H, delta)
-    p = np.zeros(w.size, dtype)
-    p[idx] = pI
-    if pl.size:
-        p[pl] = H
-    p = p.reshape(shape)
-    u = disp.displacement().reshape(shape)
     if load_control and idx.size:
         delta = disp.delta_ref + disp.at(idx)[1] / idx.size
-    return result(p, u, delta, it, residual, converged)
+    p, u, g = disp.take_result(delta)   # the reference pressures are the iterate's (fresh)
+    return result(p.reshape(shape), u.reshape(shape), g.reshape(shape), delta, it, residual, converged)
 
 
 def _secant_step(a, b):

@@ -10,6 +10,7 @@ Arrays carry the lateral dims last; leading dims are a batch.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..errors import XtopoError
 from . import fft as _fft
@@ -36,6 +37,39 @@ def _power(f: np.ndarray) -> np.ndarray:
     return p
 
 
+@njit(nogil=True, cache=True)
+def _centred_profiles(h, window, out):
+    """``out[r] = (h[r] - mean(h[r])) · window`` for the rows of ``h`` (2D) in one pass each (no window: empty)."""
+    rows, n = h.shape
+    for r in range(rows):
+        s = 0.0
+        for i in range(n):
+            s += h[r, i]
+        m = s / n
+        if window.size:
+            for i in range(n):
+                out[r, i] = (h[r, i] - m) * window[i]
+        else:
+            for i in range(n):
+                out[r, i] = h[r, i] - m
+
+
+@njit(nogil=True, cache=True)
+def _mean_power(f, scale):
+    """``scale · mean_r |f[l, r, k]|²`` over the middle axis of a complex ``(L, R, K)`` array, in one pass."""
+    n_lead, rows, k = f.shape
+    out = np.zeros((n_lead, k))
+    for lead in range(n_lead):
+        acc = out[lead]
+        for r in range(rows):
+            for j in range(k):
+                v = f[lead, r, j]
+                acc[j] += v.real * v.real + v.imag * v.imag
+        for j in range(k):
+            acc[j] *= scale / rows
+    return out
+
+
 def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int) -> np.ndarray:
     """C1D of the profiles along the last axis at ``q = 2π k/L``, ``k = 0..n//2``.
 
@@ -49,17 +83,22 @@ def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int) -> np.nda
         Multiply each (mean-free) profile by a Hann window with ``mean(w²) = 1``.
     rows : int
         Number of axes in front of the last one to average over (0 or 1).
+
+    Notes
+    -----
+    Centring and windowing are one compiled pass, the power and its mean over the rows another:
+    the transform is the only full-size temporary.
     """
     check_finite(h, "psd")
     n = h.shape[-1]
-    d = h - h.mean(axis=-1, keepdims=True)
-    if window:
-        d *= hann(n)
-    p = _power(_fft.rfftn(d, axes=(-1,), backend=BACKEND))
-    c = p * (dx / n)  # Δx² |Σ h e^{-iqx}|² / L
-    if rows:
-        c = c.mean(axis=tuple(range(-1 - rows, -1)))
-    return c
+    h2 = np.ascontiguousarray(h, dtype=float).reshape(-1, n)
+    d = np.empty_like(h2)
+    _centred_profiles(h2, hann(n) if window else np.empty(0), d)
+    f = _fft.rfftn(d.reshape(h.shape), axes=(-1,), backend=BACKEND)
+    del d
+    lead = h.shape[: h.ndim - 1 - rows]
+    c = _mean_power(f.reshape(int(np.prod(lead, dtype=int)), -1, f.shape[-1]), dx / n)  # Δx² |Σ h e^{-iqx}|² / L
+    return c.reshape(lead + (f.shape[-1],))
 
 
 def _demeaned_map(h, dy, dx, window):

@@ -252,7 +252,8 @@ def to_dataset(scene, res, tol) -> xr.Dataset:
         "converged": ((), res.converged, {"units": "1", "long_name": "solver reached tol"}),
     }
     if scene.hardness is not None:
-        data["plastic"] = (dims, res.plastic, {"units": "1", "long_name": "pressure at the hardness (flowing)"})
+        plastic = res.plastic if res.plastic is not None else np.zeros(scene.shape, bool)  # elastic: the cap idle
+        data["plastic"] = (dims, plastic, {"units": "1", "long_name": "pressure at the hardness (flowing)"})
     ds = xr.Dataset(data, coords=scene.coords)
     ds.attrs = {
         "modulus": scene.modulus, "modulus_units": scene.modulus_units, "periodic": int(scene.periodic),
