@@ -122,7 +122,7 @@ def test_inline_extension_output_needs_no_network(tmp_path, monkeypatch):
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep))
     nb = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell('import holoviews as hv\n'
                                                                    'hv.extension("bokeh", inline=True)')])
-    nbclient.NotebookClient(nb, timeout=BUDGET, kernel_name="python3",
+    nbclient.NotebookClient(nb, timeout=HANG_GUARD, kernel_name="python3",
                             resources={"metadata": {"path": str(tmp_path)}}).execute()
     text = "".join(str(o.get("data", {})) for o in nb.cells[0].outputs)
     assert "Bokeh" in text and len(text) > 500_000  # BokehJS (~1 MB) is in the page

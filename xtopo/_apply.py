@@ -74,13 +74,21 @@ def rescaled(out, e: int, power, what: str) -> np.ndarray:
     return scaled
 
 
-def _declared(kernel, dtypes, height_power=None, what: str = "this analysis"):
+def _declared(kernel, dtypes, height_power=None, what: str = "this analysis", heights_out: bool = False):
     """``kernel`` with its output(s) cast to ``dtypes`` (a float32 FFT would otherwise give float32),
-    computed in scaled units when ``height_power`` (one entry per output) says how each output scales."""
+    computed in scaled units when ``height_power`` (one entry per output) says how each output scales.
+
+    ``heights_out``: the outputs are heights on the input's scale after a fit (detrend): a value below
+    float64's rounding of the largest input height is rounding noise (the residual of a flat line),
+    and is 0 rather than refused when it would underflow on the way back."""
     def run(h, *args, **kwargs):
         e = scale_exponent(h) if height_power is not None else 0
-        out = kernel(np.ldexp(h, -e) if e else h, *args, **kwargs)
+        hs = np.ldexp(h, -e) if e else h
+        out = kernel(hs, *args, **kwargs)
         outs = (out,) if len(dtypes) == 1 else tuple(out)
+        if e and heights_out:
+            noise = 4 * np.finfo(np.float64).eps * float(np.nanmax(np.abs(hs), initial=0.0))
+            outs = tuple(np.where(np.abs(o) > noise, o, 0.0 * o) for o in outs)
         powers = height_power if height_power is not None else (None,) * len(outs)
         res = tuple(np.asarray(rescaled(np.asarray(o, dtype=d), e, p, what), dtype=d)
                     for o, p, d in zip(outs, powers, dtypes))
@@ -91,7 +99,7 @@ def _declared(kernel, dtypes, height_power=None, what: str = "this analysis"):
 
 def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_sizes=None, output_dtypes=None,
                   kwargs=None, what: str = "this analysis", core_dims=None, exclude_dims=frozenset(),
-                  height_power=None):
+                  height_power=None, heights_out: bool = False):
     """Apply ``kernel(values, **kwargs)`` over the lateral dims of ``da``.
 
     Parameters
@@ -111,12 +119,15 @@ def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_si
         an array along the output's last axis (one power per parameter), or ``None`` (not a
         function of the height scale alone). Given, extreme heights are analysed in scaled units
         (module docstring).
+    heights_out : bool
+        The outputs are heights on the input's scale after a fit (detrend): rounding noise below
+        the largest input height's precision becomes 0 instead of an underflow error.
     """
     core = tuple(core_dims) if core_dims is not None else lateral_dims(da)
     check_core_chunks(da, core, what)
     dtypes = list(output_dtypes or [float] * len(output_core_dims))
     return xr.apply_ufunc(
-        _declared(kernel, dtypes, height_power, what), da,
+        _declared(kernel, dtypes, height_power, what, heights_out), da,
         input_core_dims=[list(core)],
         output_core_dims=[list(c) for c in output_core_dims],
         exclude_dims=set(exclude_dims),

@@ -94,11 +94,11 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
     dims = lateral_dims(h)
     breaks_periodicity = degree > 0 and is_periodic(h)
     if dims == (Y, X):
-        out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], height_power=(1,), what="detrend",
+        out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], height_power=(1,), heights_out=True, what="detrend",
                             kwargs={"y": _positions(h, Y), "x": _positions(h, X), "degree": degree,
                                     "per_line": bool(per_line)})
     else:
-        out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], height_power=(1,), what="detrend",
+        out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], height_power=(1,), heights_out=True, what="detrend",
                             kwargs={"x": _positions(h, X), "degree": degree})
     line = f"detrend(mode={mode!r}, per_line={bool(per_line)})"
     if breaks_periodicity:

@@ -10,9 +10,11 @@ plane fit stays well conditioned.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ._lazy import LazyJit
 
 from .spectra import check_finite
+
+njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
 __all__ = ["vbm_levels", "vbm"]
 

@@ -26,9 +26,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.fft as sfft
+from ._lazy import Lazy
 
 from .derivatives import wavevectors
+
+sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
 
 __all__ = ["love_rectangle", "strip_displacement", "periodic_greens", "free_greens", "padded_shape", "unfold"]
 

@@ -12,9 +12,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ._lazy import LazyJit
 
 from .spectra import check_finite
+
+njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
 __all__ = ["scaled_difference", "sdrp_rms", "max_negative_curvature"]
 

@@ -10,11 +10,13 @@ Arrays carry the lateral dims last; leading dims are a batch.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from ._lazy import LazyJit
 
 from ..errors import XtopoError
 from . import fft as _fft
 from .windows import hann, radial_hann
+
+njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
 #: FFT backend of the analysis kernels. pyFFTW through its scipy interface re-plans on
 #: every call (no interface cache), which measured slower than scipy.fft at 2048²-8192²
