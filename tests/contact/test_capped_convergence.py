@@ -43,6 +43,20 @@ def test_capped_solve_where_the_elastic_deflection_dominates():
     assert float(r.pressure.max()) <= HARDNESS
 
 
+def test_capped_solve_on_a_long_line_scan_in_full_contact():
+    """A 4.8 mm line scan of 8192 points (plane strain, like hfm-1.hfm) pressed into full contact with 13 %
+    plastic: every warm-started solve costs ~100 iterations a decade of the residual, so the penetration search
+    solves coarsely far from the root (1250 iterations before, past the default maxiter; 676 now)."""
+    ds = xtopo.datasets.fractal_surface((8192,), 4.8e-3, hurst=0.8, rms_height=5e-7, periodic=False, seed=3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        r = Scene(ds, modulus=MODULUS, hardness=HARDNESS).solve(mean_pressure=PRESSURE)
+    assert bool(r.converged) and float(r.residual) <= float(r.attrs["tolerance"])
+    assert float(r.mean_pressure) == pytest.approx(PRESSURE, rel=1e-5)
+    assert float(r.area_fraction) == 1 and 0 < float(r.plastic.mean()) < 0.5
+    assert float(r.pressure.max()) <= HARDNESS
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", _real_files() or ["(no real data)"])
 def test_capped_contact_on_real_files_converges(name):
