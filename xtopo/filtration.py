@@ -35,6 +35,7 @@ from ._kernels import gaussian_filter as _gauss
 from ._kernels import polyfit as _poly
 from .conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, length_factor, \
     shared_length_unit, spacing
+from ._heights import fit_positions, replace_heights
 from .errors import GridError, UnitsError, XtopoError
 
 __all__ = ["filter", "iso_cutoffs", "CUTOFFS_MM", "COMPONENTS", "END_CORRECTIONS"]
@@ -129,14 +130,13 @@ def _lowpass(h, dims, cutoff, periodic, end="normalized"):
 
 
 def _form_removed(h, dims, degree):
-    from .preprocess import _positions  # preprocess registers filter as a step: import it here, not at the top
 
     if len(dims) == 2:
         out = apply_lateral(_poly.subtract_polynomial_2d, h, core_dims=dims, output_core_dims=[dims], what="filter",
-                            kwargs={"y": _positions(h, Y), "x": _positions(h, X), "degree": degree})
+                            kwargs={"y": fit_positions(h, Y), "x": fit_positions(h, X), "degree": degree})
     else:
         out = apply_lateral(_poly.subtract_polynomial_1d, h, core_dims=dims, output_core_dims=[dims], what="filter",
-                            kwargs={"x": _positions(h, dims[0]), "degree": degree})
+                            kwargs={"x": fit_positions(h, dims[0]), "degree": degree})
     return out.transpose(*h.dims)
 
 
@@ -247,7 +247,6 @@ def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str =
     amplitude transmission at the nesting index. The filters keep the full length (the end
     correction renormalises the weights inside the data).
     """
-    from .preprocess import _finish
 
     opts = filter_options(lambda_s, lambda_c, form, component, dim, end)
     h = height_of(obj)
@@ -289,7 +288,7 @@ def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str =
     nonperiodic = breaks and periodic
     if nonperiodic:
         line += "; periodic set to 0"
-    res = _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out, line, nonperiodic=nonperiodic)
+    res = replace_heights(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out, line, nonperiodic=nonperiodic)
     res.attrs.update(lambda_s=float("nan") if ls is None else ls, lambda_c=float("nan") if lc is None else lc)
     return res
 

@@ -20,8 +20,10 @@ import xarray as xr
 from ._apply import apply_lateral
 from ._checks import flag, option
 from ._kernels import polyfit as _poly
-from .conventions import (MASK, X, Y, append_history, height_of, is_nonuniform, is_periodic, lateral_dims,
+from .conventions import (MASK, X, Y, height_of, is_nonuniform, is_periodic, lateral_dims,
                           length_factor, spacing)
+from ._heights import fit_positions as _positions
+from ._heights import replace_heights as _finish
 from .errors import GridError, UnitsError, XtopoError
 from .filtration import filter as _filter
 from .filtration import filter_options as _filter_options
@@ -29,36 +31,6 @@ from .filtration import filter_options as _filter_options
 __all__ = ["detrend", "fill_missing", "apply_steps", "checked_steps"]
 
 _FILLED = "filled"
-
-
-def _positions(h, dim):
-    """Positions along ``dim`` for the polynomial fit (pixel indices when there is no coordinate)."""
-    if dim not in h.coords:
-        return np.arange(h.sizes[dim], dtype=float)
-    v = np.asarray(h.coords[dim].values, dtype=float)
-    if not np.all(np.isfinite(v)):
-        raise GridError(f"detrend: coordinate {dim!r} has {int(np.count_nonzero(~np.isfinite(v)))} NaN or infinite "
-                        "positions; the fit needs a position for every pixel")
-    return v
-
-
-def _finish(obj, h_in, result, line: str, *, nonperiodic: bool = False):
-    """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``.
-
-    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0.
-    """
-    # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
-    result = h_in.copy(data=result.transpose(*h_in.dims).data)
-    result.attrs = dict(obj[h_in.name].attrs if isinstance(obj, xr.Dataset) else obj.attrs)
-    if nonperiodic and "periodic" in result.attrs:
-        result.attrs["periodic"] = 0
-    if isinstance(obj, xr.Dataset):
-        out = obj.copy(deep=False)
-        out[h_in.name] = result
-        if nonperiodic:
-            out.attrs["periodic"] = 0
-        return append_history(out, line)
-    return append_history(result, line)
 
 
 def _detrend_options(mode, per_line) -> dict:

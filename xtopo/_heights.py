@@ -1,0 +1,42 @@
+"""New heights back into a measurement, with their history: shared by the steps that make new heights
+(:mod:`xtopo.preprocess`: detrend, fill_missing; :mod:`xtopo.filtration`: ISO 16610 filters). Not public API."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .conventions import append_history
+from .errors import GridError
+
+__all__ = ["fit_positions", "replace_heights"]
+
+
+def fit_positions(h, dim):
+    """Positions along ``dim`` for the polynomial fit (pixel indices when there is no coordinate)."""
+    if dim not in h.coords:
+        return np.arange(h.sizes[dim], dtype=float)
+    v = np.asarray(h.coords[dim].values, dtype=float)
+    if not np.all(np.isfinite(v)):
+        raise GridError(f"detrend: coordinate {dim!r} has {int(np.count_nonzero(~np.isfinite(v)))} NaN or infinite "
+                        "positions; the fit needs a position for every pixel")
+    return v
+
+
+def replace_heights(obj, h_in, result, line: str, *, nonperiodic: bool = False):
+    """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``.
+
+    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0.
+    """
+    # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
+    result = h_in.copy(data=result.transpose(*h_in.dims).data)
+    result.attrs = dict(obj[h_in.name].attrs if isinstance(obj, xr.Dataset) else obj.attrs)
+    if nonperiodic and "periodic" in result.attrs:
+        result.attrs["periodic"] = 0
+    if isinstance(obj, xr.Dataset):
+        out = obj.copy(deep=False)
+        out[h_in.name] = result
+        if nonperiodic:
+            out.attrs["periodic"] = 0
+        return append_history(out, line)
+    return append_history(result, line)
