@@ -65,8 +65,13 @@ def rescaled(out, e: int, power, what: str) -> np.ndarray:
         return out
     with np.errstate(over="ignore", under="ignore", invalid="ignore"):  # an overflow is what is checked next
         scaled = np.ldexp(out, exponent.astype(np.int64)) if out.dtype.kind == "f" else out * 2.0 ** exponent
-        lost = np.isfinite(out) & (out != 0) & ~(np.abs(scaled) >= np.finfo(scaled.dtype).tiny) | \
-            (np.isfinite(out) & ~np.isfinite(scaled))
+        finite = np.isfinite(out)
+        # an element may underflow where it is below eps² of the output's largest value (a spectrum's tail far
+        # under its peak, as float64 arithmetic on unscaled heights would also flush it); a significant one may not
+        top = float(np.max(np.abs(out), where=finite, initial=0.0))
+        significant = np.abs(out) > np.finfo(np.float64).eps ** 2 * top
+        lost = finite & (out != 0) & significant & ~(np.abs(scaled) >= np.finfo(scaled.dtype).tiny) | \
+            (finite & ~np.isfinite(scaled))
     if lost.any():
         raise XtopoError(f"{what}: heights of order 2**{e} (1e{e * np.log10(2):+.0f}) give results beyond the range "
                          f"of float64 (about 1e±308): the result goes as height**{np.max(np.abs(power))}; express "

@@ -24,14 +24,30 @@ def _spectra(ds):
     return out
 
 
+def _spectra_or_refused(ds):
+    """``_spectra(ds)``, or None where xtopo refuses the heights as giving results beyond float64: allowed only
+    where the spectra's own scale, h² times the lengths' powers (up to m⁴ for a 2D PSD), lies near or below the
+    smallest normal float64 (a constant map's rounding noise there cannot be told from a true value)."""
+    try:
+        return _spectra(ds)
+    except xtopo.XtopoError as exc:
+        h = float(np.abs(ds.height.values).max())
+        length = max(ds.sizes[d] * ds[d].attrs["spacing"] for d in ds.height.dims)
+        assert "beyond the range of float64" in str(exc)
+        assert h**2 * max(length, 1.0) ** 2 * min(length, 1.0) ** 2 < 1e-280, (h, length, exc)
+        return None
+
+
 def _like(ds, h):
     return xtopo.make_measurement(h, spacing=ds.x.attrs["spacing"], periodic=xtopo.conventions.is_periodic(ds))
 
 
 def check_psd_scales_with_h2(ds, alpha):
     """C(αh) = α² C(h) for every PSD kind (windowed or not), and A(αh) = α² A(h)."""
-    ref = _spectra(ds)
-    out = _spectra(_like(ds, ds.height.values * alpha))
+    ref = _spectra_or_refused(ds)
+    out = _spectra_or_refused(_like(ds, ds.height.values * alpha))
+    if ref is None or out is None:
+        return
     h = np.abs(ds.height.values).max() * alpha
     length = max(ds.sizes[d] * ds[d].attrs["spacing"] for d in ds.height.dims)
     for name, c in ref.items():
@@ -55,7 +71,10 @@ def check_periodic_translation(h, dx, shifts):
     """np.roll of a periodic map leaves its PSD, ACF and scalar parameters unchanged."""
     ds = xtopo.make_measurement(h, spacing=dx, periodic=True)
     moved = xtopo.make_measurement(_rolled(h, shifts), spacing=dx, periodic=True)
-    a, b = _spectra(ds), _spectra(moved)
+    a = _spectra_or_refused(ds)
+    if a is None:
+        return
+    b = _spectra(moved)
     for name in a:
         atol = 1e-10 * float(np.abs(a[name].values).max()) + 1e-300
         np.testing.assert_allclose(b[name].values, a[name].values, rtol=1e-9, atol=atol, err_msg=name)
