@@ -125,21 +125,24 @@ def test_keyence_vk4_agrees_with_surfacetopography(tmp_path):
     digits, light = _vk_heights()
     p = tmp_path / "b.vk4"
     p.write_bytes(_vk4_bytes(digits, light))
-    _same_as_surfacetopography(p, xtopo.open_topography(p, units="um"), "um")
-    _same_as_surfalize(p, xtopo.open_topography(p, units="um"))
+    assert _same_as_surfacetopography(p, xtopo.open_topography(p, units="um"), "um") == digits.size
+    assert _same_as_surfalize(p, xtopo.open_topography(p, units="um")) == digits.size
 
 
 def _same_as_surfacetopography(path, ds, unit, valid=None, rtol=1e-12):
-    """SurfaceTopography reads ``path`` with the sizes and (where ``valid``) the heights of ``ds`` (in ``unit``)."""
+    """SurfaceTopography reads ``path`` with the sizes and (where ``valid``) the heights of ``ds`` (in ``unit``);
+    returns the number of heights compared."""
     st = pytest.importorskip("SurfaceTopography")
     t = st.read_topography(str(path)).to_unit(unit)
     assert (physical_size(ds, "x"), physical_size(ds, "y")) == pytest.approx(t.physical_sizes)
     ok = np.ones(ds.height.shape, bool) if valid is None else valid
     np.testing.assert_allclose(ds.height.values[ok], t.heights().T[ok], rtol=rtol)
+    return int(ok.sum())
 
 
 def _same_as_surfalize(path, ds, valid=None):
-    """surfalize (which reads in µm) reads ``path`` with the steps and (where ``valid``) heights of ``ds`` (in µm)."""
+    """surfalize (which reads in µm) reads ``path`` with the steps and (where ``valid``) heights of ``ds`` (in µm);
+    returns the number of heights compared."""
     surfalize = pytest.importorskip("surfalize")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # surfalize's note on non-square pixels
@@ -147,10 +150,12 @@ def _same_as_surfalize(path, ds, valid=None):
     assert (s.step_x, s.step_y) == pytest.approx((spacing(ds, "x"), spacing(ds, "y")), rel=1e-6)
     ok = np.ones(ds.height.shape, bool) if valid is None else valid
     np.testing.assert_allclose(ds.height.values[ok], s.data[ok], rtol=1e-6)
+    return int(ok.sum())
 
 
 def _fuzz(tmp_path, raw, fmt, name, n=60):
-    """Truncations and random corruptions of ``raw`` end in a Dataset or an XtopoError naming the file."""
+    """Truncations and random corruptions of ``raw`` end in a Dataset or an XtopoError naming the file; returns how
+    many were refused (the empty file at least)."""
     rng = np.random.default_rng(len(raw))
     variants = [raw[:int(f * len(raw))] for f in np.linspace(0, 0.999, 15)]
     for _ in range(n):
@@ -158,6 +163,7 @@ def _fuzz(tmp_path, raw, fmt, name, n=60):
         pos = int(rng.integers(0, min(len(raw), 600))) if rng.random() < 0.6 else int(rng.integers(0, len(raw)))
         buf[pos:pos + 4] = rng.integers(0, 256, size=len(buf[pos:pos + 4]), dtype=np.uint8).tobytes()
         variants.append(bytes(buf))
+    refused = 0
     for i, data in enumerate(variants):
         path = tmp_path / f"v{i}_{name}"
         path.write_bytes(data)
@@ -165,18 +171,20 @@ def _fuzz(tmp_path, raw, fmt, name, n=60):
             ds = xtopo.io.list_formats()[fmt].read(path)
         except XtopoError as exc:
             assert path.name in str(exc)
+            refused += 1
         else:
             validate(ds)
+    return refused
 
 
 def test_keyence_fuzz(tmp_path):
     digits, light = _vk_heights()
     raw = _vk4_bytes(digits, light)
-    _fuzz(tmp_path, raw, "vk4", "f.vk4")
+    assert _fuzz(tmp_path, raw, "vk4", "f.vk4") > 0
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("Vk4File", raw)
-    _fuzz(tmp_path, b"VK6" + buf.getvalue(), "vk6", "f.vk6")
+    assert _fuzz(tmp_path, b"VK6" + buf.getvalue(), "vk6", "f.vk6") > 0
 
 
 # --------------------------------------------------------------------------- Zygo DATX
@@ -218,7 +226,7 @@ def test_zygo_datx_from_layout(tmp_path):
 def test_zygo_datx_fuzz(tmp_path):
     p = tmp_path / "src.datx"
     _datx(p, np.arange(12.0).reshape(3, 4))
-    _fuzz(tmp_path, p.read_bytes(), "datx", "f.datx", n=40)
+    assert _fuzz(tmp_path, p.read_bytes(), "datx", "f.datx", n=40) > 0
 
 
 # --------------------------------------------------------------------------- Sensofar PLUX
@@ -271,7 +279,7 @@ def test_sensofar_plux_refuses_entity_declarations(tmp_path):
 
 def test_sensofar_plux_fuzz(tmp_path):
     raw = _plux_bytes([np.arange(12.0).reshape(3, 4)])
-    _fuzz(tmp_path, raw, "plux", "f.plux")
+    assert _fuzz(tmp_path, raw, "plux", "f.plux") > 0
 
 
 # --------------------------------------------------------------------------- Olympus LEXT (TIFF)
@@ -372,7 +380,7 @@ def test_olympus_lext_from_layout(tmp_path):
 
 def test_olympus_lext_fuzz(tmp_path):
     raw = _lext_bytes(np.arange(24).reshape(4, 6))
-    _fuzz(tmp_path, raw, "lext", "f.lext")
+    assert _fuzz(tmp_path, raw, "lext", "f.lext") > 0
 
 
 # --------------------------------------------------------------------------- OmniSurf3D (OS3D)
@@ -406,7 +414,7 @@ def test_os3d_from_layout(tmp_path):
 
 
 def test_os3d_fuzz(tmp_path):
-    _fuzz(tmp_path, _os3d_bytes(np.arange(12.0).reshape(3, 4)), "os3d", "f.os3d")
+    assert _fuzz(tmp_path, _os3d_bytes(np.arange(12.0).reshape(3, 4)), "os3d", "f.os3d") > 0
 
 
 # --------------------------------------------------------------------------- NT-MDT
@@ -445,7 +453,7 @@ def test_nt_mdt_from_layout(tmp_path):
 
 def test_nt_mdt_fuzz(tmp_path):
     raw = _mdt_bytes([_mdt_frame(np.arange(12).reshape(3, 4)), _mdt_frame(np.arange(6).reshape(2, 3), adc=1)])
-    _fuzz(tmp_path, raw, "mdt", "f.mdt")
+    assert _fuzz(tmp_path, raw, "mdt", "f.mdt") > 0
 
 
 # --------------------------------------------------------------------------- KLA Zeta ZMG
@@ -475,7 +483,7 @@ def test_zeta_zmg_from_layout(tmp_path):
 
 
 def test_zeta_zmg_fuzz(tmp_path):
-    _fuzz(tmp_path, _zmg_bytes(np.arange(12).reshape(3, 4)), "zmg", "f.zmg")
+    assert _fuzz(tmp_path, _zmg_bytes(np.arange(12).reshape(3, 4)), "zmg", "f.zmg") > 0
 
 
 # --------------------------------------------------------------------------- Keyence ZON
@@ -537,7 +545,8 @@ def test_keyence_zon_from_layout(tmp_path, zstd):
 
 
 def test_keyence_zon_fuzz(tmp_path):
-    _fuzz(tmp_path, _zon_bytes(np.arange(12).reshape(3, 4), np.zeros((3, 4), np.uint8)), "zon", "f.zon")
+    raw = _zon_bytes(np.arange(12).reshape(3, 4), np.zeros((3, 4), np.uint8))
+    assert _fuzz(tmp_path, raw, "zon", "f.zon") > 0
 
 
 # --------------------------------------------------------------------------- Olympus OIR / POIR
@@ -634,11 +643,11 @@ def test_olympus_poir_lists_the_heights_of_every_member(tmp_path):
 
 def test_olympus_oir_fuzz(tmp_path):
     raw = _oir_bytes([np.arange(12).reshape(3, 4)])
-    _fuzz(tmp_path, raw, "oir", "f.oir")
+    assert _fuzz(tmp_path, raw, "oir", "f.oir") > 0
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
         zf.writestr("x.oir", raw)
-    _fuzz(tmp_path, buf.getvalue(), "poir", "f.poir", n=30)
+    assert _fuzz(tmp_path, buf.getvalue(), "poir", "f.poir", n=30) > 0
 
 
 def test_keyence_zon_refuses_a_zstd_bomb(tmp_path):
