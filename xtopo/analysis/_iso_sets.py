@@ -1,34 +1,27 @@
 """The ISO parameter sets that the command line (``--iso``), ``xtopo info`` and the report show: one lookup.
 
-:data:`ISO_SETS` names each set, the scans it applies to and how its per-measurement values
-are made. A set is used when its module exists (:func:`available_sets`), so the areal set
-(``xtopo.analysis.iso25178``, issue 22's areal part) is switched on by its module landing,
-without a change here. Not public API.
+:data:`ISO_SETS` names each set, the scans it applies to and its function; a new set is one more
+entry. Not public API.
 """
 
 from __future__ import annotations
-
-import importlib
-import importlib.util
 
 import numpy as np
 import xarray as xr
 
 from ..conventions import HEIGHT, X, convert_length, lateral_dims
 from ..errors import XtopoError
+from .iso21920 import iso21920
+from .iso25178 import iso25178
 
-__all__ = ["ISO_SETS", "available_sets", "iso_values", "iso_table", "format_iso_table"]
+__all__ = ["ISO_SETS", "iso_values", "iso_table", "format_iso_table"]
 
-#: set name (the module and function in xtopo.analysis) → (what it is, the scans it applies to)
+#: set name → (what it is, the scans it applies to, its function)
 ISO_SETS = {
-    "iso21920": ("ISO 21920-2 profile parameters (profiles along x; maps: mean over the lines)", ("line", "area")),
-    "iso25178": ("ISO 25178-2 areal parameters", ("area",)),
+    "iso21920": ("ISO 21920-2 profile parameters (profiles along x; maps: mean over the lines)", ("line", "area"),
+                 iso21920),
+    "iso25178": ("ISO 25178-2 areal parameters", ("area",), iso25178),
 }
-
-
-def available_sets() -> tuple[str, ...]:
-    """The sets of :data:`ISO_SETS` whose module is installed."""
-    return tuple(n for n in ISO_SETS if importlib.util.find_spec(f"xtopo.analysis.{n}") is not None)
 
 
 def _scalar_vars(res: xr.Dataset, profiles: str | None) -> dict:
@@ -63,7 +56,7 @@ def iso_values(ds: xr.Dataset, name: str, *, lambda_s=None, lambda_c=None) -> xr
     kind = "area" if len(lateral_dims(ds[HEIGHT])) == 2 else "line"
     if kind not in ISO_SETS[name][1]:
         return xr.Dataset()
-    func = getattr(importlib.import_module(f"xtopo.analysis.{name}"), name)
+    func = ISO_SETS[name][2]
     if name == "iso21920":
         res = func(ds, dim=X, lambda_s=lambda_s, lambda_c=lambda_c)
         used = {k: xr.DataArray(float(res.attrs[k]), attrs={"units": res.attrs["length_units"], "long_name": text})
@@ -91,7 +84,7 @@ def iso_table(measurements: dict, *, lambda_s=None, lambda_c=None) -> tuple[xr.D
         than the measurement); the other sets of that measurement are still in the table.
     """
     rows, errors = {}, {}
-    columns = {iso: {} for iso in available_sets()}  # per set, its variables in order (a dict as ordered set)
+    columns = {iso: {} for iso in ISO_SETS}  # per set, its variables in order (a dict as ordered set)
     for name, ds in measurements.items():
         ds = convert_length(ds, "m")
         parts = []
