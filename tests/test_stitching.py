@@ -182,7 +182,7 @@ def test_bin_value_belongs_to_the_bin_centre():
 
 
 def test_bins_with_too_large_predicted_error_are_dropped(tree):
-    from xtopo.analysis.reliability import independent_samples
+    from xtopo.analysis.statistical_reliability import independent_samples
 
     ds = tree["afm-50um"].to_dataset()
     q = 2 * np.pi * np.arange(5) / float(ds.x[-1] - ds.x[0] + (ds.x[1] - ds.x[0]))
@@ -205,7 +205,7 @@ def test_bins_with_too_large_predicted_error_are_dropped(tree):
 
 def test_spectra_end_four_pixels_above_the_pixel_size(tree):
     """Aliasing (sampling) criterion: no measurement's spectrum reaches beyond 2π/(4Δx)."""
-    from xtopo.analysis.reliability import SAMPLING_FACTOR, sampling_cutoff
+    from xtopo.analysis.statistical_reliability import SAMPLING_FACTOR, sampling_cutoff
 
     ds = tree["afm-50um"].to_dataset()
     dx = float(ds.x[1] - ds.x[0])

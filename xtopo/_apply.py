@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from .conventions import lateral_dims
-from .errors import ChunkError, XtopoError
+from .errors import ChunkError, MissingDataError, XtopoError
 
 __all__ = ["check_core_chunks", "apply_lateral", "scale_exponent", "rescaled"]
 
@@ -89,7 +89,11 @@ def _declared(kernel, dtypes, height_power=None, what: str = "this analysis", he
     def run(h, *args, **kwargs):
         e = scale_exponent(h) if height_power is not None else 0
         hs = np.ldexp(h, -e) if e else h
-        out = kernel(hs, *args, **kwargs)
+        try:
+            out = kernel(hs, *args, **kwargs)
+        except MissingDataError as exc:  # the kernels say what is wrong; the advice is the layer's above
+            raise MissingDataError(f"{exc}; fill them first, e.g. with xtopo.preprocess.fill_missing, or crop to a "
+                                   "complete region") from None
         outs = (out,) if len(dtypes) == 1 else tuple(out)
         if e and heights_out:
             noise = 4 * np.finfo(np.float64).eps * float(np.nanmax(np.abs(hs), initial=0.0))

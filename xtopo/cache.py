@@ -52,7 +52,9 @@ import xxhash
 
 from ._checks import integer, make_directory, xarray_object
 from ._checks import path as checked_path
+from ._kernels._cache_dir import default_directory
 from ._tokens import callable_token
+from ._tree import _immutable, freeze
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
 from .errors import XtopoError
@@ -67,26 +69,6 @@ MEMORY_BYTES = 256 * 2**20
 
 _lock = threading.Lock()
 _digests: dict[int, tuple] = {}  # id(array) -> (weakref to array, digest)
-
-
-def default_directory() -> str:
-    """``$XTOPO_CACHE_DIR`` or the platform's user cache directory for xtopo."""
-    env = os.environ.get("XTOPO_CACHE_DIR")
-    if env:
-        return env
-    from platformdirs import user_cache_dir
-
-    return user_cache_dir("xtopo")
-
-
-def _immutable(arr: np.ndarray) -> bool:
-    """True when no one can write to ``arr``'s memory: a read-only chain of views ending in ``bytes``."""
-    base = arr
-    while isinstance(base, np.ndarray):
-        if base.flags.writeable:
-            return False
-        base = base.base
-    return isinstance(base, bytes)
 
 
 def _hash_array(a: np.ndarray) -> bytes:
@@ -115,23 +97,6 @@ def _array_digest(arr) -> bytes:
         # the callback runs while ``a`` is being freed, before its id can be reused
         _digests[key] = (weakref.ref(a, lambda _, k=key: _digests.pop(k, None)), digest)
     return digest
-
-
-def freeze(ds: xr.Dataset) -> xr.Dataset:
-    """A copy of ``ds`` whose numpy-backed variables live in immutable memory.
-
-    Their checksums are computed once per array and remembered, so repeated
-    :class:`Cache` look-ups of the same frozen measurement skip hashing its data.
-    Writing into the arrays raises ``ValueError`` (numpy refuses to make them writeable).
-    Dask-backed variables are left as they are.
-    """
-    out = xarray_object(ds, "freeze", (xr.Dataset,)).copy(deep=False)
-    for name, var in ds.variables.items():
-        if name in ds.indexes or not isinstance(var.data, np.ndarray) or var.dtype.hasobject:
-            continue
-        data = np.ascontiguousarray(var.data)
-        out[name].variable.data = np.frombuffer(data.tobytes(), dtype=data.dtype).reshape(data.shape)
-    return out
 
 
 def checksum(ds) -> str:

@@ -15,6 +15,7 @@ __all__ = [
     "UnsupportedFormatError",
     "UnitsError",
     "GridError",
+    "MissingDataError",
     "ChunkError",
     "ValidationError",
     "ContactError",
@@ -57,6 +58,10 @@ class UnitsError(XtopoError, ValueError):
 
 class GridError(XtopoError, ValueError):
     """The data do not lie on the grid an operation needs (uniform, 2D, large enough, ...)."""
+
+
+class MissingDataError(GridError):
+    """Heights hold missing data (NaN) where an analysis needs complete data."""
 
 
 class ChunkError(XtopoError, ValueError):

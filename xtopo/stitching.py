@@ -24,6 +24,8 @@ import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
+from .analysis.reliability import reliability_cutoff
+from .analysis.statistical_reliability import independent_samples, sampling_cutoff, stencil_error
 from .conventions import convert_length, height_of, lateral_dims, length_factor, unit_argument
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
@@ -143,7 +145,7 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         Predicted relative standard error of each curve's points (same coordinate; None: unknown).
     max_error : float, optional
         Opt-in statistical criterion: largest predicted relative standard error of an
-        average point (e.g. :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`). Default
+        average point (e.g. :data:`xtopo.analysis.statistical_reliability.MAX_RELATIVE_ERROR`). Default
         None: every reliable point is averaged.
 
     Returns
@@ -256,12 +258,10 @@ def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: 
 
     Spectra: each wavevector carries its independent Fourier modes (relative error ``1/√N``
     of a bin holding ``N``). ACF and SDRP: the predicted relative error of
-    :func:`~xtopo.analysis.reliability.stencil_error`. VBM: ``1/(2√N)`` with ``N``
+    :func:`~xtopo.analysis.statistical_reliability.stencil_error`. VBM: ``1/(2√N)`` with ``N``
     independent windows. Returns the curve (spectra: with the modes as a coordinate)
     and the error on the curve's points (None for spectra).
     """
-    from .analysis.reliability import independent_samples, stencil_error
-
     direction = curve.attrs.get("direction", "x")
     x = np.asarray(curve[coord].values, dtype=float)
     if coord == "q":
@@ -284,12 +284,10 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     """Mask (never drop) the unreliable scales so every backend yields the same coordinates.
 
     Short-scale criteria: tip radius or resolution (paper §4.9) and, for spectra, the
-    sampling criterion :func:`~xtopo.analysis.reliability.sampling_cutoff`.
+    sampling criterion :func:`~xtopo.analysis.statistical_reliability.sampling_cutoff`.
     """
     if not reliable:
         return curve
-    from .analysis.reliability import reliability_cutoff, sampling_cutoff
-
     cut = reliability_cutoff(ds)
     method = cut.attrs.get("method", "none")
     if coord == "q":  # spectra also end where aliasing sets in
@@ -322,7 +320,7 @@ def _setting(ds: xr.Dataset) -> tuple:
 def _pool_errors(errors: dict, settings: dict) -> dict:
     """Replace each measurement's plug-in predicted error by the median over its replicates.
 
-    The plug-in error of :func:`~xtopo.analysis.reliability.stencil_error` rests on the
+    The plug-in error of :func:`~xtopo.analysis.statistical_reliability.stencil_error` rests on the
     measurement's own curve, one realisation: it is itself noisy, and a selection by it
     (:func:`average_curves`) would favour the scans that happen to look precise (a scan whose
     long wavelengths happen to be weak shows a low curve *and* a low predicted error). The
@@ -400,7 +398,7 @@ def _with_provenance(out: xr.Dataset, tree, analysis: str, **params) -> xr.Datas
 
 _CRITERION = """With ``reliable``, a measurement is used only above its short cutoff (tip radius or
     resolution, paper §4.9; spectra also 4 pixels above the pixel size,
-    :func:`~xtopo.analysis.reliability.sampling_cutoff`), and there at every collocation point of
+    :func:`~xtopo.analysis.statistical_reliability.sampling_cutoff`), and there at every collocation point of
     its range, with equal weight (see :func:`average_curves`). The statistical uncertainty of each
     point is returned (``uncertainty``, ``relative_error``), not used to delete data unless
     ``max_error`` is given."""
@@ -415,7 +413,7 @@ _TWIN_PARAMETERS = """tree : xarray.DataTree
         Use each measurement only where it is reliable (default True; see above).
     max_error : float, optional
         Opt-in statistical criterion: largest predicted relative standard error of an average
-        point (e.g. :data:`xtopo.analysis.reliability.MAX_RELATIVE_ERROR`); the values it
+        point (e.g. :data:`xtopo.analysis.statistical_reliability.MAX_RELATIVE_ERROR`); the values it
         drops are marked in ``left_out``. Default None: every reliable point is averaged."""
 
 #: Parameters of one average beyond those all four share (after ``tree``).
@@ -444,7 +442,7 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
 
     ``areal=True`` needs every measurement to be an area scan. {criterion} A spectrum's
     predicted error in a collocation bin is ``1/√N`` with ``N`` the independent Fourier modes of
-    its reliable wavevectors there (:func:`~xtopo.analysis.reliability.independent_samples`).
+    its reliable wavevectors there (:func:`~xtopo.analysis.statistical_reliability.independent_samples`).
 
     Parameters
     ----------
@@ -474,7 +472,7 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     """Average height-difference ACF of a twin (profiles along x).
 
     {criterion} A measurement's predicted error is that of
-    :func:`~xtopo.analysis.reliability.stencil_error`.
+    :func:`~xtopo.analysis.statistical_reliability.stencil_error`.
 
     Parameters
     ----------
@@ -528,7 +526,7 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
 
     Every measurement is evaluated at exactly the common collocation distances
     (fractional scale factors by linear interpolation, §4.10). {criterion} A measurement's
-    predicted error is that of :func:`~xtopo.analysis.reliability.stencil_error` of the
+    predicted error is that of :func:`~xtopo.analysis.statistical_reliability.stencil_error` of the
     slope or curvature.
 
     Parameters

@@ -11,6 +11,8 @@ import xarray as xr
 from .analysis.scalars import scalars
 from .conventions import HEIGHT, MEASUREMENT_ATTRS, convert_length, height_of, is_nonuniform, lateral_dims, physical_size
 from ._format import format_quantity
+from ._tree import measurements as tree_measurements
+from ._tree import name_of, unique_name
 from .errors import GridError, ValidationError
 
 __all__ = ["summary_table", "format_table", "format_percent", "table_rows", "text_table"]
@@ -65,9 +67,6 @@ def _as_measurement(key, m) -> xr.Dataset:
 
 def _named(measurements) -> dict:
     """Name → measurement Dataset from a mapping, a twin, one measurement or a sequence of them."""
-    from .twins import _name_of, unique_name
-    from .twins import measurements as tree_measurements
-
     if isinstance(measurements, xr.DataTree):
         return tree_measurements(measurements)
     if isinstance(measurements, (xr.Dataset, xr.DataArray)):  # one measurement (a Dataset is a Mapping too)
@@ -82,7 +81,7 @@ def _named(measurements) -> dict:
     out: dict = {}
     for i, (_, m) in enumerate(items):
         ds = _as_measurement(i, m)
-        out[unique_name(_name_of(ds, i), out)] = ds  # title, source file or instrument, else measurement_<i>
+        out[unique_name(name_of(ds, i), out)] = ds  # title, source file or instrument, else measurement_<i>
     return out
 
 

@@ -15,41 +15,25 @@ import xarray as xr
 
 from ._checks import flag
 from ._checks import path as checked_path
-from .cache import freeze
-from .conventions import CONVENTIONS, safe_name, validate
-from .errors import ValidationError, XtopoError
+from ._tree import freeze, make_twin, measurements, name_of, unique_name
+from .conventions import safe_name, validate
+from .errors import ReaderError, ValidationError
+from .io.container import container_twin, is_container
 from .io.netcdf import READ_ENGINES, read_netcdf, tree_to_netcdf
+from .io.open import open_topography
+from .io.registry import detect
 
 __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
 
 
 def _open_lazily(path) -> xr.Dataset:
     """Open a file for a twin: xtopo NetCDF stays lazy (dask), other formats are read now."""
-    from .io.open import open_topography
-    from .io.registry import detect
-
     if any(fmt.name == "netcdf" for fmt in detect(path)):
         ds = read_netcdf(path, lazy=True)
         if "xtopo_version" in ds.attrs and "height" in ds:
             return validate(ds.chunk())
         ds.close()
     return open_topography(path)
-
-
-def unique_name(name: str, taken) -> str:
-    """``name``, or ``name_2``, ``name_3``, ... : the first not in ``taken``."""
-    candidate, k = name, 1
-    while candidate in taken:
-        k += 1
-        candidate = f"{name}_{k}"
-    return candidate
-
-
-def _name_of(ds: xr.Dataset, index: int) -> str:
-    for key in ("title", "source_file", "instrument"):
-        if ds.attrs.get(key):
-            return safe_name(os.path.splitext(str(ds.attrs[key]))[0] if key == "source_file" else ds.attrs[key])
-    return f"measurement_{index}"
 
 
 def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
@@ -94,40 +78,11 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
         if isinstance(key, str):
             node = safe_name(key)
         elif isinstance(m, xr.Dataset):
-            node = _name_of(ds, key)
+            node = name_of(ds, key)
         else:
             node = safe_name(os.path.splitext(os.path.basename(os.fspath(m)))[0])
-        node = unique_name(node, nodes)
-        nodes[node] = freeze(ds)
-    if not nodes:
-        raise XtopoError("a twin needs at least one measurement")
-    root = {"Conventions": CONVENTIONS, **attrs}
-    if name is not None:
-        root["title"] = name
-    return xr.DataTree.from_dict({"/": xr.Dataset(attrs=root), **{f"/{k}": v for k, v in nodes.items()}})
-
-
-def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
-    """The measurement Datasets of a twin by node name (children holding a ``height``).
-
-    Parameters
-    ----------
-    tree : xarray.DataTree
-        A twin (:func:`twin`, :func:`open_twin`).
-
-    Raises
-    ------
-    ValidationError
-        If ``tree`` is not a DataTree, or a node other than a child of the root holds a
-        ``height`` (a measurement that the twin's analyses and archive would not see).
-    """
-    if not isinstance(tree, xr.DataTree):
-        raise ValidationError(f"expected a twin (xarray.DataTree, see xtopo.twin), got {type(tree).__name__}")
-    misplaced = [node.path for node in tree.subtree if node.level != 1 and "height" in node.dataset]
-    if misplaced:
-        raise ValidationError(f"a twin holds its measurements as children of the root, but node(s) {misplaced} "
-                              "hold a 'height' too; build the twin with xtopo.twin (one node per measurement)")
-    return {name: node.to_dataset() for name, node in tree.children.items() if "height" in node.dataset}
+        nodes[unique_name(node, nodes)] = ds
+    return make_twin(nodes, name=name, **attrs)
 
 
 def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: bool = True) -> str:
@@ -187,8 +142,6 @@ def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
     surface : str or int, optional
         For a container: the surface's name or index.
     """
-    from .io.container import container_twin, is_container
-
     path = checked_path(path, "path", kind="file path")
     if is_container(path):
         return container_twin(path, surface)
@@ -197,8 +150,6 @@ def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
     try:
         tree = xr.open_datatree(path, engine=engine or READ_ENGINES["hdf5"])
     except (OSError, ValueError, KeyError, RuntimeError, TypeError) as exc:
-        from .errors import ReaderError
-
         raise ReaderError(path, f"not a readable twin archive: {exc}") from None
     with tree:
         loaded = tree.load()

@@ -8,7 +8,7 @@ import xtopo
 
 from xtopo._kernels.estimator_error import mean_square_relative_error
 from xtopo.analysis.acf import acf
-from xtopo.analysis.reliability import stencil_error
+from xtopo.analysis.statistical_reliability import stencil_error
 from xtopo.analysis.sdrp import sdrp
 from xtopo.datasets import fractal_surface
 
@@ -118,7 +118,7 @@ def test_stencil_error_refuses_bad_dim_and_fraction(kw, match):
 def test_sampling_cutoff_refuses_bad_factor_and_dim(kw, match):
     # factor was used unchecked (a negative or NaN cutoff wavelength, a bare ValueError for "4"),
     # dim a bare KeyError/TypeError
-    from xtopo.analysis.reliability import sampling_cutoff
+    from xtopo.analysis.statistical_reliability import sampling_cutoff
 
     surf = fractal_surface(128, 128.0, hurst=0.7, periodic=False, seed=1)
     assert sampling_cutoff(surf, factor=4) == pytest.approx(4.0)

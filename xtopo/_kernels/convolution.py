@@ -41,6 +41,7 @@ import scipy.fft as sfft
 
 from . import fft as _fft
 from . import compiled
+from ._cache_dir import default_directory
 from .greens import free_greens, padded_shape, periodic_greens
 
 __all__ = ["Convolution"]
@@ -75,8 +76,6 @@ def _planner(fft_shape) -> str:
 
 
 def _wisdom_path() -> str:
-    from ..cache import default_directory  # a path helper; lazy, the kernels stay free of xarray
-
     return os.path.join(default_directory(), "fftw-wisdom.npz")
 
 

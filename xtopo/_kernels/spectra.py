@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from ._lazy import LazyJit
 
-from ..errors import XtopoError
+from ..errors import MissingDataError
 from . import fft as _fft
 from .windows import hann, radial_hann
 
@@ -27,10 +27,9 @@ __all__ = ["BACKEND", "psd_profiles", "psd_map", "psd_iso", "rfft_abs_q", "rfft_
 
 
 def check_finite(h: np.ndarray, what: str) -> None:
-    """Raise :class:`XtopoError` if ``h`` holds NaN or inf."""
+    """Raise :class:`~xtopo.errors.MissingDataError` if ``h`` holds NaN or inf."""
     if not np.isfinite(h).all():
-        raise XtopoError(f"{what}: the heights contain missing data (NaN); fill them first, "
-                         "e.g. with xtopo.preprocess.fill_missing, or crop to a complete region")
+        raise MissingDataError(f"{what}: the heights contain missing data (NaN)")
 
 
 def _power(f: np.ndarray) -> np.ndarray:

@@ -54,10 +54,15 @@ import numpy as np
 import xarray as xr
 
 from .._checks import path as checked_path
+from .._tree import make_twin, measurements, unique_name
 from .._version import __version__
 from ..conventions import (append_history, height_of, is_nonuniform, is_periodic, lateral_dims, length_factor,
                            normalize_units, physical_size, safe_name)
 from ..errors import ReaderError, UnitsError, ValidationError, XtopoError, warn
+from ..preprocess import detrend, fill_missing
+from .formats.st_netcdf import to_surfacetopography_netcdf
+from .netcdf import atomic_write
+from .open import open_topography, sha256
 from ._zip import MAX_MEMBER, check_declared, copy_member, read_member, unsafe_name
 
 __all__ = ["open_container", "container_twin", "to_container", "is_container", "DETREND_MODES"]
@@ -226,8 +231,6 @@ def _unit(meta: dict, where: str, path) -> str | None:
 
 def _read_file(file: str, meta: dict, where: str, path):
     """open_topography on an extracted data file; the container's unit/size where the file states none."""
-    from .open import open_topography
-
     channel = meta.get("data_source")
     channel = channel if isinstance(channel, int) and not isinstance(channel, bool) else None
     periodic = bool(meta.get("is_periodic", False))
@@ -302,8 +305,6 @@ def _measurement_attrs(meta: dict, ds) -> dict:
 
 def _pipeline(ds, meta: dict, where: str, path):
     """SurfaceTopography's order for an original file: height scale, filling, detrending."""
-    from ..preprocess import detrend, fill_missing
-
     scale = meta.get("height_scale")
     if scale is not None:
         if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) or scale == 0:
@@ -435,8 +436,6 @@ def _surface_name(surface: dict, index: int) -> str:
 
 
 def _twin(archive: _Archive, index: int, sha: str) -> xr.DataTree:
-    from ..twins import twin, unique_name
-
     surface = archive.meta["surfaces"][index]
     name = _surface_name(surface, index)
     nodes = {}
@@ -448,7 +447,7 @@ def _twin(archive: _Archive, index: int, sha: str) -> xr.DataTree:
         where = f"surface {name!r}, topography {j} ({label!r})"
         ds = _measurement(archive, meta, where)
         nodes[unique_name(safe_name(os.path.splitext(label)[0]), nodes)] = ds
-    return twin(nodes, name=name, **_surface_attrs(archive.meta, surface, archive.path, sha))
+    return make_twin(nodes, name=name, **_surface_attrs(archive.meta, surface, archive.path, sha))
 
 
 def _budget(archive: _Archive, surfaces) -> None:
@@ -466,8 +465,6 @@ def _budget(archive: _Archive, surfaces) -> None:
 
 
 def _open(path):
-    from .open import sha256
-
     path = checked_path(path, "path", kind="file path")
     if not os.path.isfile(path):
         raise ReaderError(path, "no such file")
@@ -495,8 +492,6 @@ def open_container(path) -> dict[str, xr.DataTree]:
         An unreadable or hostile archive, invalid metadata, or a data file that is missing or unreadable
         (the message names the container, the surface, the topography and the file).
     """
-    from ..twins import unique_name
-
     archive, sha = _open(path)
     with archive:
         surfaces = range(len(archive.meta["surfaces"]))
@@ -626,10 +621,6 @@ def to_container(twins, path) -> str:
     str
         The path written.
     """
-    from ..twins import measurements, unique_name
-    from .formats.st_netcdf import to_surfacetopography_netcdf
-    from .netcdf import atomic_write
-
     path = checked_path(path, "path", kind="file path")
     items = _surfaces(twins)
     surfaces = []
