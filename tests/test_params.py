@@ -51,8 +51,8 @@ def test_errors_name_the_parameter_and_use_the_declared_subclass():
 
 def test_preflight_checks_a_call_without_making_it():
     assert preflight(_demo, {"unit": "µm", "x": 2}, rules=False) == {"unit": "um", "x": 2.0}
-    with pytest.raises(XtopoError, match=r"^read_options: .*'colour'"):
+    with pytest.raises(XtopoError, match=r"^read_options has no option 'colour'; its options: x, unit"):
         preflight(_demo, {"colour": 1}, "read_options")
     with pytest.raises(ContactError, match=r"^opts: give exactly one"):
-        preflight(_demo, {"n": 2}, "opts")
+        preflight(_demo, {"x": 2}, "opts")
     assert set(declarations(_demo)) == {"n", "x", "unit", "width", "load", "penetration"}

@@ -33,23 +33,23 @@ import numpy as np
 
 from .errors import UnitsError, XtopoError
 
-__all__ = ["Kind", "Flag", "Count", "Positive", "Real", "Choice", "Text", "Dict", "Lengths", "LengthUnit", "Path",
-           "Data", "OneOf", "checked", "preflight", "declarations", "DECLARED"]
+__all__ = ["Kind", "Refused", "Flag", "Count", "Positive", "Real", "Interval", "Choice", "Text", "Dict", "Numbers",
+           "Lengths", "LengthUnit", "Path", "Data", "OneOf", "checked", "preflight", "declarations", "DECLARED"]
 
 #: every function decorated with :func:`checked`, in the order they were defined (the generated test loops over it).
 DECLARED: list = []
 
 
-class _Refused(Exception):
-    """Raised by :meth:`Kind.convert`; ``message`` replaces the standard "must be ..., got ..." one."""
+class Refused(Exception):
+    """Raised by :meth:`Kind.convert`; ``message`` replaces the "must be ..., got ..." one, ``error`` the class."""
 
-    def __init__(self, message: str | None = None):
+    def __init__(self, message: str | None = None, error: type[XtopoError] | None = None):
         super().__init__(message)
-        self.message = message
+        self.message, self.error = message, error
 
 
 class Kind:
-    """A kind of parameter: :meth:`convert` returns the value normalised or raises :class:`_Refused`.
+    """A kind of parameter: :meth:`convert` returns the value normalised or raises :class:`Refused`.
 
     ``expects`` completes "<name> must be ..."; ``error`` (optional) is the XtopoError subclass raised;
     ``takes_none``: ``None`` is a value of this kind (not only where the default is ``None``).
@@ -70,9 +70,9 @@ class Kind:
         """``value`` normalised, or the error naming ``name``."""
         try:
             return self.convert(value)
-        except _Refused as exc:
+        except Refused as exc:
             message = exc.message or f"{name} must be {self.expects}, got {_shown(value)}"
-            raise (self.error or error)(message.replace("{name}", name)) from None
+            raise (exc.error or self.error or error)(message.replace("{name}", name)) from None
 
     def bad(self) -> list:
         """Values of the wrong kind (the generated test calls every entry point with each)."""
@@ -114,7 +114,7 @@ class Flag(Kind):
     def convert(self, value):
         if isinstance(value, (bool, np.bool_)) or (isinstance(value, numbers.Integral) and value in (0, 1)):
             return bool(value)
-        raise _Refused
+        raise Refused
 
     def bad(self):
         return ["yes", 2, 0.5]
@@ -124,26 +124,27 @@ class Flag(Kind):
 
 
 class Count(Kind):
-    """An integer (not a bool, not a float) of at least ``min`` → int."""
+    """An integer (not a bool, not a float) of at least ``min`` (and at most ``max``) → int."""
 
-    def __init__(self, min: int = 1, *, error=None):  # noqa: A002 - the declaration reads Count(min=0)
+    def __init__(self, min: int = 1, max: int | None = None, *, error=None):  # noqa: A002 - reads Count(min=0)
         super().__init__(error=error)
-        self.min = min
-        self.expects = f"an integer >= {min}"
+        self.min, self.max = min, max
+        self.expects = f"an integer >= {min}" + ("" if max is None else f" and <= {max}")
 
     def convert(self, value):
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < self.min:
-            raise _Refused
+        if (isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < self.min
+                or (self.max is not None and value > self.max)):
+            raise Refused
         return int(value)
 
     def bad(self):
-        return [self.min - 1, 2.5, "3", True]
+        return [self.min - 1, 2.5, "3", True] + ([] if self.max is None else [self.max + 1])
 
     def good(self):
         return self.min + 2
 
     def __repr__(self):
-        return f"Count(min={self.min})"
+        return f"Count(min={self.min}, max={self.max})"
 
 
 class Positive(Kind):
@@ -157,7 +158,7 @@ class Positive(Kind):
     def convert(self, value):
         number = _real(value)
         if number is None or not number > 0 or not (self.infinite or math.isfinite(number)):
-            raise _Refused
+            raise Refused
         return number
 
     def bad(self):
@@ -186,7 +187,7 @@ class Real(Kind):
         lo, hi = self.low, self.high
         if (number is None or not math.isfinite(number)
                 or not (lo <= number <= hi if self.closed else lo < number < hi)):
-            raise _Refused
+            raise Refused
         return number
 
     def bad(self):
@@ -203,6 +204,30 @@ class Real(Kind):
         return self.low + 1 if math.isfinite(self.low) else min(self.high - 1, 0.0)
 
 
+class Interval(Kind):
+    """Two real numbers ``(lo, hi)`` with ``low <= lo < hi <= high`` (``hi`` may be ``high`` = inf) → a tuple."""
+
+    def __init__(self, low: float = 0.0, high: float = math.inf, *, what: str = "numbers", error=None):
+        super().__init__(error=error)
+        self.low, self.high = low, high
+        self.expects = f"two {what} (lo, hi) with {low:g} <= lo < hi <= {high:g}"
+
+    def convert(self, value):
+        try:
+            lo, hi = (_real(v) for v in value) if not isinstance(value, (str, bytes)) else (None, None)
+        except (TypeError, ValueError):
+            lo = hi = None
+        if lo is None or hi is None or not (self.low <= lo < hi <= self.high) or math.isnan(hi):
+            raise Refused
+        return lo, hi
+
+    def bad(self):
+        return [(2.0, 1.0), (self.low - 1, self.low + 1), "ab", 3.0]
+
+    def good(self):
+        return (self.low, self.low + 1)
+
+
 class Choice(Kind):
     """One of ``options`` (strings, or None/False where those mean "none")."""
 
@@ -214,12 +239,14 @@ class Choice(Kind):
 
     def convert(self, value):
         for option in self.options:  # `is` for None/False: 0 is not False, nor an array compared elementwise
-            if value is option or (isinstance(value, str) and value == option):
-                return value
-        raise _Refused
+            if value is option or (isinstance(value, str) and value == option) or (
+                    type(option) is int and isinstance(value, numbers.Integral)
+                    and not isinstance(value, (bool, np.bool_)) and value == option):
+                return option
+        raise Refused
 
     def bad(self):
-        return ["no-such-option", 3]
+        return ["no-such-option", 3.5, True]
 
     def good(self):
         return self.options[0]
@@ -235,7 +262,7 @@ class Text(Kind):
 
     def convert(self, value):
         if not isinstance(value, str):
-            raise _Refused
+            raise Refused
         return value
 
     def bad(self):
@@ -254,7 +281,7 @@ class Dict(Kind):
         import xarray as xr
 
         if not isinstance(value, Mapping) or isinstance(value, (xr.Dataset, xr.DataTree)):
-            raise _Refused
+            raise Refused
         return dict(value)
 
     def bad(self):
@@ -264,13 +291,14 @@ class Dict(Kind):
         return {}
 
 
-class Lengths(Kind):
-    """A number or a 1D sequence of positive finite numbers (lengths, or wavevectors) → 1D float array.
+class Numbers(Kind):
+    """A number or a 1D sequence of finite real numbers in ``[low, high]`` → a float array (0-d for a number)."""
 
-    A bound from the data (no longer than the measurement) is checked where the data is.
-    """
-
-    expects = "a number or a 1D sequence of numbers (positive finite lengths)"
+    def __init__(self, low: float = -math.inf, high: float = math.inf, *, what: str = "numbers", empty: bool = False,
+                 error=None):
+        super().__init__(error=error)
+        self.low, self.high, self.what, self.empty = low, high, what, empty
+        self.expects = f"a number or a 1D sequence of numbers ({what})"
 
     def convert(self, values):
         v = None
@@ -278,18 +306,41 @@ class Lengths(Kind):
             try:
                 raw = np.asarray(values)
                 if raw.dtype.kind not in "bcSUO":  # True is not the length 1, nor "1" a number
-                    v = np.atleast_1d(np.asarray(raw, dtype=float))
+                    v = np.asarray(raw, dtype=float)
             except (TypeError, ValueError, OverflowError):
                 v = None
-        if v is None or v.ndim != 1 or v.size == 0:
-            raise _Refused
-        bad = v[~(np.isfinite(v) & (v > 0))]
+        if v is None or v.ndim > 1 or (v.size == 0 and not self.empty):
+            raise Refused
+        bad = v[~(np.isfinite(v) & (v >= self.low) & (v <= self.high))]
         if bad.size:
-            raise _Refused(f"{{name}} must be positive finite lengths, got {bad.tolist()}")
+            raise Refused(f"{{name}} must be {self.what}, got {np.atleast_1d(bad).tolist()}")
         return v
 
     def bad(self):
-        return ["1", -1.0, [1.0, math.nan], [[1.0]], [True]]
+        out = ["1", [1.0, math.nan], [[1.0]], [True]] + [[]] * (not self.empty)
+        return out + [self.low - 1] * math.isfinite(self.low) + [self.high + 1] * math.isfinite(self.high)
+
+    def good(self):
+        return [self.low if math.isfinite(self.low) else min(0.0, self.high)]
+
+
+class Lengths(Numbers):
+    """A number or a 1D sequence of positive finite numbers (lengths, or wavevectors) → 1D float array.
+
+    A bound from the data (no longer than the measurement) is checked where the data is.
+    """
+
+    def __init__(self, *, empty: bool = True, error=None):
+        super().__init__(0.0, what="positive finite lengths", empty=empty, error=error)
+
+    def convert(self, values):
+        v = np.atleast_1d(super().convert(values))
+        if np.any(v == 0):
+            raise Refused(f"{{name}} must be positive finite lengths, got {v[v == 0].tolist()}")
+        return v
+
+    def bad(self):
+        return ["1", -1.0, 0.0, [1.0, math.nan], [[1.0]], [True]] + [[]] * (not self.empty)
 
     def good(self):
         return [0.5]
@@ -307,7 +358,7 @@ class LengthUnit(Kind):
         try:
             return normalize_units(value)
         except UnitsError as exc:
-            raise _Refused(f"{{name}}={value!r:.60} is not a length unit ({exc})") from None
+            raise Refused(f"{{name}}={value!r:.60} is not a length unit ({exc})") from None
 
     def bad(self):
         return ["s", 5]
@@ -328,9 +379,9 @@ class Path(Kind):
         try:
             text = os.fsdecode(os.fspath(value))  # bytes too: a str, as the callers join it with str
         except TypeError:
-            raise _Refused(f"{{name}} must be a {self.what} (str or os.PathLike), got {type(value).__name__}") from None
+            raise Refused(f"{{name}} must be a {self.what} (str or os.PathLike), got {type(value).__name__}") from None
         if not text:
-            raise _Refused(f"{{name}} must be a {self.what}, got an empty string")
+            raise Refused(f"{{name}} must be a {self.what}, got an empty string")
         return text
 
     def bad(self):
@@ -352,7 +403,7 @@ class Data(Kind):
         import xarray as xr
 
         if not isinstance(value, tuple(getattr(xr, t) for t in self.types)):
-            raise _Refused(f"{{name}} needs an xarray {' or '.join(self.types)}, got {type(value).__name__}")
+            raise Refused(f"{{name}} needs an xarray {' or '.join(self.types)}, got {type(value).__name__}")
         return value
 
     def bad(self):
@@ -468,12 +519,13 @@ def preflight(func, kwargs: Mapping, where: str | None = None, *, rules: bool = 
     """
     spec = getattr(func, "__xtopo_params__", None)
     parameters = inspect.signature(func).parameters
+    options = [n for n, p in parameters.items() if p.default is not p.empty]  # not the data, nor **kwargs
     takes_any = any(p.kind is p.VAR_KEYWORD for p in parameters.values())
-    unknown = [k for k in kwargs if k not in parameters and not takes_any]
+    unknown = [k for k in kwargs if k not in options and not takes_any]
     prefix = f"{where}: " if where else ""
     if unknown:
-        raise XtopoError(f"{prefix}{func.__name__}() takes no option(s) {', '.join(map(repr, unknown))}; "
-                         f"it takes {', '.join(parameters)}")
+        raise XtopoError(f"{where + ' ' if where else ''}has no option {', '.join(map(repr, unknown))}; its options: "
+                         f"{', '.join(options) or 'none'}")
     out = dict(kwargs)
     if spec is None:
         return out

@@ -13,15 +13,16 @@ The curvature criterion expects peaks to point up (positive heights).
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import flag, option, positive_number
-from .._checks import lengths as check_lengths
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import X, Y, length_attr, length_factor
 from ..errors import GridError, XtopoError
+from ..params import Choice, Lengths, Positive, checked
 from ._scale import POINTS_PER_DECADE, prepare
 
 __all__ = ["reliability_cutoff", "apply_reliability", "reliable_scales", "sampling_cutoff", "independent_samples",
@@ -62,7 +63,8 @@ def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarra
     return out
 
 
-def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
+@checked
+def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> xr.DataArray:
     """Shortest reliable length scale of a measurement (paper §4.9).
 
     Parameters
@@ -90,7 +92,6 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
         If the tip-radius criterion is asked for on data with fewer than 3 points
         along every lateral dim (no curvature can be formed).
     """
-    c = positive_number(c, "c")
     prep = prepare(obj)
     units = prep.units
     res = _attr_length(obj, "resolution", units)
@@ -152,7 +153,7 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
     ``kind="q"``: keep ``q <= 2π/cutoff``; ``kind="length"``: keep ``coord >= cutoff``.
     The cutoff and its method are stored in ``result.attrs``.
     """
-    if not flag(reliable, "reliable"):
+    if not reliable:
         result.attrs.update(reliable=0)
         return result
     cut = reliability_cutoff(obj)
@@ -252,7 +253,8 @@ def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
 SAMPLING_FACTOR = 4
 
 
-def sampling_cutoff(obj, dim: str = X, *, factor: float = SAMPLING_FACTOR) -> float:
+@checked
+def sampling_cutoff(obj, dim: str = X, *, factor: Annotated[float, Positive()] = SAMPLING_FACTOR) -> float:
     """Shortest wavelength at which a sampled measurement's spectrum is free of aliasing (spectra only).
 
     A real surface keeps its roughness below the pixel size, and sampling it folds
@@ -281,13 +283,15 @@ def sampling_cutoff(obj, dim: str = X, *, factor: float = SAMPLING_FACTOR) -> fl
     float
         The cutoff wavelength in the measurement's length unit.
     """
-    factor = positive_number(factor, "factor")
     prep = prepare(obj)
     n = prep.h.sizes[prep.check_dim(dim)]
     return factor * prep.size(dim) / n
 
 
-def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction: float = VARIOGRAM_FRACTION) -> xr.DataArray:
+@checked
+def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
+                  quantity: Annotated[str, Choice("acf", "curvature", "slope")] = "acf", dim: str = X,
+                  fraction: Annotated[float, Positive()] = VARIOGRAM_FRACTION) -> xr.DataArray:
     """Predicted relative standard error of a measurement's ACF, scale-dependent slope or curvature (long-scale reliability).
 
     These curves are means of a squared stencil ``D = Σ w_i h(x + a_i ℓ)`` (a height
@@ -327,9 +331,7 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
     from .._kernels.estimator_error import mean_square_relative_error, variogram_from_samples
     from .acf import acf
 
-    option(quantity, sorted(_STENCILS), "quantity")
     offsets, weights = _STENCILS[quantity]
-    fraction = positive_number(fraction, "fraction")
     if fraction > 1:
         raise XtopoError(f"fraction must be a share of the scan's length, in (0, 1], got {fraction!r}")
     prep = prepare(obj)
@@ -338,7 +340,7 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
     other = [d for d in prep.lat if d != dim]
     rows = prep.h.sizes[other[0]] if other else 1
     dy = prep.spacing(other[0]) if other else 0.0
-    lengths = check_lengths(lengths, "lengths", prep.units)  # beyond the scan: NaN (the stencil does not fit)
+    # lengths beyond the scan: NaN (the stencil does not fit)
     curve = acf(obj, kind="1d", dim=dim, reliable=False)
     keep = max(3, int(np.ceil(fraction * n)))
     curve = curve.isel(distance=slice(0, keep))
