@@ -80,12 +80,6 @@ class Cutoff(Kind):
             raise Refused(f"{{name}} must be a positive finite length, got {value!r}")
         return float(value)
 
-    def bad(self):
-        return ["0.8 s", "-1 mm", "short", 0.0, True]
-
-    def good(self):
-        return "0.8 mm"
-
 
 class Form(Kind):
     """An F-operator: None, a word of ``_FORMS`` or a polynomial degree 0..8."""
@@ -98,12 +92,6 @@ class Form(Kind):
                 isinstance(form, numbers.Integral) and not isinstance(form, (bool, np.bool_)) and 0 <= form <= 8):
             return form
         raise Refused
-
-    def bad(self):
-        return ["cubic", 9, 1.0, True]
-
-    def good(self):
-        return "line"
 
 
 def _length(value, units: str):
