@@ -403,7 +403,7 @@ def test_contact_area_refuses_bad_results():
 def test_contact_maps_refuses_bad_variables():
     """variables=None/3 raised "'int' object is not iterable", [] gave an empty layout."""
     for variables, match in [
-        ([], "non-empty list"), (None, "non-empty list"), (3, "non-empty list"), ([np.zeros(2)], "must be a string"),
+        ([], "non-empty list"), (None, "non-empty list"), (3, "non-empty list"), ([np.zeros(2)], "non-empty list of names"),
     ]:
         with pytest.raises(XtopoError, match=match):
             xplot.contact_maps(contact_solution(8), variables=variables)
