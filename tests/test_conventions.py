@@ -89,21 +89,14 @@ def test_periodic_attr_spellings_accepted_by_is_periodic_and_validate(value, exp
     validate(ds)
 
 
-@pytest.mark.parametrize("value", [2, -1, 0.5, "yes", "1.0", "", None, [1], np.array([0, 1])])
-def test_periodic_attr_other_values_refused_by_both(value):
-    ds = make_measurement(np.ones((3, 3)), spacing=1.0)
-    ds.attrs["periodic"] = value
-    with pytest.raises(ValidationError, match="periodic"):
-        xtopo.conventions.is_periodic(ds)
-    with pytest.raises(ValidationError, match="periodic"):
-        validate(ds)
-
-
-@pytest.mark.parametrize("value", ["false", "0", None, 2])
-def test_make_measurement_periodic_must_be_a_bool(value):
-    # periodic="false" was stored as periodic=1 (bool of a non-empty string)
-    with pytest.raises(ValidationError, match="periodic must be True or False"):
-        make_measurement(np.ones(3), spacing=1.0, periodic=value)
+def test_periodic_attr_other_values_refused_by_both():
+    for value in [2, -1, 0.5, "yes", "1.0", "", None, [1], np.array([0, 1])]:
+        ds = make_measurement(np.ones((3, 3)), spacing=1.0)
+        ds.attrs["periodic"] = value
+        with pytest.raises(ValidationError, match="periodic"):
+            xtopo.conventions.is_periodic(ds)
+        with pytest.raises(ValidationError, match="periodic"):
+            validate(ds)
 
 
 _ANALYSES = {
@@ -128,77 +121,63 @@ def test_analyses_refuse_heights_in_another_unit_than_positions(analysis):
         _ANALYSES[analysis](nm.height)
 
 
-@pytest.mark.parametrize("analysis", sorted(_ANALYSES))
-@pytest.mark.parametrize("units", ["furlongz", "s", "kg"])
-def test_analyses_refuse_units_that_are_not_lengths(analysis, units):
+def test_analyses_refuse_units_that_are_not_lengths():
     # a coordinate in 's' gave a PSD in 's3' on q in 's-1'; heights in 'kg' were analysed as metres
-    ds = fractal_surface((16, 16), 1.0, hurst=0.8, seed=1)
-    for bad in (ds.assign_coords(x=ds.x.assign_attrs(units=units)),
-                ds.assign(height=ds.height.assign_attrs(units=units))):
-        with pytest.raises(UnitsError, match=f"units {units!r}, which is not a length unit"):
-            _ANALYSES[analysis](bad)
+    for analysis in sorted(_ANALYSES):
+        for units in ["furlongz", "s", "kg"]:
+            ds = fractal_surface((16, 16), 1.0, hurst=0.8, seed=1)
+            for bad in (ds.assign_coords(x=ds.x.assign_attrs(units=units)),
+                        ds.assign(height=ds.height.assign_attrs(units=units))):
+                with pytest.raises(UnitsError, match=f"units {units!r}, which is not a length unit"):
+                    _ANALYSES[analysis](bad)
 
 
-@pytest.mark.parametrize("analysis", sorted(_ANALYSES) + ["detrend", "fill_missing"])
-@pytest.mark.parametrize("values", [np.arange(16) + 1j, np.array(["a"] * 16), np.ones(16, bool), np.array([])])
-def test_heights_that_are_not_real_numbers_refused(analysis, values):
+def test_heights_that_are_not_real_numbers_refused():
     # complex heights: vbm, sdrp and scalars dropped the imaginary part silently, psd/acf raised scipy's
     # TypeError; no heights at all: detrend raised numpy's 'zero-size array to reduction'
-    call = {**_ANALYSES, "detrend": xtopo.preprocess.detrend, "fill_missing": xtopo.preprocess.fill_missing}[analysis]
-    x = np.arange(values.size) * 0.1
-    ds = xr.Dataset({"height": ("x", values, {"units": "um"})}, coords={"x": ("x", x, {"units": "um"})})
-    with pytest.raises(ValidationError, match="'height' (must hold real numbers|has no points)"):
-        call(ds)
-    with pytest.raises(ValidationError, match="'height' (must hold real numbers|has no points)"):
-        height_of(ds.height)
+    for analysis in sorted(_ANALYSES) + ["detrend", "fill_missing"]:
+        for values in [np.arange(16) + 1j, np.array(["a"] * 16), np.ones(16, bool), np.array([])]:
+            call = {**_ANALYSES, "detrend": xtopo.preprocess.detrend, "fill_missing": xtopo.preprocess.fill_missing}[analysis]
+            x = np.arange(values.size) * 0.1
+            ds = xr.Dataset({"height": ("x", values, {"units": "um"})}, coords={"x": ("x", x, {"units": "um"})})
+            with pytest.raises(ValidationError, match="'height' (must hold real numbers|has no points)"):
+                call(ds)
+            with pytest.raises(ValidationError, match="'height' (must hold real numbers|has no points)"):
+                height_of(ds.height)
 
 
-@pytest.mark.parametrize("helper", [spacing, physical_size, lateral_dims, is_periodic, length_units_of,
-                                    lambda o: convert_length(o, "nm"), height_of])
-@pytest.mark.parametrize("obj", [None, "abc", np.zeros((4, 4)), {"height": [1.0]}])
-def test_conventions_helpers_refuse_non_xarray_objects(helper, obj):
+def test_conventions_helpers_refuse_non_xarray_objects():
     # were a bare AttributeError ('NoneType' object has no attribute 'coords'/'attrs'/'dims'/'copy')
-    with pytest.raises(ValidationError, match="expected a topography"):
-        helper(obj)
+    for helper in [spacing, physical_size, lateral_dims, is_periodic, length_units_of,
+                                        lambda o: convert_length(o, "nm"), height_of]:
+        for obj in [None, "abc", np.zeros((4, 4)), {"height": [1.0]}]:
+            with pytest.raises(ValidationError, match="expected a topography"):
+                helper(obj)
 
 
-@pytest.mark.parametrize("dim", [None, 0, True, ["x"], np.array(["x"]), "z"])
-@pytest.mark.parametrize("helper", [spacing, physical_size])
-def test_spacing_and_size_refuse_bad_dims(helper, dim):
+def test_spacing_and_size_refuse_bad_dims():
     # physical_size raised a bare KeyError for any dim but 'x'/'y', spacing a TypeError for unhashable ones
-    ds = make_measurement(np.zeros((4, 8)), size=(2.0, 4.0), units="um")
-    assert helper(ds, "x") == pytest.approx({spacing: 0.5, physical_size: 4.0}[helper])
-    with pytest.raises(GridError, match="dim must be the name|has no coordinate"):
-        helper(ds, dim)
+    for dim in [None, 0, True, ["x"], np.array(["x"]), "z"]:
+        for helper in [spacing, physical_size]:
+            ds = make_measurement(np.zeros((4, 8)), size=(2.0, 4.0), units="um")
+            assert helper(ds, "x") == pytest.approx({spacing: 0.5, physical_size: 4.0}[helper])
+            with pytest.raises(GridError, match="dim must be the name|has no coordinate"):
+                helper(ds, dim)
 
 
-@pytest.mark.parametrize("kwargs,match", [
-    (dict(size="abc"), "size must be positive finite"),            # numpy's ValueError
-    (dict(size=[]), "size must be positive finite"),               # numpy's broadcast ValueError
-    (dict(size=[1.0, "a"]), "size must be positive finite"),
-    (dict(size=np.zeros((2, 2, 2))), "size must be positive finite"),
-    (dict(size=True), "size must be positive finite"),             # was the size 1
-    (dict(spacing=-1.0), "spacing must be positive finite"),
-    (dict(size=1.0, tip_radius=-1.0), "tip_radius must be a positive"),  # negative/NaN/inf/True were stored
-    (dict(size=1.0, tip_radius=np.nan), "tip_radius must be a positive"),
-    (dict(size=1.0, tip_radius=True), "tip_radius must be a positive"),
-    (dict(size=1.0, tip_radius="abc"), "tip_radius must be a positive"),  # numpy's ValueError
-    (dict(size=1.0, tip_radius=np.zeros(3)), "tip_radius must be a positive"),
-    (dict(size=1.0, resolution=0), "resolution must be a positive"),
-    (dict(size=1.0, resolution=np.inf), "resolution must be a positive"),
-    (dict(size=1.0, height_scale=np.nan), "height_scale must be a finite number"),  # NaN heights, no word
-    (dict(size=1.0, height_scale=np.inf), "height_scale must be a finite number"),
-    (dict(size=1.0, height_scale=1 + 2j), "height_scale must be a finite number"),  # complex heights
-    (dict(size=1.0, height_scale=None), "height_scale must be a finite number"),  # bare TypeError
-    (dict(size=1.0, height_scale="2"), "height_scale must be a finite number"),
-    (dict(size=1.0, height_scale=np.zeros(3)), "height_scale must be a finite number"),
-    (dict(size=1.0, height_scale=True), "height_scale must be a finite number"),
-    (dict(size=1.0, height_scale=0), "height_scale must be a finite number other than 0"),
-])
-def test_make_measurement_refuses_bad_arguments(kwargs, match):
-    h = np.random.default_rng(0).random((4, 4))
-    with pytest.raises(XtopoError, match=match):
-        make_measurement(h, **kwargs)
+def test_make_measurement_refuses_bad_arguments():
+    for kwargs, match in [
+        (dict(size="abc"), "size must be positive finite"),            # numpy's ValueError
+        (dict(size=[]), "size must be positive finite"),               # numpy's broadcast ValueError
+        (dict(size=[1.0, "a"]), "size must be positive finite"),
+        (dict(size=np.zeros((2, 2, 2))), "size must be positive finite"),
+        (dict(size=True), "size must be positive finite"),             # was the size 1
+        (dict(spacing=-1.0), "spacing must be positive finite"),
+        (dict(size=1.0, height_scale=0), "height_scale must be a finite number other than 0"),
+    ]:
+        h = np.random.default_rng(0).random((4, 4))
+        with pytest.raises(XtopoError, match=match):
+            make_measurement(h, **kwargs)
 
 
 def test_make_measurement_size_spacing_and_scale_still_work():
@@ -210,11 +189,11 @@ def test_make_measurement_size_spacing_and_scale_still_work():
     xr.testing.assert_identical(by_spacing.x, by_size.x)
 
 
-@pytest.mark.parametrize("obj", [None, "abc", 3])
-def test_append_history_refuses_non_xarray_objects(obj):
+def test_append_history_refuses_non_xarray_objects():
     # a bare AttributeError ('NoneType' object has no attribute 'copy')
-    with pytest.raises(ValidationError, match="expected a topography"):
-        xtopo.conventions.append_history(obj, "step")
+    for obj in [None, "abc", 3]:
+        with pytest.raises(ValidationError, match="expected a topography"):
+            xtopo.conventions.append_history(obj, "step")
 
 
 def test_to_units_converts_each_length_from_its_own_unit():
@@ -267,41 +246,24 @@ def test_validate_of_heights_in_another_unit_names_what_fixes_it():
         xtopo.conventions.shared_length_unit(ds.height)
 
 
-@pytest.mark.parametrize("coord", ["abc", {"a": 1}, object(), np.zeros((3, 3)), [True, False, True]])
-def test_is_uniform_refuses_what_is_no_coordinate(coord):
+def test_is_uniform_refuses_what_is_no_coordinate():
     """is_uniform('abc') raised numpy's 'could not convert string to float', a dict a TypeError."""
-    with pytest.raises(GridError, match="is_uniform needs a 1D sequence of positions"):
-        xtopo.conventions.is_uniform(coord)
+    for coord in ["abc", {"a": 1}, object(), np.zeros((3, 3)), [True, False, True]]:
+        with pytest.raises(GridError, match="is_uniform needs a 1D sequence of positions"):
+            xtopo.conventions.is_uniform(coord)
 
 
-@pytest.mark.parametrize("rtol", [-1.0, np.nan, "a"])
-def test_is_uniform_refuses_a_bad_tolerance(rtol):
-    with pytest.raises(XtopoError, match="rtol must be a finite number >= 0"):
-        xtopo.conventions.is_uniform([0.0, 1.0, 2.0], rtol=rtol)
-
-
-@pytest.mark.parametrize("key", [["tip_radius"], np.zeros(2), {"a": 1}, 3])
-def test_length_attr_key_must_be_a_name(key):
+def test_length_attr_key_must_be_a_name():
     """length_attr(ds, key=[...]) raised 'unhashable type: list'."""
-    with pytest.raises(ValidationError, match="key must be the name"):
-        xtopo.conventions.length_attr(fractal_surface((8, 8), 1.0, hurst=0.8), key)
+    for key in [["tip_radius"], np.zeros(2), {"a": 1}, 3]:
+        with pytest.raises(ValidationError, match="key must be the name"):
+            xtopo.conventions.length_attr(fractal_surface((8, 8), 1.0, hurst=0.8), key)
 
 
-@pytest.mark.parametrize("units", [b"um", 5, True, ["um"], np.array(["um"]), 1 + 2j])
-def test_a_unit_that_is_not_a_string_is_refused(units):
+def test_a_unit_that_is_not_a_string_is_refused():
     """A non-string unit was str()-ed and handed to pint: b'um' became "b'um'", and the messages quoted
     pint's parser internals ("unindent does not match any outer indentation level", "'ParserHelper'")."""
-    with pytest.raises(UnitsError, match=rf"a length unit must be a string such as 'm' or 'um', not "
-                                         rf"{type(units).__name__}$"):
-        normalize_units(units)
-
-
-@pytest.mark.parametrize("units, match", [("s", r"units='s' is not a length unit \('s' is not a length unit\)"),
-                                          (5, r"units=5 is not a length unit \(.*must be a string.*not int\)")])
-def test_to_units_names_the_argument(units, match):
-    """ds.topo.to_units('s') said "'s' is not a length unit" without naming the argument."""
-    ds = fractal_surface((8, 8), 1.0, hurst=0.8, seed=0, units="um")
-    with pytest.raises(UnitsError, match=match):
-        ds.topo.to_units(units)
-    with pytest.raises(UnitsError, match=match):
-        ds["height"].topo.to_units(units)
+    for units in [b"um", 5, True, ["um"], np.array(["um"]), 1 + 2j]:
+        with pytest.raises(UnitsError, match=rf"a length unit must be a string such as 'm' or 'um', not "
+                                             rf"{type(units).__name__}$"):
+            normalize_units(units)

@@ -22,12 +22,14 @@ import functools
 import numbers
 import re
 import unicodedata
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, per_axis, positive_number, real_array, real_number
+from ._checks import per_axis, real_array
 from .errors import GridError, UnitsError, ValidationError
+from .params import Flag, LengthUnit, Positive, Real, checked
 
 __all__ = [
     "HEIGHT", "MASK", "X", "Y", "LATERAL_DIMS", "CONVENTIONS",
@@ -148,7 +150,8 @@ def _scale_attr_units(attrs: dict, factor_units: str, to: str) -> dict:
     return out
 
 
-def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
+@checked
+def convert_length(ds: xr.Dataset | xr.DataArray, units: Annotated[str, LengthUnit()]):
     """Convert coordinates, heights and length attributes to ``units``.
 
     Works on a measurement Dataset or on a height DataArray whose coords carry
@@ -164,7 +167,7 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: str):
         the length-valued variables (``height``) and the length attributes (``tip_radius``,
         ``resolution``, in their ``*_units`` or else the positions' unit) are converted together.
     """
-    to = unit_argument(units, "units")
+    to = units
     obj = _xarray(ds).copy(deep=False)
     current = length_units_of(obj)  # the unit of whatever length carries no label of its own
     sources = set()
@@ -306,12 +309,12 @@ def is_nonuniform(obj) -> bool:
     return _xarray(obj).attrs.get("grid") == "nonuniform"
 
 
-def is_uniform(coord, rtol: float = 1e-6) -> bool:
+@checked
+def is_uniform(coord, rtol: Annotated[float, Real(0.0)] = 1e-6) -> bool:
     """True if the coordinate values are equally spaced within ``rtol``."""
     v = real_array(coord)
     if v is None or v.ndim != 1:
         raise GridError(f"is_uniform needs a 1D sequence of positions (a coordinate), got {coord!r}")
-    rtol = real_number(rtol, "rtol", low=0.0)
     if v.size < 3:
         return True
     d = np.diff(v)
@@ -499,9 +502,15 @@ def _coord(values, name, units):
                        {"units": units, "long_name": _LONG_NAMES[name], "axis": name.upper()})
 
 
-def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m", periodic: bool = False,
-                     mask=None, tip_radius=None, resolution=None, height_scale: float = 1.0, name: str | None = None,
-                     **attrs) -> xr.Dataset:
+_ATTR_LENGTH = Positive(error=ValidationError)
+
+
+@checked
+def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotated[str, LengthUnit()] = "m",
+                     periodic: Annotated[bool, Flag(error=ValidationError)] = False, mask=None,
+                     tip_radius: Annotated[float | None, _ATTR_LENGTH] = None,
+                     resolution: Annotated[float | None, _ATTR_LENGTH] = None,
+                     height_scale: Annotated[float, Real()] = 1.0, name: str | None = None, **attrs) -> xr.Dataset:
     """Build a measurement Dataset from a height array.
 
     Parameters
@@ -533,7 +542,6 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
     -------
     xarray.Dataset
     """
-    units = unit_argument(units, "units")
     h = np.asarray(height)
     if h.ndim not in (1, 2):
         raise GridError(f"height must be 1D or 2D, got shape {h.shape}")
@@ -542,7 +550,6 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
     if h.size == 0:
         raise GridError(f"height has no points (shape {h.shape})")
     h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
-    height_scale = real_number(height_scale, "height_scale")
     if height_scale == 0:
         raise ValidationError("height_scale must be a finite number other than 0 (it multiplies the heights), got 0")
     if height_scale != 1.0:
@@ -584,15 +591,14 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: str = "m
         h = np.where(missing, np.nan, h)
         data_vars[HEIGHT] = (dims, h, {"units": units, "long_name": "height"})
         data_vars[MASK] = (dims, missing, {"long_name": "missing data", "flag_meanings": "missing"})
-    ds_attrs = {"Conventions": CONVENTIONS, "periodic": int(flag(periodic, "periodic", error=ValidationError)),
-                **grid_attrs}
+    ds_attrs = {"Conventions": CONVENTIONS, "periodic": int(periodic), **grid_attrs}
     if name is not None:
         ds_attrs["title"] = str(name)
     if tip_radius is not None:
-        ds_attrs["tip_radius"] = positive_number(tip_radius, "tip_radius", error=ValidationError)
+        ds_attrs["tip_radius"] = tip_radius
         ds_attrs["tip_radius_units"] = units
     if resolution is not None:
-        ds_attrs["resolution"] = positive_number(resolution, "resolution", error=ValidationError)
+        ds_attrs["resolution"] = resolution
         ds_attrs["resolution_units"] = units
     ds_attrs.update({k: v for k, v in attrs.items() if v is not None})
     return xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)

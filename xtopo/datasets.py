@@ -14,17 +14,19 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from ._checks import flag, integer, lengths, option, per_axis, positive_number, real_array, real_number
+from ._checks import per_axis, real_array
 from ._kernels import fft as _fft
 from ._kernels.derivatives import fourier_first, wavevectors
 from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
-                          spacing, unit_argument)
+                          spacing)
 from ._progress import progress_bar
 from .errors import GridError, XtopoError
+from .params import Choice, Count, Flag, Kind, Lengths, LengthUnit, OneOf, Positive, Real, Refused, checked, preflight
 
 __all__ = ["FractalPSD", "fractal_surface", "prescribed_psd", "sphere", "sinusoid", "measure", "example_twin"]
 
@@ -33,26 +35,26 @@ __all__ = ["FractalPSD", "fractal_surface", "prescribed_psd", "sphere", "sinusoi
 MAX_POINTS = 2**30
 
 
-def _shape(shape, name: str = "shape") -> tuple[int, ...]:
-    """``shape`` as ``(nx,)`` or ``(ny, nx)`` of positive ints (an int, a tuple, a list or an array of them),
-    of at most :data:`MAX_POINTS` points."""
-    if isinstance(shape, np.ndarray):
-        items = (shape.item(),) if shape.ndim == 0 else tuple(shape.ravel()) if shape.ndim == 1 else None
-    elif isinstance(shape, (tuple, list)):
-        items = tuple(shape)
-    else:
-        items = (shape,)
-    if items is None or len(items) not in (1, 2):
-        raise GridError(f"{name} must be nx, (nx,) or (ny, nx), got {shape!r}")
-    out = tuple(integer(n, f"each entry of {name}", error=GridError) for n in items)
-    if math.prod(out) > MAX_POINTS:
-        raise GridError(f"{name}={shape!r} is {math.prod(out):.3g} points, more than the {MAX_POINTS} (8 GiB per "
-                        "float64 array) a synthetic surface or measurement may have")
-    return out
+class Shape(Kind):
+    """``(nx,)`` or ``(ny, nx)`` of positive ints (an int, a tuple, a list or an array of them), of at most
+    :data:`MAX_POINTS` points."""
 
+    expects = "nx, (nx,) or (ny, nx) of positive integers"
+    error = GridError
 
-def _optional_length(value, name: str):
-    return None if value is None else positive_number(value, name)
+    def convert(self, shape):
+        items = np.asarray(shape, dtype=object).ravel() if np.ndim(shape) <= 1 else ()
+        count = Count()
+        try:
+            out = tuple(count.convert(n) for n in items)
+        except Refused:
+            out = ()
+        if len(out) not in (1, 2):
+            raise Refused
+        if math.prod(out) > MAX_POINTS:
+            raise Refused(f"{{name}}={shape!r} is {math.prod(out):.3g} points, more than the {MAX_POINTS} (8 GiB per "
+                          "float64 array) a synthetic surface or measurement may have")
+        return out
 
 
 
@@ -64,6 +66,7 @@ def _gauss_legendre(nodes: int) -> tuple[np.ndarray, np.ndarray]:
     w.flags.writeable = False
     return t, w
 
+@checked
 @dataclasses.dataclass(frozen=True)
 class FractalPSD:
     """Isotropic self-affine PSD with roll-off and short-wavelength cutoff.
@@ -76,21 +79,15 @@ class FractalPSD:
     ``units^4`` (area) or ``units^3`` (line) for ``q`` in ``units^-1``.
     """
 
-    hurst: float
-    prefactor: float
-    long_cutoff: float | None = None
-    short_cutoff: float | None = None
-    dim: int = 2
+    hurst: Annotated[float, Real(0.0, 1.0, closed=False)]
+    prefactor: Annotated[float, Positive()]
+    long_cutoff: Annotated[float | None, Positive()] = None
+    short_cutoff: Annotated[float | None, Positive()] = None
+    dim: Annotated[int, Choice(1, 2)] = 2
 
     def __post_init__(self):
-        checked = {"hurst": real_number(self.hurst, "hurst", low=0.0, high=1.0, closed=False),
-                   "prefactor": positive_number(self.prefactor, "prefactor"),
-                   "long_cutoff": _optional_length(self.long_cutoff, "long_cutoff"),
-                   "short_cutoff": _optional_length(self.short_cutoff, "short_cutoff"),
-                   "dim": integer(self.dim, "dim")}
-        if checked["dim"] not in (1, 2):
-            raise XtopoError(f"dim must be 1 (line scans) or 2 (areas), got {self.dim!r}")
-        for key, value in checked.items():  # frozen: set the checked values as the dataclass would
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        for key, value in preflight(FractalPSD, fields).items():  # frozen: set them as the dataclass would
             object.__setattr__(self, key, value)
 
     @property
@@ -143,17 +140,15 @@ class FractalPSD:
             out[i] = np.sum(w * vals * jac) / np.pi
         return out.reshape(shape)
 
-    def acf(self, distance, *, q_max: float | None = None, nodes: int = 4000):
+    @checked
+    def acf(self, distance: Annotated[np.ndarray, Lengths(empty=False)], *,
+            q_max: Annotated[float | None, Positive()] = None, nodes: int = 4000):
         """Height-difference ACF of profiles, ``A(ℓ) = (1/π) ∫_0^∞ C1D(q) (1 - cos qℓ) dq`` (paper eq. 11).
 
         ``q_max`` truncates the integral (e.g. at the Nyquist wavevector of the grid the
         surface was synthesised on); default: the short cutoff or 10⁴/min(ℓ).
         """
-        ell = lengths(distance, "distance", "the PSD's length unit")
-        if not ell.size:
-            raise XtopoError("distance must hold at least one length, got none")
-        if q_max is not None:
-            q_max = positive_number(q_max, "q_max")
+        ell = distance
         top = q_max if q_max is not None else (self.q_short if np.isfinite(self.q_short) else 1e4 / ell.min())
         bottom = min(self.q_long if self.q_long > 0 else np.inf, 1.0 / ell.max()) * 1e-4
         lq = np.linspace(np.log(bottom), np.log(top), nodes)
@@ -163,13 +158,13 @@ class FractalPSD:
         integrand = c[None, :] * (1 - np.cos(q[None, :] * ell[:, None])) * q[None, :]
         return np.trapezoid(integrand, lq, axis=-1) / np.pi
 
-    def slope(self, distance, **kw):
+    @checked
+    def slope(self, distance: Annotated[np.ndarray, Lengths(empty=False)], **kw):
         """Scale-dependent RMS slope of profiles, ``sqrt(2 A(ℓ))/ℓ`` (paper §4.7)."""
-        ell = lengths(distance, "distance", "the PSD's length unit")
-        return np.sqrt(2 * self.acf(ell, **kw)) / ell
+        return np.sqrt(2 * self.acf(distance, **kw)) / distance
 
-    def __call__(self, q, kind: str = "native"):
-        kind = option(kind, ("native", "iso", "1d"), "kind")
+    @checked
+    def __call__(self, q, kind: Annotated[str, Choice("native", "iso", "1d")] = "native"):
         return {"native": self.c_native, "iso": self.c_iso, "1d": self.c1d}[kind](q)
 
     def to_attrs(self) -> dict:
@@ -215,10 +210,17 @@ def _rfft_weights(shape):
     return np.broadcast_to(rfft_multiplicity(1, n), tuple(shape[:-1]) + (n // 2 + 1,))
 
 
-def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = None, rms_slope: float | None = None,
-                    prefactor: float | None = None, short_cutoff: float | None = None,
-                    long_cutoff: float | None = None, periodic: bool = True, seed: int = 0,
-                    units: str = "m") -> xr.Dataset:
+_HURST = Real(0.0, 1.0, closed=False)
+
+
+@checked(OneOf("rms_height", "rms_slope", "prefactor", optional=True))
+def fractal_surface(shape: Annotated[tuple, Shape()], size, *, hurst: Annotated[float, _HURST],
+                    rms_height: Annotated[float | None, Positive()] = None,
+                    rms_slope: Annotated[float | None, Positive()] = None,
+                    prefactor: Annotated[float | None, Positive()] = None,
+                    short_cutoff: Annotated[float | None, Positive()] = None,
+                    long_cutoff: Annotated[float | None, Positive()] = None, periodic: Annotated[bool, Flag()] = True,
+                    seed: Annotated[int, Count(min=0)] = 0, units: Annotated[str, LengthUnit()] = "m") -> xr.Dataset:
     """Self-affine random surface by Fourier synthesis.
 
     Parameters
@@ -251,20 +253,9 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
     xarray.Dataset
         A measurement with ``attrs`` holding the PSD parameters (see :func:`prescribed_psd`).
     """
-    shape = _shape(shape)
     size = per_axis(size, len(shape), "size")
-    hurst = real_number(hurst, "hurst", low=0.0, high=1.0, closed=False)
-    if sum(v is not None for v in (rms_height, rms_slope, prefactor)) > 1:
-        raise XtopoError("give at most one of rms_height, rms_slope and prefactor")
-    rms_height, rms_slope, prefactor, short_cutoff, long_cutoff = (
-        _optional_length(v, n) for v, n in ((rms_height, "rms_height"), (rms_slope, "rms_slope"),
-                                            (prefactor, "prefactor"), (short_cutoff, "short_cutoff"),
-                                            (long_cutoff, "long_cutoff")))
-    periodic = flag(periodic, "periodic")
-    seed = integer(seed, "seed", minimum=0)
     if rms_height is None and rms_slope is None and prefactor is None:
         rms_height = 1.0
-    units = unit_argument(units, "units")
     spacings = size / np.asarray(shape)
     gshape = shape if periodic else tuple(2 * n for n in shape)
     if math.prod(gshape) > MAX_POINTS:
@@ -339,8 +330,10 @@ def _make_self_conjugatereal_number(ht, shape, amp, rng):
     ht.flat[0] = 0.0
 
 
-def sphere(shape, size, radius: float, *, center=None, kind: str = "sphere", periodic: bool = False,
-           units: str = "m") -> xr.Dataset:
+@checked
+def sphere(shape: Annotated[tuple, Shape()], size, radius: Annotated[float, Positive()], *, center=None,
+           kind: Annotated[str, Choice("sphere", "paraboloid")] = "sphere", periodic: Annotated[bool, Flag()] = False,
+           units: Annotated[str, LengthUnit()] = "m") -> xr.Dataset:
     """A sphere (or paraboloid) cap with apex height 0 and heights decreasing outward.
 
     Parameters
@@ -357,43 +350,33 @@ def sphere(shape, size, radius: float, *, center=None, kind: str = "sphere", per
     units : str
         Length unit of ``size``, ``radius``, ``center`` and the result.
     """
-    shape = _shape(shape)
     size = per_axis(size, len(shape), "size")
-    radius = positive_number(radius, "radius")
-    kind = option(kind, ("sphere", "paraboloid"), "kind")
-    periodic = flag(periodic, "periodic")
     sp = size / np.asarray(shape)
     center = size / 2 if center is None else per_axis(center, len(shape), "center", sign="any")
     axes = [np.arange(n) * d - c for n, d, c in zip(shape, sp, center)]
     r2 = sum(a**2 for a in np.meshgrid(*axes, indexing="ij"))
-    if kind == "sphere":
-        h = np.sqrt(np.maximum(radius**2 - r2, 0.0)) - radius
-    elif kind == "paraboloid":
-        h = -r2 / (2 * radius)
-    else:
-        raise XtopoError(f"kind must be 'sphere' or 'paraboloid', got {kind!r}")
+    h = np.sqrt(np.maximum(radius**2 - r2, 0.0)) - radius if kind == "sphere" else -r2 / (2 * radius)
     ds = make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
                           title=f"{kind} R={radius:g} {units}", source="xtopo.datasets.sphere")
     ds.attrs["sphere_radius"] = float(radius)
     return ds
 
 
-def sinusoid(shape, size, *, amplitude: float = 1.0, wavelength: float | None = None, direction: str = "x",
-             periodic: bool = True, units: str = "m") -> xr.Dataset:
+@checked
+def sinusoid(shape: Annotated[tuple, Shape()], size, *, amplitude: Annotated[float, Real()] = 1.0,
+             wavelength: Annotated[float | None, Positive()] = None,
+             direction: Annotated[str, Choice("x", "y", "xy")] = "x", periodic: Annotated[bool, Flag()] = True,
+             units: Annotated[str, LengthUnit()] = "m") -> xr.Dataset:
     """``h = A cos(2π x/λ)`` (``direction="x"``), along y, or ``"xy"`` (egg crate, sum of both).
 
     With ``periodic=True`` and ``wavelength`` dividing the size the surface is exactly periodic.
     """
-    shape = _shape(shape)
     size = per_axis(size, len(shape), "size")
-    amplitude = real_number(amplitude, "amplitude")
-    periodic = flag(periodic, "periodic")
     sp = size / np.asarray(shape)
-    lam = float(size[-1]) if wavelength is None else positive_number(wavelength, "wavelength")
+    lam = float(size[-1]) if wavelength is None else wavelength
     axes = np.meshgrid(*[np.arange(n) * d for n, d in zip(shape, sp)], indexing="ij")
     xx = axes[-1]
     yy = axes[0] if len(shape) == 2 else None
-    option(direction, ("x", "y", "xy"), "direction")
     if direction == "x":
         h = amplitude * np.cos(2 * np.pi * xx / lam)
     elif direction == "y" and yy is not None:
@@ -484,9 +467,12 @@ def _missing_patches(shape, fraction: float, rng, patch: int | None = None) -> n
     return mask
 
 
-def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_radius: float | None = None,
-            noise: float = 0.0, missing_fraction: float = 0.0, resolution: float | None = None,
-            line: bool = False, seed: int = 0, instrument: str = "simulated instrument") -> xr.Dataset:
+@checked
+def measure(surface: xr.Dataset, *, size=None, pixels: Annotated[tuple | None, Shape()] = None, offset=None,
+            tip_radius: Annotated[float | None, Positive()] = None, noise: Annotated[float, Real(0.0)] = 0.0,
+            missing_fraction: Annotated[float, Real(0.0, 1.0)] = 0.0,
+            resolution: Annotated[float | None, Positive()] = None, line: Annotated[bool, Flag()] = False,
+            seed: Annotated[int, Count(min=0)] = 0, instrument: str = "simulated instrument") -> xr.Dataset:
     """Simulate an instrument measuring ``surface``.
 
     The window of ``size`` at ``offset`` is cut from the ground truth, dilated by a
@@ -539,16 +525,8 @@ def measure(surface: xr.Dataset, *, size=None, pixels=None, offset=None, tip_rad
     full = sp * n
     size = full if size is None else per_axis(size, len(dims), "size")
     offset = np.zeros(len(dims)) if offset is None else per_axis(offset, len(dims), "offset", sign="non-negative")
-    if pixels is not None:
-        pixels = _shape(pixels, "pixels")
-        if len(pixels) not in (1, len(dims)):
-            raise GridError(f"pixels must be one number or one per axis {dims}, got {pixels!r}")
-    tip_radius = _optional_length(tip_radius, "tip_radius")
-    resolution = _optional_length(resolution, "resolution")
-    noise = real_number(noise, "noise", low=0.0)
-    missing_fraction = real_number(missing_fraction, "missing_fraction", low=0.0, high=1.0)
-    line = flag(line, "line")
-    seed = integer(seed, "seed", minimum=0)
+    if pixels is not None and len(pixels) not in (1, len(dims)):
+        raise GridError(f"pixels must be one number or one per axis {dims}, got {pixels!r}")
     if np.any(offset + size > full * (1 + 1e-12)):
         raise GridError(f"window offset={tuple(offset.tolist())} size={tuple(size.tolist())} does not fit into the "
                         f"surface {tuple(full.tolist())}")
@@ -740,7 +718,8 @@ def _example_twin_cached(seed: int):
     return root, nodes
 
 
-def example_twin(seed: int = 0) -> xr.DataTree:
+@checked
+def example_twin(seed: Annotated[int, Count(min=0)] = 0) -> xr.DataTree:
     """The built-in example twin: simulated measurements of one ground-truth surface.
 
     A campaign of 24 measurements of an isotropic self-affine surface (Hurst exponent 0.8,
@@ -781,5 +760,5 @@ def example_twin(seed: int = 0) -> xr.DataTree:
     xarray.DataTree
         One child node per measurement, surface description on the root.
     """
-    root, nodes = _example_twin_cached(integer(seed, "seed", minimum=0))
+    root, nodes = _example_twin_cached(seed)
     return xr.DataTree.from_dict({"/": root.copy(), **{f"/{k}": v.copy(deep=True) for k, v in nodes.items()}})

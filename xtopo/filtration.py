@@ -25,18 +25,19 @@ from __future__ import annotations
 
 import numbers
 import re
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
 from ._apply import apply_lateral
-from ._checks import option
 from ._kernels import gaussian_filter as _gauss
 from ._kernels import polyfit as _poly
 from .conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, length_factor, \
     shared_length_unit, spacing
 from ._heights import fit_positions, replace_heights
 from .errors import GridError, UnitsError, XtopoError
+from .params import Choice, Kind, Refused, checked
 
 __all__ = ["filter", "iso_cutoffs", "CUTOFFS_MM", "COMPONENTS", "END_CORRECTIONS"]
 
@@ -54,37 +55,55 @@ _FORMS = {"mean": 0, "line": 1, "plane": 1, "curvature": 2}
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d].*?)\s*$")
 
 
-def _length(value, name: str, units: str):
-    """A nesting index in ``units``: None, "auto", a positive number (in ``units``) or a string such as ``"0.8 mm"``."""
-    if value is None or (isinstance(value, str) and value == "auto"):
-        return value
-    if isinstance(value, str):
+class Cutoff(Kind):
+    """A nesting index: None, "auto", a positive finite number (in the data's unit) or a string such as "0.8 mm"."""
+
+    expects = "a length (a number or a string such as '0.8 mm'), 'auto' or None"
+    takes_none = True
+
+    def convert(self, value):
+        if isinstance(value, str):
+            m = _QUANTITY.match(value)
+            if value != "auto" and not m:
+                raise Refused
+            if m:
+                try:
+                    length_factor(m.group(2), "m")
+                except UnitsError as exc:
+                    raise Refused(f"{{name}}={value!r}: {exc}", UnitsError) from None
+                if not (np.isfinite(float(m.group(1))) and float(m.group(1)) > 0):
+                    raise Refused("{name} must be a positive finite length, got " + repr(value))
+            return value
+        if not isinstance(value, numbers.Real) or isinstance(value, (bool, np.bool_)):
+            raise Refused
+        if not (np.isfinite(value) and value > 0):
+            raise Refused(f"{{name}} must be a positive finite length, got {value!r}")
+        return float(value)
+
+
+class Form(Kind):
+    """An F-operator: None, a word of ``_FORMS`` or a polynomial degree 0..8."""
+
+    expects = f"None, one of {tuple(_FORMS)} or a polynomial degree 0..8"
+    takes_none = True
+
+    def convert(self, form):
+        if (isinstance(form, str) and form in _FORMS) or (
+                isinstance(form, numbers.Integral) and not isinstance(form, (bool, np.bool_)) and 0 <= form <= 8):
+            return form
+        raise Refused
+
+
+def _length(value, units: str):
+    """A nesting index declared as :class:`Cutoff`, as a number in ``units`` (None and "auto" as they are)."""
+    if isinstance(value, str) and value != "auto":
         m = _QUANTITY.match(value)
-        if not m:
-            raise XtopoError(f"{name} must be a length such as 0.8 (in {units}) or '0.8 mm', or 'auto' or None, "
-                             f"got {value!r}")
-        try:
-            number = float(m.group(1)) * length_factor(m.group(2), units)
-        except UnitsError as exc:
-            raise UnitsError(f"{name}={value!r}: {exc}") from None
-    elif isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
-        number = float(value)
-    else:
-        raise XtopoError(f"{name} must be a length (a number in {units} or a string such as '0.8 mm'), 'auto' "
-                         f"or None, got {value!r}")
-    if not (np.isfinite(number) and number > 0):
-        raise XtopoError(f"{name} must be a positive finite length, got {value!r}")
-    return number
+        return float(m.group(1)) * length_factor(m.group(2), units)
+    return value
 
 
 def _degree(form) -> int | None:
-    if form is None:
-        return None
-    if isinstance(form, str):
-        return _FORMS[option(form, tuple(_FORMS), "form")]
-    if isinstance(form, numbers.Integral) and not isinstance(form, (bool, np.bool_)) and 0 <= form <= 8:
-        return int(form)
-    raise XtopoError(f"form must be None, one of {tuple(_FORMS)} or a polynomial degree 0..8, got {form!r}")
+    return _FORMS[form] if isinstance(form, str) else None if form is None else int(form)
 
 
 def _mm(units: str) -> float:
@@ -170,25 +189,13 @@ def _auto_lambda_s(lc, units: str) -> float:
     return lc * _LAMBDA_S_UM[k] * length_factor("um", units) / series[k]
 
 
-def filter_options(lambda_s="auto", lambda_c="auto", form="plane", component="roughness", dim=None,
-                   end="normalized") -> dict:
-    """:func:`filter`'s options, checked where they do not depend on the data (an XtopoError names the bad one)."""
-    for name, value in (("lambda_s", lambda_s), ("lambda_c", lambda_c)):
-        if not (value is None or isinstance(value, (str, numbers.Real)) and not isinstance(value, (bool, np.bool_))):
-            raise XtopoError(f"{name} must be a length (a number or a string such as '0.8 mm'), 'auto' or None, "
-                             f"got {value!r}")
-        if isinstance(value, numbers.Real) and not (np.isfinite(value) and value > 0):
-            raise XtopoError(f"{name} must be a positive finite length, got {value!r}")
-    _degree(form)
-    if dim is not None and dim not in (X, Y):
-        raise GridError(f"dim must be None (areal filter for maps), 'x' or 'y', got {dim!r}")
-    return {"lambda_s": lambda_s, "lambda_c": lambda_c, "form": form,
-            "component": option(component, COMPONENTS, "component"), "dim": dim,
-            "end": option(end, tuple(END_CORRECTIONS), "end")}
-
-
-def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str = "roughness", dim=None,
-           end: str = "normalized"):
+@checked
+def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
+           lambda_c: Annotated[float | str | None, Cutoff()] = "auto",
+           form: Annotated[str | int | None, Form()] = "plane",
+           component: Annotated[str, Choice(*COMPONENTS)] = "roughness",
+           dim: Annotated[str | None, Choice(None, X, Y, error=GridError)] = None,
+           end: Annotated[str, Choice(*END_CORRECTIONS)] = "normalized"):
     """ISO 16610 filtration: S-filter, F-operator and L-filter; the roughness, waviness or S-F surface.
 
     Parameters
@@ -247,14 +254,12 @@ def filter(obj, lambda_s="auto", lambda_c="auto", form="plane", component: str =
     amplitude transmission at the nesting index. The filters keep the full length (the end
     correction renormalises the weights inside the data).
     """
-
-    opts = filter_options(lambda_s, lambda_c, form, component, dim, end)
     h = height_of(obj)
     if is_nonuniform(h) or (isinstance(obj, xr.Dataset) and is_nonuniform(obj)):
         raise GridError("filter needs a uniform grid; this is a nonuniform line scan (interpolate it first)")
     units = shared_length_unit(h, "filter")
-    dims = _filter_dims(h, opts["dim"])
-    ls, lc = _length(lambda_s, "lambda_s", units), _length(lambda_c, "lambda_c", units)
+    dims = _filter_dims(h, dim)
+    ls, lc = _length(lambda_s, units), _length(lambda_c, units)
     degree = _degree(form)
     periodic = is_periodic(obj)
     if component == "primary" and lc not in (None, "auto"):

@@ -25,13 +25,17 @@ from __future__ import annotations
 import math
 import re
 import warnings
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from ._checks import integer, mapping, positive_number, text, xarray_object
+from ._checks import positive_number
 from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
+from .params import Count, Data, Dict, Text, checked
+
+_PIXELS = Count(min=2)
 
 __all__ = ["plot", "topography", "curve", "spectrum_map", "twin_curves", "twin_figure", "contact_area", "contact_maps",
            "measurement_maps", "downsample", "unit_label", "PALETTE"]
@@ -140,7 +144,9 @@ def _quiet_mean(obj, dims: dict):
         return obj.coarsen(dims, boundary="trim").mean(keep_attrs=True)
 
 
-def downsample(da: xr.DataArray, max_pixels: int = MAX_PIXELS) -> xr.DataArray:
+@checked
+def downsample(da: Annotated[xr.DataArray, Data("DataArray")],
+               max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS) -> xr.DataArray:
     """Block-average ``da`` so that no lateral dimension exceeds ``max_pixels`` points.
 
     Boolean maps become fractions (e.g. the fraction of a block in contact). Dask
@@ -153,8 +159,6 @@ def downsample(da: xr.DataArray, max_pixels: int = MAX_PIXELS) -> xr.DataArray:
     max_pixels : int
         Largest number of points per lateral dimension (at least 2).
     """
-    max_pixels = integer(max_pixels, "max_pixels", minimum=2)
-    xarray_object(da, "downsample()", (xr.DataArray,))
     factors = {d: math.ceil(da.sizes[d] / max_pixels) for d in LATERAL_DIMS if d in da.dims}
     factors = {d: f for d, f in factors.items() if f > 1}
     if da.dtype == bool:
@@ -202,8 +206,9 @@ def _values(da: xr.DataArray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- maps
 
-def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", title: str | None = None,
-               variable: str = "height"):
+@checked
+def topography(obj, *, max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS, cmap: str = "viridis",
+               title: Annotated[str | None, Text()] = None, variable: Annotated[str, Text()] = "height"):
     """Height map (area scan) or profile (line scan) with units on every axis.
 
     Parameters
@@ -227,8 +232,7 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
         Lengths are shown in a readable unit (mm, µm, nm, ...).
     """
     hv = _hv()
-    max_pixels = integer(max_pixels, "max_pixels", minimum=2)  # also for profiles, which do not use it
-    cmap, title, variable = _cmap(cmap), text(title, "title"), text(variable, "variable", optional=False)
+    cmap = _cmap(cmap)
     if isinstance(obj, xr.Dataset):
         from .conventions import height_of
 
@@ -294,11 +298,12 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
     return el
 
 
-def spectrum_map(da: xr.DataArray, *, max_pixels: int = MAX_PIXELS, cmap: str = "inferno", title: str | None = None):
+@checked
+def spectrum_map(da: Annotated[xr.DataArray, Data("DataArray")], *, max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS,
+                 cmap: str = "inferno", title: Annotated[str | None, Text()] = None):
     """A 2D power spectrum on ``(q_y, q_x)`` with a logarithmic colour scale."""
     hv = _hv()
-    xarray_object(da, "spectrum_map()", (xr.DataArray,))
-    cmap, title = _cmap(cmap), text(title, "title")
+    cmap = _cmap(cmap)
     if "q_x" not in da.dims or "q_y" not in da.dims:
         raise XtopoError(f"spectrum_map() needs a 2D power spectrum on (q_y, q_x), got {da.name!r} with dims {da.dims}")
     small = downsample(da.rename({"q_y": Y, "q_x": X}), max_pixels).rename({Y: "q_y", X: "q_x"})
@@ -315,7 +320,6 @@ def spectrum_map(da: xr.DataArray, *, max_pixels: int = MAX_PIXELS, cmap: str = 
 # --------------------------------------------------------------------------- curves
 
 def _curve_dim(da) -> str:
-    xarray_object(da, "a curve", (xr.DataArray,))
     dims = [d for d in da.dims if d in CURVE_COORDS]
     if len(dims) != 1:
         raise XtopoError(f"{da.name!r} is not a scale-dependent curve: expected one of the dims "
@@ -380,8 +384,9 @@ def _axes_opts(title, logx=True, logy=True, legend_outside=False):
                 matplotlib=dict(aspect=1.3, legend_position="right" if legend_outside else "bottom_left"))
 
 
-def curve(da: xr.DataArray, *, cutoff=None, title: str | None = None, label: str | None = None,
-          color: str | None = None):
+@checked
+def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title: Annotated[str | None, Text()] = None,
+          label: Annotated[str | None, Text()] = None, color: str | None = None):
     """A scale-dependent result (PSD, ACF, VBM, SDRP, ...) on log-log axes.
 
     Parameters
@@ -404,7 +409,7 @@ def curve(da: xr.DataArray, *, cutoff=None, title: str | None = None, label: str
     hv = _hv()
     coord = _curve_dim(da)
     cut = _cutoff_of(da, cutoff)
-    title, label, color = text(title, "title"), text(label, "label"), _color(color)
+    color = _color(color)
     if da.sizes[coord] == 0:
         raise XtopoError(f"{da.name!r} has no points along {coord!r}; nothing to draw")
     xdim = _dimension(coord, da[coord].attrs)
@@ -446,7 +451,9 @@ def group_colours(groups: dict) -> dict:
     return {g: PALETTE[k % len(PALETTE)] for k, g in enumerate(dict.fromkeys(groups.values()))}
 
 
-def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None = None, groups: dict | None = None,
+@checked
+def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated[dict | None, Dict()] = None,
+                title: Annotated[str | None, Text()] = None, groups: Annotated[dict | None, Dict()] = None,
                 legend: bool = True):
     """A twin average as in the paper's Figure 5: thin coloured measurements, the thick black average.
 
@@ -474,8 +481,7 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
     holoviews.Overlay
     """
     hv = _hv()
-    xarray_object(ds, "twin_curves()", (xr.Dataset,))
-    labels, title, groups = mapping(labels, "labels"), text(title, "title"), mapping(groups, "groups")
+    labels, groups = labels or {}, groups or {}
     if "average" not in ds or "curves" not in ds:
         raise XtopoError(f"twin_curves() needs a twin average with 'average' and 'curves' (got {list(ds.data_vars)})")
     coord = _curve_dim(ds["average"])
@@ -521,8 +527,10 @@ def twin_curves(ds: xr.Dataset, *, labels: dict | None = None, title: str | None
     return overlay
 
 
-def twin_figure(tree, *, analyses=None, groups: dict | None = None, labels: dict | None = None,
-                per_decade: int | None = None, cols: int = 2):
+@checked
+def twin_figure(tree, *, analyses=None, groups: Annotated[dict | None, Dict()] = None,
+                labels: Annotated[dict | None, Dict()] = None, per_decade: int | None = None,
+                cols: Annotated[int, Count()] = 2):
     """The paper's Figure 5 for a twin: PSD, ACF, VBM and scale-dependent curvature averages.
 
     One log-log panel per analysis of :data:`xtopo.stitching.ANALYSES` (with units): each
@@ -560,7 +568,6 @@ def twin_figure(tree, *, analyses=None, groups: dict | None = None, labels: dict
         raise XtopoError(f"unknown analysis {unknown[0]!r} in analyses; choose from {tuple(ANALYSES)}")
     groups = {n: str(ds.attrs.get("instrument") or n) for n, ds in ms.items()} if groups is None else groups
     per_decade = PER_DECADE if per_decade is None else per_decade
-    cols = integer(cols, "cols")
     # the one legend sits right of the last panel of the first row, where it covers no other panel
     panels = [twin_curves(ANALYSES[a](tree, per_decade=per_decade).compute(), groups=groups, labels=labels,
                           title=ANALYSES[a].title, legend=k == min(cols, len(names)) - 1) for k, a in enumerate(names)]
@@ -576,8 +583,9 @@ def _contact_steps_dim(ds) -> str | None:
     return None
 
 
-def contact_area(results, *, labels=None, title: str | None = None, x: str = "mean_pressure",
-                 y: str = "area_fraction"):
+@checked
+def contact_area(results, *, labels: Annotated[dict | None, Dict()] = None, title: Annotated[str | None, Text()] = None,
+                 x: Annotated[str, Text()] = "mean_pressure", y: Annotated[str, Text()] = "area_fraction"):
     """Relative contact area against mean pressure on log-log axes; unconverged points translucent.
 
     Parameters
@@ -600,13 +608,11 @@ def contact_area(results, *, labels=None, title: str | None = None, x: str = "me
     hv = _hv()
     if isinstance(results, xr.Dataset):
         results = {"": results}
-    results = mapping(results, "results")
-    labels, title = mapping(labels, "labels"), text(title, "title")
-    x, y = text(x, "x", optional=False), text(y, "y", optional=False)
+    results, labels = Dict().check({} if results is None else results, "results"), labels or {}
     if not results:
         raise XtopoError("contact_area() needs at least one contact result")
     for key, ds in results.items():
-        xarray_object(ds, f"contact_area() result {key!r}", (xr.Dataset,))
+        Data("Dataset").check(ds, f"contact_area() result {key!r}")
     elements = []
     for k, (key, ds) in enumerate(results.items()):
         for v in (x, y):
@@ -637,8 +643,9 @@ def contact_area(results, *, labels=None, title: str | None = None, x: str = "me
     return _style(hv.Overlay(elements), **_axes_opts(title or "contact area", logx=True, logy=True))
 
 
-def contact_maps(ds: xr.Dataset, *, variables=("pressure", "gap", "contact"), step: int = -1,
-                 max_pixels: int = MAX_PIXELS):
+@checked
+def contact_maps(ds: Annotated[xr.Dataset, Data("Dataset")], *, variables=("pressure", "gap", "contact"),
+                 step: Annotated[int, Count(min=-2**62)] = -1, max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS):
     """Maps of a contact solution (pressure, gap, contact; profiles for line contacts).
 
     Parameters
@@ -658,15 +665,12 @@ def contact_maps(ds: xr.Dataset, *, variables=("pressure", "gap", "contact"), st
     holoviews.Layout
     """
     hv = _hv()
-    xarray_object(ds, "contact_maps()", (xr.Dataset,))
     variables = [variables] if isinstance(variables, str) else variables
-    if not isinstance(variables, (list, tuple)) or not variables:
+    if not isinstance(variables, (list, tuple)) or not variables or not all(isinstance(v, str) for v in variables):
         raise XtopoError(f"variables must be a name or a non-empty list of names of maps, got {variables!r}")
-    for v in variables:
-        text(v, "each of variables", optional=False)
     dim = _contact_steps_dim(ds)
     steps = 1 if dim is None else ds.sizes[dim]
-    if integer(step, "step", minimum=-steps) >= steps:
+    if not -steps <= step < steps:
         raise XtopoError(f"step must be an index of the {steps} step(s) of the result (-{steps} to {steps - 1}), "
                          f"got {step!r}")
     if dim is not None:
@@ -686,7 +690,8 @@ def contact_maps(ds: xr.Dataset, *, variables=("pressure", "gap", "contact"), st
 
 # --------------------------------------------------------------------------- twins
 
-def measurement_maps(tree, *, max_pixels: int = 256, cols: int = 3):
+@checked
+def measurement_maps(tree, *, max_pixels: Annotated[int, _PIXELS] = 256, cols: Annotated[int, Count()] = 3):
     """One panel per measurement of a twin: height maps of area scans, profiles of line scans.
 
     Parameters
@@ -701,12 +706,11 @@ def measurement_maps(tree, *, max_pixels: int = 256, cols: int = 3):
     hv = _hv()
     from .twins import measurements
 
-    ms = measurements(tree) if isinstance(tree, xr.DataTree) else mapping(tree, "measurement_maps() tree")
-    cols = integer(cols, "cols")
+    ms = measurements(tree) if isinstance(tree, xr.DataTree) else Dict().check(tree, "measurement_maps() tree")
     if not ms:
         raise XtopoError("measurement_maps() needs at least one measurement; the twin has none")
     for name, ds in ms.items():
-        xarray_object(ds, f"measurement_maps() measurement {name!r}", (xr.Dataset, xr.DataArray))
+        Data().check(ds, f"measurement_maps() measurement {name!r}")
     panels = [topography(ds, max_pixels=max_pixels, title=name) for name, ds in ms.items()]
     return hv.Layout(panels).cols(cols)
 

@@ -13,12 +13,12 @@ would make :func:`xtopo.conventions.height_of` hide the filled values again.
 from __future__ import annotations
 
 import inspect
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
 from ._apply import apply_lateral
-from ._checks import flag, option
 from ._kernels import polyfit as _poly
 from .conventions import (MASK, X, Y, height_of, is_nonuniform, is_periodic, lateral_dims,
                           length_factor, spacing)
@@ -26,19 +26,15 @@ from ._heights import fit_positions as _positions
 from ._heights import replace_heights as _finish
 from .errors import GridError, UnitsError, XtopoError
 from .filtration import filter as _filter
-from .filtration import filter_options as _filter_options
+from .params import Choice, Flag, checked, preflight
 
 __all__ = ["detrend", "fill_missing", "apply_steps", "checked_steps"]
 
 _FILLED = "filled"
 
 
-def _detrend_options(mode, per_line) -> dict:
-    """:func:`detrend`'s options, checked (an :class:`~xtopo.errors.XtopoError` naming the bad one)."""
-    return {"mode": option(mode, _poly.DEGREES, "mode"), "per_line": flag(per_line, "per_line")}
-
-
-def detrend(obj, mode: str = "plane", per_line: bool = False):
+@checked
+def detrend(obj, mode: Annotated[str, Choice(*_poly.DEGREES)] = "plane", per_line: Annotated[bool, Flag()] = False):
     """Subtract the least-squares polynomial background that minimises the RMS height.
 
     Parameters
@@ -60,8 +56,7 @@ def detrend(obj, mode: str = "plane", per_line: bool = False):
         so its subtraction leaves a step where the surface wraps around, and the result has
         ``periodic=0`` (analyses then window it instead of differentiating across the step).
     """
-    options = _detrend_options(mode, per_line)
-    degree, per_line = _poly.DEGREES[options["mode"]], options["per_line"]
+    degree = _poly.DEGREES[mode]
     h = height_of(obj)
     dims = lateral_dims(h)
     breaks_periodicity = degree > 0 and is_periodic(h)
@@ -167,15 +162,14 @@ def _checked(kernel):
 # --------------------------------------------------------------------------- steps requested by name
 
 #: the steps a batch (``preprocess=``) or the command line (``--detrend``, ``--fill-missing``) requests by name:
-#: name → (the function, its options checked into a dict)
-_STEPS = {"detrend": (detrend, _detrend_options), "fill_missing": (fill_missing, lambda: {}),
-          "filter": (_filter, _filter_options)}
+#: name → the function (its options checked by :func:`xtopo.params.preflight`)
+_STEPS = {"detrend": detrend, "fill_missing": fill_missing, "filter": _filter}
 STEPS = tuple(_STEPS)
 
 
 def _step_options(step: str, options, name: str) -> dict | None:
     """Every option of ``step`` (defaults filled in) from what was given for it; None: the step is left out."""
-    func, check = _STEPS[step]
+    func = _STEPS[step]
     signature = inspect.signature(func)
     params = list(signature.parameters)[1:]  # after the measurement
     if options is None or (isinstance(options, (bool, np.bool_)) and not options):
@@ -188,16 +182,9 @@ def _step_options(step: str, options, name: str) -> dict | None:
         kwargs = {params[0]: options}
     else:
         raise XtopoError(f"{name}: step {step!r} takes no options, got {options!r}; give True")
-    unknown = [k for k in kwargs if k not in params]
-    if unknown:
-        raise XtopoError(f"{name}: step {step!r} has no option {', '.join(map(repr, unknown))}; its options: "
-                         f"{', '.join(params) or 'none'}")
-    bound = signature.bind(None, **kwargs)
+    bound = signature.bind(None, **preflight(func, kwargs, f"{name}: step {step!r}"))
     bound.apply_defaults()
-    try:
-        return check(**{k: v for k, v in bound.arguments.items() if k in params})
-    except XtopoError as exc:
-        raise type(exc)(f"{name}: step {step!r}: {exc}") from None
+    return {k: v for k, v in bound.arguments.items() if k in params}
 
 
 def checked_steps(steps, name: str = "preprocess") -> tuple:
@@ -274,5 +261,5 @@ def apply_steps(obj, steps):
         After each step in turn, each recorded in its ``history``; ``obj`` itself is unchanged.
     """
     for step, kwargs in checked_steps(steps, "steps"):
-        obj = _STEPS[step][0](obj, **kwargs)
+        obj = _STEPS[step](obj, **kwargs)
     return obj

@@ -18,16 +18,19 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
+from ._checks import MAX_SPARSE_BINS
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
+from .analysis.psd import WINDOWS
 from .analysis.reliability import reliability_cutoff
 from .analysis.statistical_reliability import independent_samples, sampling_cutoff, stencil_error
-from .conventions import convert_length, height_of, lateral_dims, length_factor, unit_argument
+from .conventions import convert_length, height_of, lateral_dims, length_factor
 from .errors import GridError, UnitsError, XtopoError
+from .params import Choice, Count, Flag, Lengths, LengthUnit, Positive, checked
 from .twins import measurements as _measurements
 
 __all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES", "TwinAnalysis"]
@@ -39,9 +42,9 @@ _MODES = "independent_modes"
 
 
 def _common_units(ms: dict, units=None) -> str:
-    """``units`` (checked), else the first measurement's length unit."""
+    """``units`` (declared :class:`~xtopo.params.LengthUnit`), else the first measurement's length unit."""
     if units is not None:
-        return unit_argument(units, "units")
+        return units
     for ds in ms.values():
         return ds["x"].attrs.get("units", "m")
     raise XtopoError("the twin has no measurements")
@@ -101,16 +104,17 @@ def _error_on_grid(y, err=None, *, x, xnew, method, modes=None, per_sample=None)
     return collocate_error(per_sample if err is None else err, y, x, xnew, method, modes=modes)
 
 
-def _settings(per_decade, max_error) -> tuple:
-    """Checked ``per_decade`` and ``max_error`` (None: no statistical criterion)."""
-    per_decade = integer(per_decade, "per_decade")
-    if per_decade > MAX_SPARSE_BINS:  # 10**30 raised numpy's 'Maximum allowed size exceeded'
-        raise XtopoError(f"per_decade must be at most {MAX_SPARSE_BINS}, got {per_decade!r}")
-    return per_decade, None if max_error is None else positive_number(max_error, "max_error", infinite=True)
+#: collocation points per decade (10**30 raised numpy's 'Maximum allowed size exceeded')
+_PER_DECADE = Count(1, MAX_SPARSE_BINS)
+#: the largest predicted relative error of an average point (None: no statistical criterion)
+_MAX_ERROR = Positive(infinite=True)
 
 
-def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, method: str = "interp",
-                   errors: dict | None = None, max_error: float | None = None) -> xr.Dataset:
+@checked
+def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
+                   points: Annotated[np.ndarray | None, Lengths(empty=False)] = None,
+                   method: Annotated[str, Choice("interp", "bin")] = "interp", errors: dict | None = None,
+                   max_error: Annotated[float | None, _MAX_ERROR] = None) -> xr.Dataset:
     """Average 1D curves of several measurements at common log-spaced points (paper §4.10).
 
     Every finite (reliable) point of every curve contributes: each curve is brought onto the
@@ -158,8 +162,7 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
         relative error) and ``left_out`` (values dropped by ``max_error``). Per measurement
         ``reliability_cutoff`` and ``reliability_criterion`` where the curves carry one.
     """
-    per_decade, tol = _settings(per_decade, max_error)
-    method = option(method, ("interp", "bin"), "method")
+    tol = max_error
     for what, given in (("curves", curves), ("errors", {} if errors is None else errors)):
         if not isinstance(given, Mapping):
             raise XtopoError(f"{what} must be a mapping of measurement name to DataArray, got {type(given).__name__}")
@@ -179,9 +182,7 @@ def average_curves(curves: dict, *, per_decade: int = PER_DECADE, points=None, m
             raise XtopoError(f"no curve has a point at positive {coord}: nothing to average")
         grid = collocation_points(x.min(), x.max(), per_decade)
     else:
-        grid = lengths(points, "points", first[coord].attrs.get("units", "?"))
-        if not grid.size:
-            raise XtopoError("points must hold at least one collocation point, got none")
+        grid = points
     names = list(curves)
     per = [_onto(curves[n], coord, grid, method, (errors or {}).get(n)) for n in names]
     dim = xr.DataArray(names, dims="measurement", name="measurement", attrs={"long_name": "measurement"})
@@ -353,7 +354,6 @@ def _pool_errors(errors: dict, settings: dict) -> dict:
 
 def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
                      quantity: str = "psd", **kw) -> tuple[dict, dict]:
-    reliable = flag(reliable, "reliable")
     ms = _measurements(tree)
     units = _common_units(ms, units)
     curves, errors, settings = {}, {}, {}
@@ -436,8 +436,11 @@ _TWIN_RETURNS = """Returns
         per measurement (see :func:`average_curves`)."""
 
 
-def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_DECADE, units: str | None = None,
-             reliable: bool = True, max_error: float | None = None) -> xr.Dataset:
+@checked
+def twin_psd(tree, *, areal: Annotated[bool, Flag()] = False, window: Annotated[str | None, WINDOWS] = "auto",
+             per_decade: Annotated[int, _PER_DECADE] = PER_DECADE, units: Annotated[str | None, LengthUnit()] = None,
+             reliable: Annotated[bool, Flag()] = True, max_error: Annotated[float | None, _MAX_ERROR] = None
+             ) -> xr.Dataset:
     """Average PSD of a twin: 1D PSDs (``C1D`` along x) or, with ``areal=True``, ``Ciso``.
 
     ``areal=True`` needs every measurement to be an area scan. {criterion} A spectrum's
@@ -452,8 +455,7 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
     """
     from .analysis.psd import psd
 
-    _settings(per_decade, max_error)
-    if flag(areal, "areal"):
+    if areal:
         ms = _measurements(tree)
         lines = [n for n, ds in ms.items() if ds["height"].ndim != 2]
         if lines:
@@ -467,8 +469,11 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
                             reliable=reliable, max_error=max_error)
 
 
-def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
-             max_error: float | None = None) -> xr.Dataset:
+@checked
+def twin_acf(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
+             units: Annotated[str | None, LengthUnit()] = None,
+             reliable: Annotated[bool, Flag()] = True, max_error: Annotated[float | None, _MAX_ERROR] = None
+             ) -> xr.Dataset:
     """Average height-difference ACF of a twin (profiles along x).
 
     {criterion} A measurement's predicted error is that of
@@ -482,7 +487,6 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     """
     from .analysis.acf import acf
 
-    _settings(per_decade, max_error)
     curves, errors = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
                                       quantity="acf")
     out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
@@ -501,8 +505,11 @@ def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
     return vbm(ds, **kw)
 
 
-def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
-             max_error: float | None = None) -> xr.Dataset:
+@checked
+def twin_vbm(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
+             units: Annotated[str | None, LengthUnit()] = None,
+             reliable: Annotated[bool, Flag()] = True, max_error: Annotated[float | None, _MAX_ERROR] = None
+             ) -> xr.Dataset:
     """Average variable-bandwidth RMS height of a twin.
 
     {criterion} A measurement's predicted error is ``1/(2√N)`` with ``N`` independent windows.
@@ -513,15 +520,16 @@ def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
 
     {returns}
     """
-    _settings(per_decade, max_error)
     curves, errors = _per_measurement(tree, _vbm, {}, {}, units, reliable, quantity="vbm")
     out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
     return _with_provenance(out, tree, "twin_vbm", per_decade=per_decade, units=units, reliable=reliable,
                             max_error=max_error)
 
 
-def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str | None = None,
-              reliable: bool = True, max_error: float | None = None) -> xr.Dataset:
+@checked
+def twin_sdrp(tree, order: Annotated[int, Choice(1, 2)] = 1, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
+              units: Annotated[str | None, LengthUnit()] = None, reliable: Annotated[bool, Flag()] = True,
+              max_error: Annotated[float | None, _MAX_ERROR] = None) -> xr.Dataset:
     """Average scale-dependent slope (``order=1``) or curvature (``order=2``) of a twin.
 
     Every measurement is evaluated at exactly the common collocation distances
@@ -535,11 +543,8 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
 
     {returns}
     """
-    from .analysis.sdrp import check_order, sdrp
+    from .analysis.sdrp import sdrp
 
-    order = check_order(order)
-    reliable = flag(reliable, "reliable")
-    _settings(per_decade, max_error)
     ms = _measurements(tree)
     units = _common_units(ms, units)
     lo, hi = np.inf, 0.0
@@ -622,7 +627,9 @@ ANALYSES: dict[str, TwinAnalysis] = {a.name: a for a in (
 )}
 
 
-def analyze_twin(tree, *, per_decade: int = PER_DECADE, progress: bool | None = False) -> xr.DataTree:
+@checked
+def analyze_twin(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
+                 progress: bool | None = False) -> xr.DataTree:
     """The main job: per-measurement summary and the averaged curves of a twin (:data:`ANALYSES`).
 
     Parameters

@@ -86,14 +86,6 @@ def test_nonuniform_line():
     assert "resampled" in a.attrs and np.all(a.values[1:] > 0)
 
 
-@pytest.mark.parametrize("nb_points", [0, -3, 2.5, float("inf"), False, "12"])
-@pytest.mark.parametrize("kind", ["1d", "iso"])
-def test_bad_nb_points_refused(kind, nb_points):
-    ds = fractal_surface((16, 16), 1.0, hurst=0.6, seed=3)
-    with pytest.raises(xtopo.XtopoError, match="nb_points must be an integer >= 1"):
-        ds.topo.acf(kind, nb_points=nb_points)
-
-
 @pytest.mark.parametrize("analysis", ["acf", "psd"])
 @pytest.mark.parametrize("kind", ["1d", "iso"])
 def test_nb_points_far_beyond_the_data_refused(analysis, kind):
@@ -109,9 +101,7 @@ def test_nb_points_far_beyond_the_data_refused(analysis, kind):
     assert 0 < sparse.size <= 16 * 16 and np.all(np.isfinite(sparse.values))
 
 
-@pytest.mark.parametrize("kw,match", [({"kind": np.array(["1d", "iso"])}, "kind must be one of"),
-                                      ({"kind": {}}, "kind must be one of"),
-                                      ({"dim": np.array([])}, "is not a lateral dimension")])
+@pytest.mark.parametrize("kw,match", [({"dim": np.array([])}, "is not a lateral dimension")])
 def test_acf_bad_options_refused(kw, match):
     # arrays raised numpy's 'truth value of an array is ambiguous'
     ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)

@@ -145,21 +145,6 @@ def test_distribution_is_normalised_with_units(kind):
     xr.testing.assert_allclose(lazy.isel(sample=0).compute().probability_density, d.probability_density)
 
 
-@pytest.mark.parametrize("bins", [0, -1, 2.5, None, "10", True])
-def test_distribution_bad_bins_refused(bins):
-    # 0/-1 were a bare ValueError from numpy, the others a TypeError from np.empty
-    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
-    with pytest.raises(xtopo.XtopoError, match="bins must be an integer >= 1"):
-        ds.topo.distribution(bins=bins)
-
-
-@pytest.mark.parametrize("kind", [["height"], {}, None])
-def test_distribution_bad_kind_refused(kind):
-    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
-    with pytest.raises(xtopo.XtopoError, match="kind must be one of"):
-        ds.topo.distribution(kind)
-
-
 @pytest.mark.parametrize("engine", ["netcdf4", "h5netcdf"])
 def test_scalars_direction_is_fixed_width_unicode_for_line_and_area_scans(tmp_path, engine):
     # line scans gave an object-dtype 'direction' (expand_dims), area scans '<U1'
@@ -175,17 +160,17 @@ def test_scalars_direction_is_fixed_width_unicode_for_line_and_area_scans(tmp_pa
     xr.testing.assert_allclose(back, s)
 
 
-@pytest.mark.parametrize("bins", [10**9, 10**30])
-def test_distribution_bins_beyond_the_data_refused(bins):
+def test_distribution_bins_beyond_the_data_refused():
     # 10**30 raised numpy's 'Maximum allowed dimension exceeded', 10**9 allocated gigabytes
-    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
-    with pytest.raises(xtopo.XtopoError, match="bins must be at most 10000"):
-        ds.topo.distribution(bins=bins)
+    for bins in [10**9, 10**30]:
+        ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+        with pytest.raises(xtopo.XtopoError, match="bins must be at most 10000"):
+            ds.topo.distribution(bins=bins)
 
 
-@pytest.mark.parametrize("dim", [np.array(["x", "y"]), np.array([]), ["x"], None])
-def test_distribution_bad_dim_refused(dim):
+def test_distribution_bad_dim_refused():
     # arrays raised numpy's 'truth value of an array is ambiguous', a list TypeError
-    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
-    with pytest.raises(xtopo.XtopoError, match="is not a lateral dim"):
-        ds.topo.distribution("slope", dim=dim)
+    for dim in [np.array(["x", "y"]), np.array([]), ["x"], None]:
+        ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+        with pytest.raises(xtopo.XtopoError, match="is not a lateral dim"):
+            ds.topo.distribution("slope", dim=dim)

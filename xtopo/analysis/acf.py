@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import functools
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer, option
 from .._kernels import correlation as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
+from ..params import Choice, Count, Flag, checked
 from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
 from .reliability import apply_reliability
 
@@ -32,7 +33,9 @@ def _acf_iso_kernel(h, *, periodic, plan):
     return plan.mean(_k.acf_map(h, periodic=periodic))
 
 
-def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool = True) -> xr.DataArray:
+@checked
+def acf(obj, kind: Annotated[str, Choice("1d", "iso")] = "1d", *, dim: str = X,
+        nb_points: Annotated[int | None, Count()] = None, reliable: Annotated[bool, Flag()] = True) -> xr.DataArray:
     """Height-difference autocorrelation function ``A(ℓ) = ½⟨(h(r) - h(r+ℓ))²⟩``.
 
     Parameters
@@ -58,8 +61,6 @@ def acf(obj, kind: str = "1d", *, dim: str = X, nb_points=None, reliable: bool =
         wrap, nonperiodic data are zero padded and each lag is divided by its own
         number of pairs (so the result equals the direct sum, eq. 11).
     """
-    option(kind, ("1d", "iso"), "kind")
-    nb_points = None if nb_points is None else integer(nb_points, "nb_points")
     prep = prepare(obj)
     h, u = prep.h, prep.units
     if kind == "1d":

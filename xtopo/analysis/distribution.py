@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import bin_count, option
+from .._checks import bin_count
 from .._kernels.derivatives import forward_difference, second_difference
 from ..conventions import X, Y, height_of, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import XtopoError
+from ..params import Choice, Count, checked
 from ._scale import provenance
 
 __all__ = ["distribution"]
@@ -47,7 +50,9 @@ def _histogram(h, *, kind, bins, dx, axis, periodic, ndim):
     return out_d, out_c
 
 
-def distribution(obj, kind: str = "height", *, dim: str = X, bins: int = 100) -> xr.Dataset:
+@checked
+def distribution(obj, kind: Annotated[str, Choice(*_KINDS)] = "height", *, dim: str = X,
+                 bins: Annotated[int, Count()] = 100) -> xr.Dataset:
     """Probability density of heights, slopes or curvatures.
 
     Parameters
@@ -68,7 +73,6 @@ def distribution(obj, kind: str = "height", *, dim: str = X, bins: int = 100) ->
         ``probability_density`` on dim ``bin`` with the coordinate ``bin_center``
         (which may vary along batch dims); units are the inverse of the quantity's.
     """
-    option(kind, _KINDS, "kind")
     h = height_of(obj)
     lat = lateral_dims(h)
     bins = bin_count(bins, "bins", int(np.prod([h.sizes[d] for d in lat])))

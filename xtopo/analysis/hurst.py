@@ -20,11 +20,13 @@ treat it as a lower bound and compare methods).
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
-from .._checks import option
 from ..errors import XtopoError
+from ..params import Choice, Flag, Interval, checked
 from ._scale import prepare, provenance
 
 __all__ = ["hurst", "fit_power_law", "fit_power_law_whittle"]
@@ -130,8 +132,10 @@ def _exponent_map(da: xr.DataArray):
                      f"got {method!r}")
 
 
-def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_range=None,
-          reliable: bool = True) -> xr.Dataset:
+@checked
+def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annotated[str, Choice("1d", "iso")] = "1d",
+          dim: str = "x", scale_range: Annotated[tuple | None, Interval(0.0, what="lengths")] = None,
+          reliable: Annotated[bool, Flag()] = True) -> xr.Dataset:
     """Fit the Hurst exponent H (and the power-law prefactor) of a measurement.
 
     Parameters
@@ -168,8 +172,6 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
         length_units = _length_units(da)
         lengths = None
     else:
-        option(method, _METHODS, "method")
-        option(kind, ("1d", "iso"), "kind")
         from .acf import acf
         from .psd import psd
         from .sdrp import sdrp
@@ -208,7 +210,7 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
             lo = (16 if method_ == "vbm" else 4) * pixel
             hi = {"acf": max(size / 64, 32 * pixel), "vbm": size / 4}.get(method_, size / 8)
     else:
-        lo, hi = _scale_range(scale_range, length_units)
+        lo, hi = scale_range
     sel = (scale >= lo) & (scale <= hi)
     if sel.sum() < 3:
         if scale_range is None:
@@ -248,17 +250,6 @@ def _reliable(da, x, is_q):
         return np.ones(x.shape, bool)
     cut = np.asarray(da.coords["reliability_cutoff"].values, dtype=float).reshape(1, -1)  # computes a lazy cutoff
     return np.asarray(reliable_scales(x[:, None], cut, "q" if is_q else "length")).any(axis=1)
-
-
-def _scale_range(scale_range, units):
-    """``scale_range`` as ``(lo, hi)`` floats with ``0 <= lo < hi`` (``hi`` may be infinite)."""
-    try:
-        lo, hi = (float(v) for v in scale_range) if not isinstance(scale_range, str) else (None, None)
-    except (TypeError, ValueError):
-        lo = hi = None
-    if lo is None or not (0 <= lo < hi):
-        raise XtopoError(f"scale_range must be two lengths (lo, hi) in {units} with 0 <= lo < hi, got {scale_range!r}")
-    return lo, hi
 
 
 def _bins(prep, dim):

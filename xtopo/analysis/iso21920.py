@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer, option, real_number
 from .._kernels import profile_iso as _k
 from ..conventions import height_of, spacing
 from ..errors import GridError
+from ..filtration import END_CORRECTIONS, Cutoff, Form
 from ..filtration import filter as _filter
-from ..filtration import filter_options
+from ..params import Choice, Count, Real, checked
 from ._scale import prepare, provenance
 
 __all__ = ["iso21920", "PARAMETERS"]
@@ -36,8 +38,13 @@ PARAMETERS = {
 }
 
 
-def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sections: int = 5, c: float = 0.0,
-             convention: str = "iso21920", end: str = "normalized") -> xr.Dataset:
+@checked
+def iso21920(obj, dim: Annotated[str, Choice("x", "y", error=GridError)] = "x",
+             lambda_s: Annotated[float | str | None, Cutoff()] = None,
+             lambda_c: Annotated[float | str | None, Cutoff()] = None, form: Annotated[str | int | None, Form()] = "line",
+             sections: Annotated[int, Count()] = 5, c: Annotated[float, Real()] = 0.0,
+             convention: Annotated[str, Choice(*_k.CONVENTIONS)] = "iso21920",
+             end: Annotated[str, Choice(*END_CORRECTIONS)] = "normalized") -> xr.Dataset:
     """ISO 21920-2 profile parameters of a line scan or of every line of a map along ``dim``.
 
     The profile is made as ISO 21920-3 says (S-filter ``λs``, F-operator ``form``, L-filter
@@ -95,10 +102,6 @@ def iso21920(obj, dim: str = "x", lambda_s=None, lambda_c=None, form="line", sec
     discrimination of 1 % of the sampling length (a narrower element joins the next one). The material ratio curve: the
     heights sorted, the ``i``-th of ``n`` at ``100 i/(n-1)`` %, linear in between.
     """
-    filter_options(lambda_s, lambda_c, form, "roughness", dim, end)
-    sections = integer(sections, "sections")
-    c = real_number(c, "c")
-    convention = option(convention, _k.CONVENTIONS, "convention")
     prepared = prepare(obj)  # a nonuniform line scan interpolated onto a uniform grid of as many points
     h, units = prepared.h, prepared.units
     if dim not in prepared.lat:

@@ -9,15 +9,17 @@ one chunk).
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer, real_array, real_number
 from .._kernels import iso_areal as _k
 from .._kernels import material_ratio as _mr
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import GridError, XtopoError
+from ..params import Count, Interval, Numbers, Real, checked
 from ._scale import provenance
 
 __all__ = ["iso25178", "material_ratio", "areal_material_ratio", "material_volume", "void_volume", "PARAMETERS"]
@@ -73,17 +75,6 @@ def _area(obj, what: str):
     return h, shared_length_unit(h, what), is_periodic(h) or is_periodic(obj)
 
 
-def _ratio(value, name: str) -> float:
-    return real_number(value, name, low=0.0, high=100.0)
-
-
-def _pair(value, name: str) -> tuple[float, float]:
-    v = real_array(value)
-    if v is None or v.shape != (2,) or not (0 <= v[0] < v[1] <= 100):
-        raise XtopoError(f"{name} must be two material ratios (p, q) in % with 0 <= p < q <= 100, got {value!r}")
-    return float(v[0]), float(v[1])
-
-
 def _names(parameters) -> tuple:
     if parameters is None:
         return _k.PARAMETERS
@@ -104,8 +95,15 @@ def _names(parameters) -> tuple:
     return tuple(n for n in _k.PARAMETERS if n in names)
 
 
-def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float = 80.0, c: float = 0.0,
-             mr: float = 10.0, sxp=(2.5, 50.0), sdc=(10.0, 80.0), pruning: float = 5.0) -> xr.Dataset:
+_RATIO = Real(0.0, 100.0)
+_RATIOS = Interval(0.0, 100.0, what="material ratios in %")
+
+
+@checked
+def iso25178(obj, parameters=None, *, s: Annotated[float, Real(0.0, 1.0, closed=False)] = 0.2,
+             p: Annotated[float, _RATIO] = 10.0, q: Annotated[float, _RATIO] = 80.0, c: Annotated[float, Real()] = 0.0,
+             mr: Annotated[float, _RATIO] = 10.0, sxp: Annotated[tuple, _RATIOS] = (2.5, 50.0),
+             sdc: Annotated[tuple, _RATIOS] = (10.0, 80.0), pruning: Annotated[float, _RATIO] = 5.0) -> xr.Dataset:
     """ISO 25178-2 field parameters of an area scan, one variable per ISO symbol.
 
     Height (Sa, Sq, Sp, Sv, Sz, Ssk, Sku), hybrid (Sdq, Sdr), spatial (Sal, Str, Std),
@@ -156,13 +154,8 @@ def iso25178(obj, parameters=None, *, s: float = 0.2, p: float = 10.0, q: float 
     of a map with missing data, Spc/S5p/S5v when no complete significant hill or dale is found.
     """
     names = _names(parameters)
-    s = real_number(s, "s", low=0.0, high=1.0, closed=False)
-    p, q = _pair((p, q), "(p, q)")
-    c = real_number(c, "c")
-    mr = _ratio(mr, "mr")
-    sxp = _pair(sxp, "sxp")
-    sdc = _pair(sdc, "sdc")
-    pruning = real_number(pruning, "pruning", low=0.0, high=100.0)
+    if not p < q:
+        raise XtopoError(f"(p, q) must be two material ratios in % with p < q, got {(p, q)!r}")
     h, units, periodic = _area(obj, "iso25178")
     out = apply_lateral(_k.areal_parameters, h, output_core_dims=[["parameter"]],
                         output_sizes={"parameter": len(names)},
@@ -215,15 +208,12 @@ def _evaluate(obj, values, dim, dim_attrs, kernel, kwargs, name, units, long_nam
     return provenance(out, obj, what, **params)
 
 
-def _ratios_argument(values, name: str) -> np.ndarray:
-    v = real_array(values)
-    if v is None or v.ndim > 1 or v.size == 0 or not np.all((v >= 0) & (v <= 100)):
-        raise XtopoError(f"{name} must be material ratios in % between 0 and 100 (a number or 1D sequence), "
-                         f"got {values!r}")
-    return np.atleast_1d(v)
+_PERCENTS = Numbers(0.0, 100.0, what="material ratios in % between 0 and 100")
 
 
-def material_ratio(obj, mr=None, *, nb_points: int = 1001) -> xr.DataArray:
+@checked
+def material_ratio(obj, mr: Annotated[np.ndarray | None, _PERCENTS] = None, *,
+                   nb_points: Annotated[int, Count(min=2)] = 1001) -> xr.DataArray:
     """The areal material ratio (Abbott–Firestone) curve: height above the mean plane vs material ratio.
 
     ``Smc(mr)`` of ISO 25178-2 §4.5.2 as a function: at material ratio 0 % the highest point
@@ -246,17 +236,16 @@ def material_ratio(obj, mr=None, *, nb_points: int = 1001) -> xr.DataArray:
         ``height`` (length unit) on dim ``material_ratio`` (%); plot it with
         ``.plot(x="material_ratio")``.
     """
-    if mr is None:
-        values = np.linspace(0.0, 100.0, integer(nb_points, "nb_points", 2))
-    else:
-        values = _ratios_argument(mr, "mr")
+    values = np.linspace(0.0, 100.0, nb_points) if mr is None else np.atleast_1d(mr)
     return _evaluate(obj, values, "material_ratio", {"units": "%", "long_name": "areal material ratio"},
                      _at_kernel, dict(values=values, kind="height"), "height", "L",
                      "height of the material ratio curve", "material_ratio", dict(mr=values),
                      np.ndim(mr) == 0 and mr is not None)
 
 
-def areal_material_ratio(obj, c) -> xr.DataArray:
+@checked
+def areal_material_ratio(obj, c: Annotated[np.ndarray, Numbers(what="finite heights in the length unit")]
+                         ) -> xr.DataArray:
     """Smr(c): the areal material ratio (%) at heights ``c`` above the mean plane (ISO 25178-2 §4.5.1).
 
     Parameters
@@ -271,22 +260,20 @@ def areal_material_ratio(obj, c) -> xr.DataArray:
     xarray.DataArray
         ``Smr`` in % on dim ``c`` (no dim for a single ``c``).
     """
-    v = real_array(c)
-    if v is None or v.ndim > 1 or v.size == 0 or not np.all(np.isfinite(v)):
-        raise XtopoError(f"c must be finite heights (a number or 1D sequence) in the length unit, got {c!r}")
-    values = np.atleast_1d(v)
+    values = np.atleast_1d(c)
     return _evaluate(obj, values, "c", {"units": "L", "long_name": "height above the mean plane"},
                      _at_kernel, dict(values=values, kind="ratio"), "Smr", "%", "areal material ratio",
                      "areal_material_ratio", dict(c=values), np.ndim(c) == 0)
 
 
 def _volume(obj, p, kind: str, name: str, long_name: str, what: str) -> xr.DataArray:
-    values = _ratios_argument(p, "p")
+    values = np.atleast_1d(p)
     return _evaluate(obj, values, "p", {"units": "%", "long_name": "material ratio"}, _at_kernel,
                      dict(values=values, kind=kind), name, "L3 L-2", long_name, what, dict(p=values), np.ndim(p) == 0)
 
 
-def material_volume(obj, p) -> xr.DataArray:
+@checked
+def material_volume(obj, p: Annotated[np.ndarray, _PERCENTS]) -> xr.DataArray:
     """Vm(p): the material volume per unit area above the height at material ratio ``p`` (ISO 25178-2 §4.5.6).
 
     Parameters
@@ -304,7 +291,8 @@ def material_volume(obj, p) -> xr.DataArray:
     return _volume(obj, p, "material", "Vm", "material volume", "material_volume")
 
 
-def void_volume(obj, p) -> xr.DataArray:
+@checked
+def void_volume(obj, p: Annotated[np.ndarray, _PERCENTS]) -> xr.DataArray:
     """Vv(p): the void volume per unit area below the height at material ratio ``p`` (ISO 25178-2 §4.5.7).
 
     Arguments and result as for :func:`material_volume` (``Vv`` instead of ``Vm``); see :func:`material_volume`.

@@ -8,30 +8,25 @@ Wavevectors are angular (2π/λ) in inverse length units.
 from __future__ import annotations
 
 import functools
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import flag, integer, option
 from .._kernels import spectra as _k
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
 from ..errors import GridError, XtopoError
+from ..params import Choice, Count, Flag, checked
 from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["psd"]
 
 _KINDS = ("1d", "2d", "iso")
-
-
-def _use_window(window, periodic: bool) -> bool:
-    if window is None or window is False:  # not 0, nor an array (whose == is elementwise)
-        return False
-    if not isinstance(window, str) or window not in ("auto", "hann", "none"):
-        raise XtopoError(f"window must be 'auto', 'hann' or None, got {window!r}")
-    return window == "hann" or (window == "auto" and not periodic)
+#: the windows psd() and twin_psd() take (None, False and "none": no window)
+WINDOWS = Choice("auto", "hann", "none", None, False)
 
 
 @functools.lru_cache(maxsize=4)
@@ -44,8 +39,12 @@ def _iso_plan(ny, nx, dy, dx, nb_points):
     return BinPlan(np.where(q > 0, q, -1.0), log_edges(lo, hi, bins), mult)
 
 
-def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, convention: str = "standard",
-        equivalent_1d: bool = False, reliable: bool = True) -> xr.DataArray:
+@checked
+def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
+        window: Annotated[str | None, WINDOWS] = "auto",
+        nb_points: Annotated[int | None, Count()] = None,
+        convention: Annotated[str, Choice("standard", "persson")] = "standard",
+        equivalent_1d: Annotated[bool, Flag()] = False, reliable: Annotated[bool, Flag()] = True) -> xr.DataArray:
     """Power spectral density of a measurement.
 
     Parameters
@@ -79,14 +78,10 @@ def psd(obj, kind: str = "1d", *, dim: str = X, window="auto", nb_points=None, c
         ``q`` or ``(q_y, q_x)`` in inverse length. Heights are taken about their mean
         (per profile for 1D), so Parseval holds exactly without a window.
     """
-    option(kind, _KINDS, "kind")
-    option(convention, ("standard", "persson"), "convention")
-    nb_points = None if nb_points is None else integer(nb_points, "nb_points")
-    equivalent_1d = flag(equivalent_1d, "equivalent_1d")
     prep = prepare(obj)
     u = prep.units
     h = prep.h
-    win = _use_window(window, prep.periodic)
+    win = window == "hann" or (window == "auto" and not prep.periodic)
     qunits = f"{u}-1"
     params = dict(kind=kind, window="hann" if win else "none", convention=convention)
     if kind == "2d" and not prep.is_area:

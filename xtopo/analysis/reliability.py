@@ -13,14 +13,16 @@ The curvature criterion expects peaks to point up (positive heights).
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import flag, positive_number
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import length_attr, length_factor
 from ..errors import GridError
+from ..params import Positive, checked
 from ._scale import POINTS_PER_DECADE, prepare
 
 __all__ = ["reliability_cutoff", "apply_reliability", "reliable_scales", "TIP_FACTOR"]
@@ -60,7 +62,8 @@ def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarra
     return out
 
 
-def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
+@checked
+def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> xr.DataArray:
     """Shortest reliable length scale of a measurement (paper §4.9).
 
     Parameters
@@ -88,7 +91,6 @@ def reliability_cutoff(obj, *, c: float = TIP_FACTOR) -> xr.DataArray:
         If the tip-radius criterion is asked for on data with fewer than 3 points
         along every lateral dim (no curvature can be formed).
     """
-    c = positive_number(c, "c")
     prep = prepare(obj)
     units = prep.units
     res = _attr_length(obj, "resolution", units)
@@ -150,7 +152,7 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
     ``kind="q"``: keep ``q <= 2π/cutoff``; ``kind="length"``: keep ``coord >= cutoff``.
     The cutoff and its method are stored in ``result.attrs``.
     """
-    if not flag(reliable, "reliable"):
+    if not reliable:
         result.attrs.update(reliable=0)
         return result
     cut = reliability_cutoff(obj)

@@ -2,28 +2,26 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer, lengths
 from .._kernels.scaled import sdrp_rms
 from ..conventions import X
 from ..errors import GridError, XtopoError
+from ..params import Choice, Flag, Lengths, checked
 from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["sdrp"]
 
 
-def check_order(order) -> int:
-    """``order`` (1: slope, 2: curvature) as an int; an integer, not a bool or a float."""
-    if integer(order, "order") > 2:
-        raise XtopoError(f"order must be 1 or 2, got {order!r}")
-    return int(order)
-
-
-def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = True) -> xr.DataArray:
+@checked
+def sdrp(obj, order: Annotated[int, Choice(1, 2)] = 1, *, dim: str = X,
+         distances: Annotated[np.ndarray | None, Lengths()] = None,
+         reliable: Annotated[bool, Flag()] = True) -> xr.DataArray:
     """Scale-dependent RMS slope (``order=1``) or RMS curvature (``order=2``).
 
     ``D^(η) h = (h(x+ηΔx) - h(x))/(ηΔx)`` (eq. 9) and
@@ -54,7 +52,6 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
         ``distance``; at ``ℓ = Δx`` (order 1) it equals RΔq, at ``ℓ = 2Δx`` (order 2) RΔ²q.
     """
     given = distances
-    order = check_order(order)
     prep = prepare(obj)
     h, u = prep.h, prep.units
     prep.check_dim(dim)
@@ -68,7 +65,9 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
         # integer scale factors: no interpolation, which biases the slope low at fractional η
         # (benchmarks/tradeoffs.py: half the error of log-spaced fractional η, and faster)
         distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
-    distances = lengths(distances, "distances", u, n * dx)
+    elif np.any(distances > n * dx):
+        raise XtopoError(f"distances must be positive finite lengths of at most {n * dx:g} {u} (the size of the "
+                         f"measurement), got {distances[distances > n * dx].tolist()}")
     etas = distances / (order * dx)
     out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
                         output_sizes={"distance": etas.size},

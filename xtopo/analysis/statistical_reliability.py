@@ -8,14 +8,15 @@ this module to decide where a measurement's curve contributes, and report them.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
-from .._checks import lengths as check_lengths
-from .._checks import option, positive_number
 from .._kernels.estimator_error import mean_square_relative_error, variogram_from_samples
 from ..conventions import X
 from ..errors import XtopoError
+from ..params import Choice, Lengths, Positive, checked
 from ._scale import prepare
 from .acf import acf
 
@@ -90,7 +91,8 @@ def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
 SAMPLING_FACTOR = 4
 
 
-def sampling_cutoff(obj, dim: str = X, *, factor: float = SAMPLING_FACTOR) -> float:
+@checked
+def sampling_cutoff(obj, dim: str = X, *, factor: Annotated[float, Positive()] = SAMPLING_FACTOR) -> float:
     """Shortest wavelength at which a sampled measurement's spectrum is free of aliasing (spectra only).
 
     A real surface keeps its roughness below the pixel size, and sampling it folds
@@ -119,13 +121,15 @@ def sampling_cutoff(obj, dim: str = X, *, factor: float = SAMPLING_FACTOR) -> fl
     float
         The cutoff wavelength in the measurement's length unit.
     """
-    factor = positive_number(factor, "factor")
     prep = prepare(obj)
     n = prep.h.sizes[prep.check_dim(dim)]
     return factor * prep.size(dim) / n
 
 
-def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction: float = VARIOGRAM_FRACTION) -> xr.DataArray:
+@checked
+def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
+                  quantity: Annotated[str, Choice("acf", "curvature", "slope")] = "acf", dim: str = X,
+                  fraction: Annotated[float, Positive()] = VARIOGRAM_FRACTION) -> xr.DataArray:
     """Predicted relative standard error of a measurement's ACF, scale-dependent slope or curvature (long-scale reliability).
 
     These curves are means of a squared stencil ``D = Σ w_i h(x + a_i ℓ)`` (a height
@@ -162,9 +166,7 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
         ``relative_error`` on coord ``distance`` (NaN where the stencil does not fit);
         lazy on dask inputs.
     """
-    option(quantity, sorted(_STENCILS), "quantity")
     offsets, weights = _STENCILS[quantity]
-    fraction = positive_number(fraction, "fraction")
     if fraction > 1:
         raise XtopoError(f"fraction must be a share of the scan's length, in (0, 1], got {fraction!r}")
     prep = prepare(obj)
@@ -173,7 +175,7 @@ def stencil_error(obj, lengths, *, quantity: str = "acf", dim: str = X, fraction
     other = [d for d in prep.lat if d != dim]
     rows = prep.h.sizes[other[0]] if other else 1
     dy = prep.spacing(other[0]) if other else 0.0
-    lengths = check_lengths(lengths, "lengths", prep.units)  # beyond the scan: NaN (the stencil does not fit)
+    # lengths beyond the scan: NaN (the stencil does not fit)
     curve = acf(obj, kind="1d", dim=dim, reliable=False)
     keep = max(3, int(np.ceil(fraction * n)))
     curve = curve.isel(distance=slice(0, keep))

@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import integer
 from .._kernels import bandwidth as _k
 from ..conventions import X
+from ..errors import XtopoError
+from ..params import Count, Flag, checked
 from ._scale import finish, length_coord, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["vbm"]
 
 
-def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
+@checked
+def vbm(obj, *, min_pixels: Annotated[int, Count(min=2)] = 4, reliable: Annotated[bool, Flag()] = True) -> xr.DataArray:
     """Mean tilt-corrected RMS height as a function of the bandwidth ``ℓ = L/ζ``.
 
     The map is cut into ``ζ × ζ`` rectangles (``ζ`` segments for line scans),
@@ -41,7 +45,8 @@ def vbm(obj, *, min_pixels: int = 4, reliable: bool = True) -> xr.DataArray:
     """
     prep = prepare(obj)
     h, u = prep.h, prep.units
-    min_pixels = integer(min_pixels, "min_pixels", 2 if prep.is_area else 3)
+    if min_pixels < 2 + (not prep.is_area):
+        raise XtopoError(f"min_pixels must be an integer >= 3 for a line scan, got {min_pixels!r}")
     sizes = [h.sizes[d] for d in prep.lat]
     levels = _k.vbm_levels(sizes, min_pixels)
     kwargs = dict(dx=prep.spacing(X), levels=levels, ndim=len(prep.lat))
