@@ -31,9 +31,7 @@ class _Tagged(Model):
     def outputs(self, scene, res):
         return {"touching": (scene.dims, res.pressure > 0, {"units": "1", "long_name": "touching (tag model)"})}
 
-    @property
-    def attrs(self):
-        return {"tag": "yes"}
+    attrs = {"tag": "yes"}
 
     def check_control(self, name, value, label, scene=None):
         if name == "penetration":

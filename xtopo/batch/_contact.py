@@ -8,13 +8,14 @@ scan (``scan``), from which the result is settled (:mod:`xtopo.batch._scans`).
 from __future__ import annotations
 
 import functools
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from .._checks import flag
 from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units, unit_argument
 from ..errors import ContactError, UnitsError, XtopoError
+from ..params import Flag, checked
 from ._engine import run_batch
 from ._inputs import checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
@@ -153,9 +154,10 @@ def _snap_grid(ds):
     return ds.assign_coords(snapped)
 
 
+@checked(error=ContactError)
 def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None, modulus: float = 1.0,
-            hardness: float | None = None, periodic: bool | None = None, tol: float | None = None,
-            maxiter: int | None = None, maps: bool = False, chunks=None, client=None, scheduler=None,
+            hardness: float | None = None, periodic: Annotated[bool | None, Flag()] = None, tol: float | None = None,
+            maxiter: int | None = None, maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
             workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
             retries: int = 1, read_options: dict | None = None, units: str | None = None,
             preprocess=None) -> xr.Dataset:
@@ -220,17 +222,15 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     """
     _require_contact()
     from ..contact.models import scene_models
-    from ..contact.solve import control_value, one_control, solver_parameters
+    from ..contact.solve import ONE_SEQUENCE, control_value, given, solver_parameters
 
-    control, values = one_control(plural=True, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
+    ONE_SEQUENCE.check({"loads": loads, "mean_pressures": mean_pressures, "penetrations": penetrations})
+    control, values = given(loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
     control = control[:-1]
     # parameters shared by every item are checked here, not N times in the workers
     models = scene_models(modulus, hardness)
     modulus, hardness = models[0].modulus, None if hardness is None else models[1].hardness
-    if periodic is not None:
-        periodic = flag(periodic, "periodic", error=ContactError)
     tol, maxiter = solver_parameters(tol, maxiter)
-    maps = flag(maps, "maps")
     # values: a 1D, non-empty sequence
     run_options(_contact_item, control, None, workers, fft_threads, retries, progress, values)
     values = [control_value(control, v, models) for v in np.atleast_1d(np.asarray(values, dtype=object))]

@@ -1,83 +1,74 @@
-"""What a contact scene models: the elastic half-space and what bounds its pressures (DESIGN.md §5).
+"""What a contact scene models (DESIGN.md §5): the elastic half-space, and what bounds its pressures.
 
-A :class:`~xtopo.contact.Scene` holds a tuple of models, the :class:`ElasticHalfSpace` first, and the
-solver composes them (:func:`xtopo.contact.solve.run_solver` and ``to_dataset``). A model says, through
-the methods of :class:`Model`,
-
-* what it hands the kernel :func:`xtopo._kernels.pk_solver.polonsky_keer` (:meth:`Model.kernel_arguments`:
-  the elastic operator, a cap on the pressures), in the solver's scaled pressures;
-* which controls it cannot reach (:meth:`Model.check_control`: a mean pressure at the hardness);
-* what it adds to a result (:meth:`Model.outputs`, maps with ``units`` and ``long_name``; :attr:`Model.attrs`);
-* what the scene's repr and history say of it (:meth:`Model.describe`, :attr:`Model.label`).
-
-A new model (adhesion, say) is one class here and its projection of the pressures in the kernel.
+A :class:`~xtopo.contact.Scene` holds a tuple of :class:`Model` s, the :class:`ElasticHalfSpace` first;
+:func:`~xtopo.contact.solve.run_solver` and ``to_dataset`` compose them. A new model (adhesion, say) is
+one subclass here that overrides what it contributes, plus its projection of the pressures in
+:mod:`xtopo._kernels.pk_solver`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .._checks import positive_number
 from ..errors import ContactError
+from ..params import Positive
 
 __all__ = ["Model", "ElasticHalfSpace", "PlasticCap", "scene_models"]
 
+_POSITIVE = Positive(error=ContactError)
+
 
 class Model:
-    """One thing a :class:`~xtopo.contact.Scene` models; every method has a do-nothing default."""
+    """One thing a :class:`~xtopo.contact.Scene` models. :attr:`attrs` are its parameters (shown in a
+    result's attributes, history lines and repr); each method is what it contributes (default nothing)."""
+
+    attrs: dict = {}
 
     def kernel_arguments(self, scene, exponent: int) -> dict:
-        """Keywords of :func:`~xtopo._kernels.pk_solver.polonsky_keer` for ``scene``, pressures × ``2**exponent``."""
+        """Keywords of :func:`~xtopo._kernels.pk_solver.polonsky_keer`, pressures × ``2**exponent``."""
         return {}
 
     def check_control(self, name: str, value: float, label: str, scene=None) -> None:
-        """Raise a :class:`~xtopo.errors.ContactError` where control ``name`` = ``value`` cannot be reached
-        (``label`` names it); without a ``scene`` only what is known before the grid is."""
+        """Raise a :class:`~xtopo.errors.ContactError` where control ``name`` = ``value`` (called ``label``)
+        cannot be reached; without a ``scene``, as far as is known before the grid."""
 
     def outputs(self, scene, res) -> dict:
-        """Variables the model adds to a result (``{name: (dims, values, attrs)}``)."""
+        """Variables added to a result: ``{name: (dims, values, attrs with units and long_name)}``."""
         return {}
 
-    @property
-    def attrs(self) -> dict:
-        """Attributes the model adds to a result: its parameters."""
-        return {}
+    def describe(self, scene) -> str:
+        """The model's line in the scene's repr."""
+        return repr(self)
 
     @property
     def label(self) -> str:
-        """The model's parameters in one phrase, for history lines (e.g. ``"hardness=0.1"``)."""
+        """The parameters in one phrase (``"hardness=0.1"``), for history lines."""
         return ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in self.attrs.items())
-
-    def describe(self, scene) -> str:
-        """One line of the scene's repr: what is modelled, and how."""
-        return f"{type(self).__name__}({self.label})"
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.label})"
 
 
 class ElasticHalfSpace(Model):
-    """A linear elastic half-space of contact modulus ``E*`` (paper §5.1).
-
-    Its Green's function is eq. (17) on the native grid for periodic scenes, the Love rectangle
-    eq. (19) on a padded grid for free boundaries and the plane-strain strip for line scans.
+    """A linear elastic half-space (paper §5.1): Green's function eq. (17) for periodic scenes, the Love
+    rectangle eq. (19) on a padded grid for free boundaries, plane strain for line scans.
 
     Parameters
     ----------
     modulus : float
-        ``E*`` (``1/E* = (1-ν₁²)/E₁ + (1-ν₂²)/E₂``); pressures and loads are in its units.
+        Contact modulus ``E*``; pressures and loads are in its units.
     modulus_units : str, optional
-        Units label of ``modulus``; default ``"E*"`` for the modulus 1 (pressures relative to
-        ``E*``), ``"Pa"`` for any other value.
+        Units label of ``modulus``; default ``"E*"`` for the modulus 1, else ``"Pa"``.
     """
 
     def __init__(self, modulus: float = 1.0, modulus_units: str | None = None):
-        self.modulus = positive_number(modulus, "modulus (E* in your pressure unit)", error=ContactError)
+        self.modulus = _POSITIVE.check(modulus, "modulus")
         if modulus_units is not None and not (isinstance(modulus_units, str) and modulus_units.strip()):
             raise ContactError(f"modulus_units must be a units label such as 'GPa' or 'E*', got {modulus_units!r}")
-        # a modulus given without units is a physical one in Pa (SI, as the lengths read from files); only
-        # the default modulus 1 makes pressures relative to E*
+        # a modulus without units is a physical one in Pa (SI, as the lengths read from files); only the
+        # default modulus 1 makes pressures relative to E*
         self.units = modulus_units.strip() if modulus_units is not None else ("E*" if self.modulus == 1.0 else "Pa")
+        self.attrs = {"modulus": self.modulus, "modulus_units": self.units}
 
     def kernel_arguments(self, scene, exponent):
         return {"conv": scene.convolution}
@@ -100,14 +91,6 @@ class ElasticHalfSpace(Model):
                 f"{limit:g} above the mean): a periodic elastic solid is pushed there only by an infinite "
                 "pressure; prescribe load= or mean_pressure= instead")
 
-    @property
-    def attrs(self):
-        return {"modulus": self.modulus, "modulus_units": self.units}
-
-    @property
-    def label(self):
-        return f"E*={self.modulus:g} {self.units}"
-
     def describe(self, scene):
         grid = "×".join(str(n) for n in scene.shape)
         if scene.periodic:
@@ -129,7 +112,8 @@ class PlasticCap(Model):
     """
 
     def __init__(self, hardness: float):
-        self.hardness = positive_number(hardness, "hardness (or None for elastic)", error=ContactError)
+        self.hardness = _POSITIVE.check(hardness, "hardness")
+        self.attrs = {"hardness": self.hardness}
 
     def kernel_arguments(self, scene, exponent):
         return {"hardness": float(np.ldexp(np.float64(self.hardness), exponent))}
@@ -147,10 +131,6 @@ class PlasticCap(Model):
 
     def outputs(self, scene, res):
         return {"plastic": (scene.dims, res.plastic, {"units": "1", "long_name": "pressure at the hardness (flowing)"})}
-
-    @property
-    def attrs(self):
-        return {"hardness": self.hardness}
 
     def describe(self, scene):
         return f"plasticity: pressure capped at hardness {self.hardness:g} {scene.modulus_units}"

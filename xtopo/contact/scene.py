@@ -15,14 +15,14 @@ import numpy as np
 import xarray as xr
 
 from .._apply import scale_exponent
-from .._checks import flag
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, provenance_of, shared_length_unit, spacing
 from ..errors import ContactError, GridError
+from ..params import Flag, checked
 from ..presets import resolve as resolve_preset
 from .curves import curve as _curve
-from .solve import one_control, solve as _solve
+from .solve import ONE_CONTROL, given, solve as _solve
 from .models import PlasticCap, scene_models
 
 __all__ = ["Scene", "contact"]
@@ -97,8 +97,10 @@ class Scene:
         self.preset = preset
         #: what is modelled (:mod:`xtopo.contact.models`): the elastic half-space first
         self.models = scene_models(modulus, hardness, modulus_units, models)
+        self.modulus, self.modulus_units = self.models[0].modulus, self.models[0].units  # E* and the pressures' units
+        self.hardness = next((m.hardness for m in self.models if isinstance(m, PlasticCap)), None)  # None: no cap
         if periodic is not None:
-            periodic = flag(periodic, "periodic", error=ContactError)
+            periodic = Flag(error=ContactError).check(periodic, "periodic")
         try:
             floating = np.dtype(dtype) in (np.dtype("float32"), np.dtype("float64"))
         except TypeError:  # not a dtype at all ("foo", a list)
@@ -178,21 +180,6 @@ class Scene:
             self._conv = self.models[0].operator(self)
         return self._conv
 
-    @property
-    def modulus(self) -> float:
-        """Contact modulus ``E*`` of the elastic half-space."""
-        return self.models[0].modulus
-
-    @property
-    def modulus_units(self) -> str:
-        """Units label of the pressures (those of the modulus)."""
-        return self.models[0].units
-
-    @property
-    def hardness(self) -> float | None:
-        """The plastic cap's hardness; None for an elastic scene."""
-        return next((m.hardness for m in self.models if isinstance(m, PlasticCap)), None)
-
     def __getstate__(self):
         state = dict(self.__dict__)
         state["_conv"] = None  # rebuilt lazily after unpickling
@@ -227,6 +214,7 @@ class Scene:
                       maxiter=maxiter, gap_bins=gap_bins, preset=preset)
 
 
+@checked(ONE_CONTROL, error=ContactError)
 def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
             hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
             tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
@@ -266,7 +254,7 @@ def contact(topography, *, load=None, mean_pressure=None, penetration=None, modu
     """
     scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
                   preset=preset)
-    key, value = one_control(load=load, mean_pressure=mean_pressure, penetration=penetration)
+    key, value = given(load=load, mean_pressure=mean_pressure, penetration=penetration)
     if np.ndim(value) == 0:
         return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
     return scene.curve(**{f"{key}s": value}, tol=tol, maxiter=maxiter)

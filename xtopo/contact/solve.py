@@ -7,11 +7,13 @@ import xarray as xr
 
 from .._apply import rescaled
 from .._checks import integer, positive_number
+from ..params import OneOf, checked
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
 from ..presets import resolve as resolve_preset
 
-__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "CONTROLS", "one_control", "control_value",
+__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "ONE_CONTROL", "ONE_SEQUENCE", "given",
+           "control_value",
            "result_units", "run_solver"]
 
 #: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`): the knee of the
@@ -64,21 +66,16 @@ def result_units(scene) -> dict:
     return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2"}
 
 
-#: The controls of a contact calculation: a solve, a curve or a batch gets exactly one of them.
-CONTROLS = ("load", "mean_pressure", "penetration")
+#: The rule of every contact entry point, declared once: exactly one control, a value (``solve``,
+#: ``contact``) or a sequence of values (``curve``, :func:`xtopo.batch.contact`).
+ONE_CONTROL = OneOf("load", "mean_pressure", "penetration", error=ContactError)
+ONE_SEQUENCE = OneOf("loads", "mean_pressures", "penetrations", error=ContactError)
 
 
-def one_control(plural: bool = False, **given) -> tuple[str, object]:
-    """``(name, value)`` of the one control given (``given``: the :data:`CONTROLS`, with ``plural``
-    their sequences ``loads``, ``mean_pressures``, ``penetrations``), which must be exactly one.
-
-    The rule of every contact entry point (solve, curve, :func:`~xtopo.contact.contact`, the batch).
-    """
-    found = [(k, v) for k, v in given.items() if v is not None]
-    if len(found) != 1:
-        names = [f"{c}s=" if plural else f"{c}=" for c in CONTROLS]
-        raise ContactError(f"give exactly one of {names[0]}, {names[1]} or {names[2]}")
-    return found[0]
+def given(**controls) -> tuple[str, object]:
+    """``(name, value)`` of the one control an entry point declaring :data:`ONE_CONTROL` or
+    :data:`ONE_SEQUENCE` was given."""
+    return next((k, v) for k, v in controls.items() if v is not None)
 
 
 def control_value(name: str, v, models=(), *, label: str | None = None, scene=None) -> float:
@@ -105,7 +102,7 @@ def control_value(name: str, v, models=(), *, label: str | None = None, scene=No
 
 def _control(scene, load=None, mean_pressure=None, penetration=None):
     """``(load, penetration)`` of a solve of ``scene`` (one of them None), checked."""
-    name, value = one_control(load=load, mean_pressure=mean_pressure, penetration=penetration)
+    name, value = given(load=load, mean_pressure=mean_pressure, penetration=penetration)
     value = control_value(name, value, scene.models, scene=scene)
     if name == "penetration":
         return None, value
@@ -134,6 +131,7 @@ def _initial(scene, initial):
     return p
 
 
+@checked(ONE_CONTROL, error=ContactError)
 def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
           initial=None, preset: str | None = None, callback=None) -> xr.Dataset:
     """Solve the contact of ``scene`` at one load, mean pressure or penetration.
