@@ -224,8 +224,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     from ..contact.models import scene_models
     from ..contact.solve import ONE_SEQUENCE, control_value, given, solver_parameters
 
-    ONE_SEQUENCE.check({"loads": loads, "mean_pressures": mean_pressures, "penetrations": penetrations})
-    control, values = given(loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
+    control, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
     control = control[:-1]
     # parameters shared by every item are checked here, not N times in the workers
     models = scene_models(modulus, hardness)

@@ -9,7 +9,6 @@ import xarray as xr
 from .._checks import bin_count
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
-from ..params import checked
 from .solve import ONE_SEQUENCE, _control, given, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution"]
@@ -46,7 +45,6 @@ def _per_length(units: str, length: str) -> str:
     return f"{units} {length}-1"
 
 
-@checked(ONE_SEQUENCE, error=ContactError)
 def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
           gap_bins: int = 50, preset: str | None = None) -> xr.Dataset:
     """Solve ``scene`` for each value of a sequence, each step starting from the previous solution.
@@ -68,7 +66,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         solves reached), plus ``stiffness`` (``dF/dδ``) and ``gap_distribution``.
     """
     gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), 0, error=ContactError)
-    name, values = given(loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
+    name, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
     values = _sequence(name, values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
     key = name[:-1]

@@ -19,7 +19,7 @@ from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, provenance_of, shared_length_unit, spacing
 from ..errors import ContactError, GridError
-from ..params import Flag, checked
+from ..params import Flag
 from ..presets import resolve as resolve_preset
 from .curves import curve as _curve
 from .solve import ONE_CONTROL, given, solve as _solve
@@ -112,7 +112,6 @@ class Scene:
         self.dims = tuple(h.dims)
         self.shape = tuple(h.shape)
         self.spacing = tuple(spacing(h, d) for d in self.dims)
-        reasons = []
         per_attr = is_periodic(topography)
         source = f"from the data's periodic attribute ({int(per_attr)})"
         if counter is not None:
@@ -123,7 +122,6 @@ class Scene:
                       f"({int(per_counter)}): periodic only when both are")
             per_attr = per_attr and per_counter
             values = np.asarray(h.values, dtype=np.float64) + np.asarray(h2.values, dtype=np.float64)
-            reasons.append("compound topography h1 + h2 (counter surface given)")
         else:
             values = np.asarray(h.values, dtype=np.float64)
         if periodic is None:
@@ -132,7 +130,7 @@ class Scene:
         else:
             self.periodic = periodic
             self._boundary_reason = "as requested"
-        self._reasons = reasons
+        self._reasons = [] if counter is None else ["compound topography h1 + h2 (counter surface given)"]
         self.coords = {d: h.coords[d] for d in self.dims}
         #: what the results carry of the measurement: its file, checksum and processing history
         self.provenance = provenance_of(topography)
@@ -214,7 +212,6 @@ class Scene:
                       maxiter=maxiter, gap_bins=gap_bins, preset=preset)
 
 
-@checked(ONE_CONTROL, error=ContactError)
 def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
             hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
             tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
@@ -254,7 +251,7 @@ def contact(topography, *, load=None, mean_pressure=None, penetration=None, modu
     """
     scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
                   preset=preset)
-    key, value = given(load=load, mean_pressure=mean_pressure, penetration=penetration)
+    key, value = given(ONE_CONTROL, load=load, mean_pressure=mean_pressure, penetration=penetration)
     if np.ndim(value) == 0:
         return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
     return scene.curve(**{f"{key}s": value}, tol=tol, maxiter=maxiter)

@@ -7,7 +7,7 @@ import xarray as xr
 
 from .._apply import rescaled
 from .._checks import integer, positive_number
-from ..params import OneOf, checked
+from ..params import OneOf
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
 from ..presets import resolve as resolve_preset
@@ -72,9 +72,13 @@ ONE_CONTROL = OneOf("load", "mean_pressure", "penetration", error=ContactError)
 ONE_SEQUENCE = OneOf("loads", "mean_pressures", "penetrations", error=ContactError)
 
 
-def given(**controls) -> tuple[str, object]:
-    """``(name, value)`` of the one control an entry point declaring :data:`ONE_CONTROL` or
-    :data:`ONE_SEQUENCE` was given."""
+def given(rule: OneOf, **controls) -> tuple[str, object]:
+    """``(name, value)`` of the one control given, by ``rule`` (:data:`ONE_CONTROL` or :data:`ONE_SEQUENCE`).
+
+    Called in the body, not declared with ``@checked``: the controls' own checks carry the models' advice
+    (:func:`control_value`), which no generic kind of :mod:`xtopo.params` gives.
+    """
+    rule.check(controls)
     return next((k, v) for k, v in controls.items() if v is not None)
 
 
@@ -102,7 +106,7 @@ def control_value(name: str, v, models=(), *, label: str | None = None, scene=No
 
 def _control(scene, load=None, mean_pressure=None, penetration=None):
     """``(load, penetration)`` of a solve of ``scene`` (one of them None), checked."""
-    name, value = given(load=load, mean_pressure=mean_pressure, penetration=penetration)
+    name, value = given(ONE_CONTROL, load=load, mean_pressure=mean_pressure, penetration=penetration)
     value = control_value(name, value, scene.models, scene=scene)
     if name == "penetration":
         return None, value
@@ -131,7 +135,6 @@ def _initial(scene, initial):
     return p
 
 
-@checked(ONE_CONTROL, error=ContactError)
 def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
           initial=None, preset: str | None = None, callback=None) -> xr.Dataset:
     """Solve the contact of ``scene`` at one load, mean pressure or penetration.
