@@ -22,8 +22,8 @@ from ..errors import ContactError, GridError
 from ..params import Flag
 from ..presets import resolve as resolve_preset
 from .curves import curve as _curve
-from .solve import ONE_CONTROL, given, solve as _solve
 from .models import PlasticCap, scene_models
+from .solve import ONE_CONTROL, given, solve as _solve
 
 __all__ = ["Scene", "contact"]
 
