@@ -23,7 +23,7 @@ from .analysis import psd as _psd
 from .analysis import reliability as _reliability
 from .analysis import sdrp as _sdrp
 from .analysis import vbm as _vbm
-from .contact import curves as _contact_curves
+from .contact import scene as _contact_scene
 from .io import netcdf as _netcdf
 from . import stitching as _stitching
 from . import plot as _plot
@@ -72,7 +72,7 @@ class _TopoAccessor:
     # figures (issue 8)
     plot = _delegate(_plot.plot)
     # contact mechanics (issue 5)
-    contact = _delegate(_contact_curves.contact)
+    contact = _delegate(_contact_scene.contact)
 
     @property
     def height(self):

@@ -247,11 +247,12 @@ def _control(args) -> tuple[str, list]:
     """``("load", --loads)`` or ``("mean_pressure", --mean-pressures)``, the values checked before any file is
     read, as the library checks them (:func:`xtopo.contact.solve.control_value`) but with messages that name
     the option given."""
+    from .contact.models import scene_models
     from .contact.solve import control_value
 
     control, values = ("load", args.loads) if args.loads is not None else ("mean_pressure", args.mean_pressures)
-    # --hardness is checked by the parser (_positive_float)
-    return control, [control_value(control, v, args.hardness, label=f"{_OPTIONS[control]} value") for v in values]
+    models = scene_models(args.modulus, args.hardness)  # checked by the parser (_positive_float)
+    return control, [control_value(control, v, models, label=f"{_OPTIONS[control]} value") for v in values]
 
 
 def _cmd_contact(args) -> int:

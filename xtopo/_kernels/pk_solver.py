@@ -319,9 +319,23 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
         ``convolutions`` counts applications of ``G`` (forward + inverse transforms);
         ``transforms`` counts forward and inverse transforms together.
     """
-    if (load is None) == (penetration is None):
-        raise ValueError("give exactly one of load and penetration")
     with conv.lock:  # the operator's buffers hold this solve's state until it returns
+        if hardness is not None and load is not None and load > 0:
+            # load control with a cap: the elastic solution where its pressures stay below the hardness (the cap
+            # is idle), else the penetration search from its pressures with the iterations it left of maxiter
+            elastic = polonsky_keer(conv, w, pixel_area=pixel_area, load=load, tol=tol, maxiter=maxiter,
+                                    initial=initial, callback=callback)
+            if elastic.converged and float(np.max(elastic.pressure)) < hardness:
+                elastic["plastic"] = np.zeros(w.shape, bool)
+                return elastic
+            conv.begin_solve()
+            res = _plastic_load_control(conv, w, pixel_area=pixel_area, load=load, hardness=hardness, tol=tol,
+                                        maxiter=max(maxiter - elastic.iterations, 0),
+                                        initial=elastic.pressure if initial is None and np.any(elastic.pressure)
+                                        else initial)
+            for key in COUNTERS:
+                res[key] += elastic[key]
+            return res
         conv.begin_solve()
         return _solve(conv, w, pixel_area=pixel_area, load=load, penetration=penetration, hardness=hardness,
                       tol=tol, maxiter=maxiter, initial=initial, callback=callback)
@@ -329,9 +343,6 @@ def polonsky_keer(conv, w, *, pixel_area: float, load: float | None = None, pene
 
 def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, initial, callback):
     """:func:`polonsky_keer` with the operator's lock held."""
-    if hardness is not None and load is not None and load > 0:
-        return _plastic_load_control(conv, w, pixel_area=pixel_area, load=load, hardness=hardness, tol=tol,
-                                     maxiter=maxiter, initial=initial)
     w = np.ascontiguousarray(w)
     dtype = w.dtype
     shape = w.shape
@@ -524,7 +535,7 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
 
     The first bracket end is the penetration of the starting pressures ``initial`` (the
     mean of ``G*p - w`` over their contact: for the elastic solution at ``load``, which
-    :func:`xtopo.contact.solve.run_solver` passes, a lower bound — a cap only softens the
+    :func:`polonsky_keer` passes, a lower bound — a cap only softens the
     contact), else the rigid-plastic (bearing-area) penetration where ``H · area = load``.
     The latter ignores the elastic deflection, which dominates when ``H/E*`` is not small
     (opd-1.opd filled at E* = 2e9, H = 1e8, p = 5e7 needed 7 solves to bracket the root).
@@ -611,9 +622,6 @@ def _plastic_load_control(conv, w, *, pixel_area, load, hardness, tol, maxiter, 
         return [float(delta), f, state["tol"], pressure]
 
     depth = np.sort(-w, axis=None)
-    if load >= pixel_area * hardness * depth.size:
-        raise ValueError(f"the load {load:g} needs more than the whole nominal area at the hardness "
-                         f"({pixel_area * hardness * depth.size:g})")
     f_tol = tol * load
     delta0 = _start_penetration(conv, w, initial, hardness)
     if delta0 is None:

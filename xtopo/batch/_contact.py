@@ -8,13 +8,14 @@ scan (``scan``), from which the result is settled (:mod:`xtopo.batch._scans`).
 from __future__ import annotations
 
 import functools
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from .._checks import flag
 from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units, unit_argument
 from ..errors import ContactError, UnitsError, XtopoError
+from ..params import Flag, checked
 from ._engine import run_batch
 from ._inputs import checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
@@ -127,11 +128,11 @@ def _contact_line(sc, control, units, scene, solve) -> str:
     """The history line of a contact computation: what was modelled and how it was solved."""
     boundary = "periodic" if sc.periodic else "free"
     boundary += " (as requested)" if "periodic" in scene else " (from the data)"
-    hardness = "none" if sc.hardness is None else f"{sc.hardness:g}"
     settings = ", ".join(f"{k}={v:g}" for k, v in solve.items()) or "default tol and maxiter"
     scan = "a line scan (plane strain)" if sc.line else "an area scan"
+    models = ", ".join(m.label for m in sc.models)
     return (f"xtopo contact of {scan} at each {control} of the {control!r} coordinate ({units}): "
-            f"Scene(E*={sc.modulus:g} {sc.modulus_units}, hardness={hardness}, boundary {boundary}, "
+            f"Scene({models}, boundary {boundary}, "
             f"no counter surface (rigid rough surface), lengths in {sc.length_units}); "
             f"Polonsky-Keer solve, {settings}")
 
@@ -153,9 +154,10 @@ def _snap_grid(ds):
     return ds.assign_coords(snapped)
 
 
+@checked(error=ContactError)
 def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None, modulus: float = 1.0,
-            hardness: float | None = None, periodic: bool | None = None, tol: float | None = None,
-            maxiter: int | None = None, maps: bool = False, chunks=None, client=None, scheduler=None,
+            hardness: float | None = None, periodic: Annotated[bool | None, Flag()] = None, tol: float | None = None,
+            maxiter: int | None = None, maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
             workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
             retries: int = 1, read_options: dict | None = None, units: str | None = None,
             preprocess=None) -> xr.Dataset:
@@ -218,27 +220,20 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         '' where it failed). Where some item failed, ``iterations`` and ``converged`` are
         floats (1.0/0.0 for True/False, NaN for the failed items), as :func:`run` says.
     """
-    given = [(k, v) for k, v in (("load", loads), ("mean_pressure", mean_pressures),
-                                 ("penetration", penetrations)) if v is not None]
-    if len(given) != 1:
-        raise XtopoError("give exactly one of loads=, mean_pressures=, penetrations=")
-    control, values = given[0]
     _require_contact()
-    from ..contact.scene import scene_parameters
-    from ..contact.solve import control_value, solver_parameters
+    from ..contact.models import scene_models
+    from ..contact.solve import ONE_SEQUENCE, control_value, given, solver_parameters
 
+    control, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
+    control = control[:-1]
     # parameters shared by every item are checked here, not N times in the workers
-    modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
+    models = scene_models(modulus, hardness)
+    modulus, hardness = models[0].modulus, None if hardness is None else models[1].hardness
     tol, maxiter = solver_parameters(tol, maxiter)
-    maps = flag(maps, "maps")
     # values: a 1D, non-empty sequence
     run_options(_contact_item, control, None, workers, fft_threads, retries, progress, values)
-    values = [control_value(control, v, hardness) for v in np.atleast_1d(np.asarray(values, dtype=object))]
-    scene = {"modulus": modulus}
-    if hardness is not None:
-        scene["hardness"] = hardness
-    if periodic is not None:
-        scene["periodic"] = periodic
+    values = [control_value(control, v, models) for v in np.atleast_1d(np.asarray(values, dtype=object))]
+    scene = {k: v for k, v in (("modulus", modulus), ("hardness", hardness), ("periodic", periodic)) if v is not None}
     solve = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}
     names, sources = names_and_sources(measurements)
     units = _contact_units(units, sources, checked_read_options(read_options))

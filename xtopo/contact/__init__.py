@@ -4,8 +4,10 @@
 >>> result = scene.solve(mean_pressure=0.01) # doctest: +SKIP
 """
 
-from .curves import contact, curve, gap_distribution, stiffness
-from .scene import Scene
+from .curves import curve, gap_distribution, stiffness
+from .models import ElasticHalfSpace, Model, PlasticCap
+from .scene import Scene, contact
 from .solve import solve
 
-__all__ = ["Scene", "solve", "curve", "contact", "stiffness", "gap_distribution"]
+__all__ = ["Scene", "solve", "curve", "contact", "stiffness", "gap_distribution", "Model", "ElasticHalfSpace",
+           "PlasticCap"]

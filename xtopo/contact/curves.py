@@ -9,9 +9,9 @@ import xarray as xr
 from .._checks import bin_count
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
-from .solve import _control, run_solver, solver_settings, to_dataset
+from .solve import ONE_SEQUENCE, _control, given, run_solver, solver_settings, to_dataset
 
-__all__ = ["curve", "stiffness", "gap_distribution", "contact"]
+__all__ = ["curve", "stiffness", "gap_distribution"]
 
 
 def _sequence(name, values):
@@ -66,16 +66,12 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         solves reached), plus ``stiffness`` (``dF/dδ``) and ``gap_distribution``.
     """
     gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), 0, error=ContactError)
-    given = [(n, v) for n, v in (("loads", loads), ("mean_pressures", mean_pressures),
-                                 ("penetrations", penetrations)) if v is not None]
-    if len(given) != 1:
-        raise ContactError("give exactly one of loads=, mean_pressures= or penetrations=")
-    name, values = given[0]
+    name, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
     values = _sequence(name, values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
-    key = {"loads": "load", "mean_pressures": "mean_pressure", "penetrations": "penetration"}[name]
+    key = name[:-1]
     # every value checked before the first solve (a bad last value must not cost the whole curve)
-    controls = [_control(scene, **{"load": None, "mean_pressure": None, "penetration": None, key: v}) for v in values]
+    controls = [_control(scene, **{key: v}) for v in values]
     steps, previous = [], None
     for v, (load, pen) in zip(values, controls):
         res = run_solver(scene, load=load, penetration=pen, tol=tol, maxiter=maxiter, initial=previous)
@@ -185,54 +181,3 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
     return xr.DataArray(dens, dims=(*extra, "gap_bin"), coords=coords,
                         attrs={"units": f"{lu}-1", "long_name": "probability density of the gap outside contact"})
 
-
-def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
-            hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
-            tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
-    """Contact of ``topography`` on an elastic flat: a :class:`~xtopo.contact.Scene` solved in one call.
-
-    A scalar ``load``/``mean_pressure``/``penetration`` gives one solution
-    (:func:`~xtopo.contact.solve.solve`); a sequence gives a load curve
-    (:func:`curve`).
-
-    Parameters
-    ----------
-    topography : xarray.Dataset or xarray.DataArray
-        A measurement (uniform grid, no missing data), as in :class:`~xtopo.contact.Scene`.
-    load, mean_pressure, penetration : float or sequence of float
-        Exactly one: load in units of ``modulus`` × length² (area scans) or × length (line
-        scans: force per unit length), mean pressure in units of ``modulus``, penetration in the
-        measurement's length unit (see :func:`~xtopo.contact.solve.solve`).
-    modulus : float
-        Contact modulus ``E*`` (default 1: pressures and loads in units of ``E*``).
-    hardness : float, optional
-        Pressure cap, in units of ``modulus``; without it the contact is elastic.
-    periodic : bool, optional
-        Boundary condition (default: the measurement's ``periodic`` attribute).
-    counter : xarray.Dataset or xarray.DataArray, optional
-        A second rough surface on the same grid (compound topography ``h1 + h2``).
-    dtype : {"float64", "float32"}, optional
-        Floating point type of the solver (default from ``preset``: float64).
-    tol, maxiter : optional
-        Solver tolerance and iteration limit, as in :func:`~xtopo.contact.solve.solve`.
-    preset : {"fast", "default", "accurate"}, optional
-        Sets ``dtype``, ``tol`` and ``maxiter`` where they are not given (:mod:`xtopo.presets`).
-
-    Returns
-    -------
-    xarray.Dataset
-        As :func:`~xtopo.contact.solve.solve` (scalar control) or :func:`curve` (a sequence).
-    """
-    from .scene import Scene
-
-    scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
-                  preset=preset)
-    control = {"load": load, "mean_pressure": mean_pressure, "penetration": penetration}
-    given = {k: v for k, v in control.items() if v is not None}
-    if len(given) != 1:
-        raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
-    (key, value), = given.items()
-    if np.ndim(value) == 0:
-        return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
-    plural = {"load": "loads", "mean_pressure": "mean_pressures", "penetration": "penetrations"}[key]
-    return scene.curve(**{plural: value}, tol=tol, maxiter=maxiter)

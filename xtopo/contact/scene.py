@@ -1,11 +1,12 @@
 """What a contact calculation models, and nothing more (paper §5, DESIGN.md §5).
 
-A :class:`Scene` takes one measurement (or two, ``h1 + h2``), the contact modulus
-``E*`` and optionally a hardness, decides the boundary condition, and builds only the
-operators that scene needs: the periodic Green's function eq. (17) on the native grid
-for periodic data; the Love rectangle eq. (19) on a ``2N`` padded grid (Hockney) for
-free boundaries; the plane-strain kernels for line scans; a pressure cap only with a
-hardness.  The FFT plans are built on first use and are not pickled.
+A :class:`Scene` takes one measurement (or two, ``h1 + h2``) and the models of the contact
+(:mod:`xtopo.contact.models`: the elastic half-space of modulus ``E*``, a plastic cap where a
+hardness is given), decides the boundary condition, and builds only the operators that scene
+needs: the periodic Green's function eq. (17) on the native grid for periodic data; the Love
+rectangle eq. (19) on a ``2N`` padded grid (Hockney) for free boundaries; the plane-strain
+kernels for line scans; a pressure cap only with a hardness. The FFT plans are built on first
+use and are not pickled. :func:`contact` solves a scene in one call.
 """
 
 from __future__ import annotations
@@ -14,30 +15,17 @@ import numpy as np
 import xarray as xr
 
 from .._apply import scale_exponent
-from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
-from ..conventions import (LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, provenance_of,
-                           shared_length_unit,
-                           spacing)
-from ..errors import ContactError, GridError, UnitsError
+from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, provenance_of, shared_length_unit, spacing
+from ..errors import ContactError, GridError
+from ..params import Flag
 from ..presets import resolve as resolve_preset
+from .curves import curve as _curve
+from .models import PlasticCap, scene_models
+from .solve import ONE_CONTROL, given, solve as _solve
 
-__all__ = ["Scene"]
-
-
-def scene_parameters(modulus, hardness, periodic) -> tuple:
-    """``(modulus, hardness, periodic)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one).
-
-    ``modulus`` (E*) and ``hardness`` (None: elastic) are positive finite numbers; ``periodic`` is
-    None (from the data) or a bool.
-    """
-    modulus = positive_number(modulus, "modulus (E* in your pressure unit)", error=ContactError)
-    if hardness is not None:
-        hardness = positive_number(hardness, "hardness (or None for elastic)", error=ContactError)
-    if periodic is not None:
-        periodic = flag(periodic, "periodic", error=ContactError)
-    return modulus, hardness, periodic
+__all__ = ["Scene", "contact"]
 
 
 def _heights(obj, what: str) -> xr.DataArray:
@@ -90,6 +78,9 @@ class Scene:
     preset : {"fast", "default", "accurate"}, optional
         Speed-versus-accuracy preset (:mod:`xtopo.presets`): sets ``dtype`` here and the
         ``tol``/``maxiter`` of :meth:`solve` and :meth:`curve` unless those are given.
+    models : sequence of xtopo.contact.models.Model, optional
+        Further models of the contact, composed by the solver with the elastic half-space
+        (``modulus``) and the plastic cap (``hardness``); :attr:`models` holds them all.
 
     Notes
     -----
@@ -100,11 +91,16 @@ class Scene:
 
     def __init__(self, topography, *, modulus: float = 1.0, hardness: float | None = None, periodic: bool | None = None,
                  counter=None, dtype=None, modulus_units: str | None = None, backend: str = "auto",
-                 preset: str | None = None):
+                 preset: str | None = None, models=()):
         h = _heights(topography, "topography")
         dtype = resolve_preset("contact", preset, dtype=dtype)["dtype"]
         self.preset = preset
-        modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
+        #: what is modelled (:mod:`xtopo.contact.models`): the elastic half-space first
+        self.models = scene_models(modulus, hardness, modulus_units, models)
+        self.modulus, self.modulus_units = self.models[0].modulus, self.models[0].units  # E* and the pressures' units
+        self.hardness = next((m.hardness for m in self.models if isinstance(m, PlasticCap)), None)  # None: no cap
+        if periodic is not None:
+            periodic = Flag(error=ContactError).check(periodic, "periodic")
         try:
             floating = np.dtype(dtype) in (np.dtype("float32"), np.dtype("float64"))
         except TypeError:  # not a dtype at all ("foo", a list)
@@ -112,19 +108,10 @@ class Scene:
         if not floating:
             raise ContactError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
         self.dtype = np.dtype(dtype)
-        self.modulus = modulus
-        self.hardness = hardness
-        if modulus_units is not None and not (isinstance(modulus_units, str) and modulus_units.strip()):
-            raise ContactError(f"modulus_units must be a units label such as 'GPa' or 'E*', got {modulus_units!r}")
-        # a modulus given without units is a physical one in Pa (SI, as the lengths read from files); only
-        # the default modulus 1 makes pressures relative to E*
-        default_units = "E*" if modulus == 1.0 else "Pa"
-        self.modulus_units = modulus_units.strip() if modulus_units is not None else default_units
         self.length_units = shared_length_unit(h, "topography")
         self.dims = tuple(h.dims)
         self.shape = tuple(h.shape)
         self.spacing = tuple(spacing(h, d) for d in self.dims)
-        reasons = []
         per_attr = is_periodic(topography)
         source = f"from the data's periodic attribute ({int(per_attr)})"
         if counter is not None:
@@ -135,7 +122,6 @@ class Scene:
                       f"({int(per_counter)}): periodic only when both are")
             per_attr = per_attr and per_counter
             values = np.asarray(h.values, dtype=np.float64) + np.asarray(h2.values, dtype=np.float64)
-            reasons.append("compound topography h1 + h2 (counter surface given)")
         else:
             values = np.asarray(h.values, dtype=np.float64)
         if periodic is None:
@@ -144,7 +130,7 @@ class Scene:
         else:
             self.periodic = periodic
             self._boundary_reason = "as requested"
-        self._reasons = reasons
+        self._reasons = [] if counter is None else ["compound topography h1 + h2 (counter surface given)"]
         self.coords = {d: h.coords[d] for d in self.dims}
         #: what the results carry of the measurement: its file, checksum and processing history
         self.provenance = provenance_of(topography)
@@ -189,10 +175,7 @@ class Scene:
     def convolution(self):
         """The elastic operator ``u = G * p`` (built on first use)."""
         if self._conv is None:
-            from .._kernels.convolution import Convolution  # lazy: numba and scipy.fft (startup time)
-
-            self._conv = Convolution(self.shape, self.spacing, self.modulus, periodic=self.periodic,
-                                     dtype=self.dtype, backend=self.backend)
+            self._conv = self.models[0].operator(self)
         return self._conv
 
     def __getstate__(self):
@@ -204,23 +187,14 @@ class Scene:
         grid = "×".join(str(n) for n in self.shape)
         sp = "×".join(f"{d:g}" for d in self.spacing)
         kind = "line scan, plane strain" if self.line else "area scan"
-        if self.periodic:
-            green = (f"periodic Green's function 2/(E*|q|) (eq. 17) on the native {grid} grid, no padding")
-        else:
-            pgrid = "×".join(str(n) for n in self.fft_shape)
-            kernel = "plane-strain strip kernel" if self.line else "Love rectangle (eq. 19)"
-            green = f"free boundaries: {kernel} on a {pgrid} padded grid (Hockney), padding hidden"
-        plastic = (f"pressure capped at hardness {self.hardness:g} {self.modulus_units}" if self.hardness is not None
-                   else "elastic (no hardness given, no cap)")
-        lines = [
-            f"Scene({kind}, {grid} px of {sp} {self.length_units})",
-            f"  boundary: {'periodic' if self.periodic else 'free'} ({self._boundary_reason})",
-            f"  elasticity: {green}",
-            f"  material: E* = {self.modulus:g} {self.modulus_units}; {plastic}",
-            f"  solver: Polonsky–Keer CG, {self.dtype.name}, FFT backend {self.backend} "
-            f"({'requested' if self.backend_request != 'auto' else 'planned FFTW when installed'})"
-            + (f", preset {self.preset!r}" if self.preset is not None else ""),
-        ]
+        lines = [f"Scene({kind}, {grid} px of {sp} {self.length_units})",
+                 f"  boundary: {'periodic' if self.periodic else 'free'} ({self._boundary_reason})"]
+        lines += [f"  {m.describe(self)}" for m in self.models]
+        if len(self.models) == 1:
+            lines.append("  plasticity: none (no hardness given, no cap)")
+        lines.append(f"  solver: Polonsky–Keer CG, {self.dtype.name}, FFT backend {self.backend} "
+                     f"({'requested' if self.backend_request != 'auto' else 'planned FFTW when installed'})"
+                     + (f", preset {self.preset!r}" if self.preset is not None else ""))
         lines += [f"  {r}" for r in self._reasons]
         return "\n".join(lines)
 
@@ -228,16 +202,56 @@ class Scene:
     def solve(self, load=None, *, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
               initial=None, preset: str | None = None, callback=None) -> xr.Dataset:
         """Solve for one load, mean pressure or penetration; see :func:`xtopo.contact.solve.solve`."""
-        from .solve import solve
-
-        return solve(self, load=load, mean_pressure=mean_pressure, penetration=penetration, tol=tol,
-                     maxiter=maxiter, initial=initial, preset=preset, callback=callback)
+        return _solve(self, load=load, mean_pressure=mean_pressure, penetration=penetration, tol=tol,
+                      maxiter=maxiter, initial=initial, preset=preset, callback=callback)
 
     def curve(self, loads=None, *, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
               gap_bins: int = 50, preset: str | None = None) -> xr.Dataset:
         """Solve a sequence of loads (warm-started); see :func:`xtopo.contact.curves.curve`."""
-        from .curves import curve
+        return _curve(self, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations, tol=tol,
+                      maxiter=maxiter, gap_bins=gap_bins, preset=preset)
 
-        return curve(self, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations, tol=tol,
-                     maxiter=maxiter, gap_bins=gap_bins, preset=preset)
 
+def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
+            hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
+            tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
+    """Contact of ``topography`` on an elastic flat: a :class:`~xtopo.contact.Scene` solved in one call.
+
+    A scalar ``load``/``mean_pressure``/``penetration`` gives one solution
+    (:func:`~xtopo.contact.solve.solve`); a sequence gives a load curve
+    (:func:`~xtopo.contact.curves.curve`).
+
+    Parameters
+    ----------
+    topography : xarray.Dataset or xarray.DataArray
+        A measurement (uniform grid, no missing data), as in :class:`~xtopo.contact.Scene`.
+    load, mean_pressure, penetration : float or sequence of float
+        Exactly one: load in units of ``modulus`` × length² (area scans) or × length (line
+        scans: force per unit length), mean pressure in units of ``modulus``, penetration in the
+        measurement's length unit (see :func:`~xtopo.contact.solve.solve`).
+    modulus : float
+        Contact modulus ``E*`` (default 1: pressures and loads in units of ``E*``).
+    hardness : float, optional
+        Pressure cap, in units of ``modulus``; without it the contact is elastic.
+    periodic : bool, optional
+        Boundary condition (default: the measurement's ``periodic`` attribute).
+    counter : xarray.Dataset or xarray.DataArray, optional
+        A second rough surface on the same grid (compound topography ``h1 + h2``).
+    dtype : {"float64", "float32"}, optional
+        Floating point type of the solver (default from ``preset``: float64).
+    tol, maxiter : optional
+        Solver tolerance and iteration limit, as in :func:`~xtopo.contact.solve.solve`.
+    preset : {"fast", "default", "accurate"}, optional
+        Sets ``dtype``, ``tol`` and ``maxiter`` where they are not given (:mod:`xtopo.presets`).
+
+    Returns
+    -------
+    xarray.Dataset
+        As :func:`~xtopo.contact.solve.solve` (scalar control) or :func:`~xtopo.contact.curves.curve` (a sequence).
+    """
+    scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
+                  preset=preset)
+    key, value = given(ONE_CONTROL, load=load, mean_pressure=mean_pressure, penetration=penetration)
+    if np.ndim(value) == 0:
+        return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
+    return scene.curve(**{f"{key}s": value}, tol=tol, maxiter=maxiter)

@@ -7,11 +7,14 @@ import xarray as xr
 
 from .._apply import rescaled
 from .._checks import integer, positive_number
+from ..params import OneOf
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
 from ..presets import resolve as resolve_preset
 
-__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "control_value", "result_units", "run_solver"]
+__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "ONE_CONTROL", "ONE_SEQUENCE", "given",
+           "control_value",
+           "result_units", "run_solver"]
 
 #: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`): the knee of the
 #: error-vs-time curve (benchmarks/tradeoffs.py, docs/tradeoffs.md); it was 1e-6 for float64 before issue 9.
@@ -63,9 +66,27 @@ def result_units(scene) -> dict:
     return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2"}
 
 
-def control_value(name: str, v, hardness: float | None = None, *, label: str | None = None) -> float:
-    """One ``load``/``mean_pressure``/``penetration`` value checked without a scene (a finite real
-    scalar, ≥ 0 unless a penetration; a mean pressure below ``hardness``); returns it as a float.
+#: The rule of every contact entry point, declared once: exactly one control, a value (``solve``,
+#: ``contact``) or a sequence of values (``curve``, :func:`xtopo.batch.contact`).
+ONE_CONTROL = OneOf("load", "mean_pressure", "penetration", error=ContactError)
+ONE_SEQUENCE = OneOf("loads", "mean_pressures", "penetrations", error=ContactError)
+
+
+def given(rule: OneOf, **controls) -> tuple[str, object]:
+    """``(name, value)`` of the one control given, by ``rule`` (:data:`ONE_CONTROL` or :data:`ONE_SEQUENCE`).
+
+    Called in the body, not declared with ``@checked``: the controls' own checks carry the models' advice
+    (:func:`control_value`), which no generic kind of :mod:`xtopo.params` gives.
+    """
+    rule.check(controls)
+    return next((k, v) for k, v in controls.items() if v is not None)
+
+
+def control_value(name: str, v, models=(), *, label: str | None = None, scene=None) -> float:
+    """One ``load``/``mean_pressure``/``penetration`` value checked, returned as a float: a finite real
+    scalar, ≥ 0 unless a penetration, and one that each of ``models`` (:mod:`xtopo.contact.models`) can
+    reach — on the grid of ``scene`` where one is given, else as far as it is known without it (a mean
+    pressure below the hardness).
 
     ``label``: what the messages call the value (default ``name``), e.g. the command-line option
     that gave it (``"--loads value"``).
@@ -78,34 +99,18 @@ def control_value(name: str, v, hardness: float | None = None, *, label: str | N
         raise ContactError(f"{label} must be a finite scalar, got {v!r}{hint}")
     if name != "penetration" and float(v) < 0:
         raise ContactError(f"{label} must be ≥ 0 (adhesion is not modelled), got {v}")
-    if name == "mean_pressure" and hardness is not None and float(v) >= hardness:
-        raise ContactError(f"{label} {float(v):g} reaches the hardness ({hardness:g}): the whole surface "
-                           "would flow; lower the mean pressure or raise the hardness")
+    for model in models:
+        model.check_control(name, float(v), label, scene)
     return float(v)
 
 
-def _control(scene, load, mean_pressure, penetration):
-    given = [v is not None for v in (load, mean_pressure, penetration)]
-    if sum(given) != 1:
-        raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
-    for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
-        if v is not None:
-            control_value(name, v, scene.hardness)  # a mean pressure is compared with the hardness itself
-    if penetration is not None and scene.periodic and scene.hardness is None:
-        # 0.0 - : a flat surface's is 0, not -0; scene.w is in units of 2**height_exponent
-        limit = 0.0 - float(np.ldexp(np.mean(scene.w, dtype=np.float64), scene.height_exponent))
-        if float(penetration) >= limit:
-            raise ContactError(
-                f"penetration {float(penetration):g} reaches the mean plane of the periodic surface (its highest "
-                f"point is {limit:g} above the mean): a periodic elastic solid is pushed there only by an "
-                "infinite pressure; prescribe load= or mean_pressure= instead")
-    if mean_pressure is not None:
-        load = float(mean_pressure) * scene.nominal_area
-    if scene.hardness is not None and load is not None and float(load) >= scene.hardness * scene.nominal_area:
-        raise ContactError(f"load {float(load):g} exceeds hardness × nominal area "
-                           f"({scene.hardness * scene.nominal_area:g}): the whole surface would flow; lower the load "
-                           "or raise the hardness")
-    return (None if load is None else float(load)), (None if penetration is None else float(penetration))
+def _control(scene, load=None, mean_pressure=None, penetration=None):
+    """``(load, penetration)`` of a solve of ``scene`` (one of them None), checked."""
+    name, value = given(ONE_CONTROL, load=load, mean_pressure=mean_pressure, penetration=penetration)
+    value = control_value(name, value, scene.models, scene=scene)
+    if name == "penetration":
+        return None, value
+    return (value * scene.nominal_area if name == "mean_pressure" else value), None
 
 
 def _initial(scene, initial):
@@ -182,40 +187,20 @@ def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, m
 
 
 def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None):
-    """Polonsky–Keer on ``scene`` (returns a :class:`~xtopo._kernels.pk_solver.PKResult`).
+    """Polonsky–Keer on ``scene``, its models composed (returns a :class:`~xtopo._kernels.pk_solver.PKResult`)."""
+    from .._kernels.pk_solver import polonsky_keer  # deferred on purpose: numba (startup time, issue 26)
 
-    With a hardness under load control the elastic problem is solved first: where its
-    pressures stay below the hardness it is also the solution of the capped problem
-    (the cap is inactive), and the capped solver is not needed; otherwise the capped solver
-    gets the iterations the elastic solve left of ``maxiter``.
-    """
-    from .._kernels.pk_solver import COUNTERS, polonsky_keer  # lazy: numba (startup time, issue 26)
-
-    e = scene.height_exponent  # scene.w is in units of 2**e: so are the controls given to the solver
+    e = scene.height_exponent  # scene.w is in units of 2**e: so are the controls and pressures given to the solver
 
     def down(v):
         return None if v is None else np.ldexp(np.asarray(v, dtype=np.float64), -e)
 
-    load, penetration, hardness = (float(down(v)) if v is not None else None
-                                   for v in (load, penetration, scene.hardness))
-    kw = dict(pixel_area=scene.pixel_area, tol=tol, maxiter=int(maxiter), initial=down(initial))
-    elastic = None
-    res = None
-    if hardness is not None and load is not None and load > 0:
-        elastic = polonsky_keer(scene.convolution, scene.w, load=load, callback=callback, **kw)
-        if elastic.converged and float(np.max(elastic.pressure)) < hardness:
-            res, elastic = elastic, None
-        else:
-            kw["maxiter"] = max(int(maxiter) - elastic.iterations, 0)
-            if initial is None and np.any(elastic.pressure):
-                kw["initial"] = elastic.pressure  # its penetration is a lower bound of the capped one's
-    if res is None:
-        if hardness is None or load is None:
-            kw["callback"] = callback
-        res = polonsky_keer(scene.convolution, scene.w, load=load, penetration=penetration, hardness=hardness, **kw)
-    if elastic is not None:
-        for key in COUNTERS:
-            res[key] += elastic[key]
+    kw = {}
+    for model in scene.models:
+        kw.update(model.kernel_arguments(scene, -e))
+    load, penetration = (None if v is None else float(down(v)) for v in (load, penetration))
+    res = polonsky_keer(w=scene.w, load=load, penetration=penetration, pixel_area=scene.pixel_area, tol=tol,
+                        maxiter=int(maxiter), initial=down(initial), callback=callback, **kw)
     if e:  # pressures, displacements and gaps are linear in the heights (E* fixed)
         for key in ("pressure", "displacement", "gap"):
             res[key] = rescaled(res[key], e, 1, "contact")
@@ -251,18 +236,16 @@ def to_dataset(scene, res, tol) -> xr.Dataset:
                                         "peak-to-valley height"}),
         "converged": ((), res.converged, {"units": "1", "long_name": "solver reached tol"}),
     }
-    if scene.hardness is not None:
-        plastic = res.plastic if res.plastic is not None else np.zeros(scene.shape, bool)  # elastic: the cap idle
-        data["plastic"] = (dims, plastic, {"units": "1", "long_name": "pressure at the hardness (flowing)"})
+    for model in scene.models:
+        data.update(model.outputs(scene, res))
     ds = xr.Dataset(data, coords=scene.coords)
-    ds.attrs = {
-        "modulus": scene.modulus, "modulus_units": scene.modulus_units, "periodic": int(scene.periodic),
-        "boundary": "periodic" if scene.periodic else "free", "solver": "Polonsky-Keer constrained CG",
-        "tolerance": tol, "dtype": scene.dtype.name, "convolutions": int(res.convolutions),
-        "exact_convolutions": int(res.exact_convolutions),
-    }
-    if scene.hardness is not None:
-        ds.attrs["hardness"] = scene.hardness
+    ds.attrs = {k: v for model in scene.models for k, v in model.attrs.items()}
+    ds.attrs.update({
+        "periodic": int(scene.periodic), "boundary": "periodic" if scene.periodic else "free",
+        "solver": "Polonsky-Keer constrained CG", "tolerance": tol, "dtype": scene.dtype.name,
+        "convolutions": int(res.convolutions), "exact_convolutions": int(res.exact_convolutions),
+    })
     ds.attrs.update(scene.provenance)  # the measurement's file, checksum and history
+    models = ", ".join(m.label for m in scene.models)
     return append_history(ds, f"xtopo.contact.solve(load={res.load:.6g}, boundary="
-                              f"{'periodic' if scene.periodic else 'free'}, hardness={scene.hardness})")
+                              f"{'periodic' if scene.periodic else 'free'}, {models})")
