@@ -41,8 +41,10 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     c_low[contact] = np.inf
     shift = 1.5e-4
     where, gaps = np.empty(n, np.intp), np.empty(n)
+    clear = np.full(inc.size, 7.0, np.float32)   # the direction's buffer: cleared on the active grid
+    none = np.empty(0, np.float32)
 
-    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps)
+    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear)
 
     free = c_low != np.inf
     if fresh:
@@ -55,9 +57,11 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     np.testing.assert_array_equal(where[:k], expect)
     np.testing.assert_allclose(gaps[:k], expect_gaps, rtol=1e-12, atol=0)
     assert low == pytest.approx(expect_gaps.min(), rel=1e-12)
+    clear = clear.reshape(rows, nx + pad)
+    assert not clear[:, :nx].any() and (clear[:, nx:] == 7).all()   # the padding is left alone
     # a shorter output pair receives the first overlaps and the count of all (the caller grows it)
     short, short_gaps = np.empty(7, np.int32), np.empty(7)
-    assert compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, short, short_gaps) == (k, low)
+    assert compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, short, short_gaps, none) == (k, low)
     np.testing.assert_array_equal(short, expect[:7])
     np.testing.assert_allclose(short_gaps, expect_gaps[:7], rtol=1e-12, atol=0)
 
@@ -76,6 +80,25 @@ def test_gather_gaps_matches_numpy(shape, row, fresh):
 
 
 @pytest.mark.parametrize("shape,row", LAYOUTS)
+@pytest.mark.parametrize("fresh", [False, True])
+@pytest.mark.parametrize("load_control", [False, True])
+def test_contact_gaps_gather_and_center(shape, row, fresh, load_control):
+    """Compact reference gaps plus the increment, shifted by δ - δ_ref (δ the mean under load control)."""
+    rng, (nx, pad, rows), n, inc_active, inc = _increment(shape, row, 4, 1.0)
+    idx = rng.permutation(n)[: n // 4]
+    c = rng.standard_normal(idx.size)
+    out = np.empty(idx.size)
+    delta, shift, big, ss = compiled.contact_gaps(c, inc, idx, nx, pad, fresh, out, load_control, 0.7, 0.5)
+    d = c if fresh else c + inc_active[idx]
+    expect_delta = 0.5 + d.sum() / d.size if load_control else 0.7
+    assert delta == pytest.approx(expect_delta, rel=1e-12)
+    assert shift == delta - 0.5
+    np.testing.assert_allclose(out, d - shift, rtol=1e-12, atol=1e-15)
+    assert big == pytest.approx(np.abs(d - shift).max(), rel=1e-12)
+    assert ss == pytest.approx(np.sum((d - shift) ** 2), rel=1e-9)
+
+
+@pytest.mark.parametrize("shape,row", LAYOUTS)
 def test_writes_land_in_the_active_part(shape, row):
     rng = np.random.default_rng(5)
     nx, pad, rows = _layout(shape, row)
@@ -85,7 +108,7 @@ def test_writes_land_in_the_active_part(shape, row):
     idx = rng.permutation(n)[: n // 3]
     p = rng.random(idx.size)
     p0 = p.copy()
-    compiled.write_increment(p, idx, p_ref, 2.0, nx, pad, buf)
+    compiled.write_increment(p, idx, p_ref[idx], 2.0, nx, pad, buf)   # the reference pressures per point
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
     rest = np.setdiff1d(np.arange(n), idx)
     others, scattered, filled = rest[:50], rest[50:60], rest[60:70]
@@ -114,23 +137,57 @@ def test_split_sets(hardness):
 @pytest.mark.parametrize("hardness", [None, 0.8])
 def test_step_project_compacts_in_order(hardness):
     rng = np.random.default_rng(6)
-    idx = rng.permutation(5000)[:1000]
+    nx, pad = 100, 28
+    idx = rng.permutation(5000)[:1000].astype(np.int32)
     p = rng.random(1000)
     t = rng.standard_normal(1000)
+    c = rng.standard_normal(1000)      # reference gaps and pressures, one per point
+    r = rng.random(1000)
     tau = 0.3
     new = p - tau * t
     keep = (new > 0) & (new < hardness if hardness is not None else True)
     H = np.inf if hardness is None else hardness
-    i0, t0 = idx.copy(), t.copy()
-    m, gone, capped = compiled.step_project(idx, p, t, tau, H, hardness is not None)
+    i0, t0, c0, r0 = idx.copy(), t.copy(), c.copy(), r.copy()
+    c_low = np.full(5000, np.inf)
+    buf = np.full(5000 // nx * (nx + pad), 9.0, np.float32)
+    m, gone, capped = compiled.step_project(idx, p, t, c, r, 1000, tau, H, hardness is not None, c_low, buf, nx, pad)
     assert m == keep.sum() and 0 < m < 1000
     np.testing.assert_array_equal(idx[:m], i0[keep])
     np.testing.assert_allclose(p[:m], new[keep])
     np.testing.assert_array_equal(t[:m], t0[keep])
+    np.testing.assert_array_equal(c[:m], c0[keep])
+    np.testing.assert_array_equal(r[:m], r0[keep])
     np.testing.assert_array_equal(gone, i0[~keep])
     expect_capped = new[~keep] >= hardness if hardness is not None else np.zeros(0, bool)
     np.testing.assert_array_equal(capped, expect_capped)
     assert capped.any() == (hardness is not None)
+    # the points that left: their new pressure (0 or H) over the reference in the increment's buffer, and
+    # the freed ones back in the overlap test with their reference gap
+    at_cap = np.zeros(gone.size, bool) if hardness is None else expect_capped
+    slot = gone + (gone // nx) * pad
+    np.testing.assert_allclose(buf[slot], np.where(at_cap, H, 0.0) - r0[~keep], rtol=1e-6)
+    assert np.count_nonzero(buf != 9) == gone.size
+    np.testing.assert_array_equal(c_low[gone[~at_cap]], c0[~keep][~at_cap])
+    assert np.isinf(c_low[gone[at_cap]]).all() and np.count_nonzero(np.isfinite(c_low)) == (~at_cap).sum()
+
+
+def test_join_appends_with_reference_values():
+    rng = np.random.default_rng(9)
+    n, room = 30, 50
+    idx, p, t, c, r = (np.zeros(room, np.int32), *(rng.random(room) for _ in range(4)))
+    before = [a[:n].copy() for a in (idx, p, t, c, r)]
+    c_full, p_ref, c_low = rng.random(400), rng.random(400), rng.random(400)
+    where = np.array([5, 77, 301], np.int32)
+    m = compiled.join(idx, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), c_full, p_ref, c_low)
+    assert m == n + 3
+    for a, b in zip((idx, p, t, c, r), before):
+        np.testing.assert_array_equal(a[:n], b)                  # the set so far is left alone
+    np.testing.assert_array_equal(idx[n:m], where)
+    np.testing.assert_array_equal(p[n:m], [1.0, 2.0, 3.0])
+    assert not t[n:m].any()                                      # their direction starts at 0
+    np.testing.assert_array_equal(c[n:m], c_full[where])
+    np.testing.assert_array_equal(r[n:m], p_ref[where])
+    assert np.isinf(c_low[where]).all() and np.isfinite(np.delete(c_low, where)).all()
 
 
 @pytest.mark.parametrize("zero_sum", [False, True])

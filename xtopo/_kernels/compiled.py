@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["slots", "scatter", "gather_gaps", "center", "scan_overlaps", "set_direction", "energy", "scale_spectrum",
-           "split_sets", "step_project", "write_increment", "write_values"]
+__all__ = ["slots", "scatter", "gather_gaps", "center", "contact_gaps", "scan_overlaps", "set_direction", "energy",
+           "scale_spectrum", "split_sets", "step_project", "join", "write_increment", "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -91,6 +91,40 @@ def center(d, shift):
     return big, ss
 
 
+@njit(**_FAST)
+def _gather_compact(c, inc, idx, nx, pad, fresh, out):
+    """``out = c (+ inc[slot(idx)])`` with ``c`` given per point of ``idx``; returns the sum."""
+    s = 0.0
+    for j in range(idx.size):
+        d = c[j]
+        if not fresh:
+            d += inc[_slot(idx[j], nx, pad)]
+        out[j] = d
+        s += d
+    return s
+
+
+@njit(nogil=True, cache=True)
+def contact_gaps(c, inc, idx, nx, pad, fresh, out, load_control, delta, delta_ref):
+    """The gaps of the contact set, centred: :func:`gather_gaps` and :func:`center` in one call.
+
+    ``c`` is ``u_ref - w - δ_ref`` at the points ``idx`` (compact: one value per point), ``inc``
+    the float32 increment buffer (ignored when ``fresh``). Under ``load_control`` the penetration
+    becomes ``δ = δ_ref + mean(out)`` (the mean over the set); the gaps are then shifted by
+    ``δ - δ_ref`` (rounded to ``out``'s precision). Returns ``(δ, shift, max |g|, Σ g²)``.
+    The scalar arithmetic is exact IEEE (only the loops may be reordered).
+    """
+    total = _gather_compact(c, inc, idx, nx, pad, fresh, out)
+    n = idx.size
+    if load_control and n:
+        delta = delta_ref + total / n
+    rounded = np.empty(1, out.dtype)
+    rounded[0] = delta - delta_ref
+    shift = rounded[0]
+    big, ss = center(out, shift)
+    return delta, shift, big, ss
+
+
 _BLOCK = 256  # the overlap scan's block: overlaps are few, so most blocks are passed on a count alone
 
 
@@ -108,7 +142,7 @@ def _block_hits(c, c_low, inc, fresh, level, level_low):
 
 
 @njit(nogil=True, cache=True)
-def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps):
+def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear):
     """Free points that overlap: ``u - w - δ_ref < shift`` (a negative gap); returns their count and the lowest gap.
 
     Points with ``c_low = +inf`` (the contact and plastic sets) are skipped. After a refresh
@@ -119,6 +153,10 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps):
     vectorised count. ``where``/``gaps`` may be shorter than the grid (overlaps are few): only
     the first ``len(where)`` are written, and a count above it asks the caller for a longer
     pair and another scan.
+
+    ``clear`` (a buffer of ``inc``'s layout, or empty) is set to zero on the active grid as the scan
+    passes: the search direction's buffer, which shares its memory with ``inc`` (each block is
+    cleared after it is read), so that the direction need not be zero-filled in a pass of its own.
     """
     cap = where.size
     rounded = np.empty(1, c_low.dtype)
@@ -134,26 +172,27 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps):
             cs = c[a0 + lo:a0 + hi]
             cls = c_low[a0 + lo:a0 + hi]
             incs = inc[:0] if fresh else inc[b0 + lo:b0 + hi]
-            if not _block_hits(cs, cls, incs, fresh, shift, level_low):
-                continue
-            for j in range(hi - lo):
-                cl = cls[j]
-                if cl == np.inf:
-                    continue
-                if fresh:
-                    if not cs[j] < shift:
+            if _block_hits(cs, cls, incs, fresh, shift, level_low):
+                for j in range(hi - lo):
+                    cl = cls[j]
+                    if cl == np.inf:
                         continue
-                    g = cs[j] - shift
-                else:
-                    v = incs[j]
-                    if not cl + v < level_low:
-                        continue
-                    g = (cs[j] + v) - shift
-                if k < cap:
-                    where[k] = a0 + lo + j
-                    gaps[k] = g
-                low = min(low, g)
-                k += 1
+                    if fresh:
+                        if not cs[j] < shift:
+                            continue
+                        g = cs[j] - shift
+                    else:
+                        v = incs[j]
+                        if not cl + v < level_low:
+                            continue
+                        g = (cs[j] + v) - shift
+                    if k < cap:
+                        where[k] = a0 + lo + j
+                        gaps[k] = g
+                    low = min(low, g)
+                    k += 1
+            if clear.size:
+                clear[b0 + lo:b0 + hi] = 0
     return k, low
 
 
@@ -267,14 +306,17 @@ def split_sets(p, hardness):
 
 
 @njit(nogil=True, cache=True)
-def step_project(idx, p, t, tau, hardness, capped_flag):
-    """``p ← p - τ t`` and the projection onto ``0 < p < H``, compacting the set in place.
+def step_project(idx, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, nx, pad):
+    """``p ← p - τ t`` and the projection onto ``0 < p < H`` of the first ``n`` points, compacting the set in place.
 
-    The points that stay are moved to the front of ``idx``, ``p`` and ``t`` (order kept).
-    Returns ``(count, gone, capped)``: how many stay, the flat indices of those that left and
-    flags of the latter that left at the cap (``p ≥ H``; empty unless ``capped_flag``).
+    The points that stay are moved to the front of ``idx``, ``p``, ``t``, ``c`` and ``r`` (order
+    kept; ``c`` and ``r`` are the points' reference gaps and pressures). A point that leaves
+    gets its new pressure (0, or ``H`` at the cap) minus its reference pressure written into the
+    increment buffer ``buf``, and a freed one (``p ≤ 0``) its reference gap ``c`` back in
+    ``c_low`` (the overlap test). Returns ``(count, gone, capped)``: how many stay, the flat
+    indices of those that left and flags of the latter that left at the cap (``p ≥ H``; empty
+    unless ``capped_flag``).
     """
-    n = idx.size
     m = 0
     for j in range(n):
         v = p[j] - tau * t[j]
@@ -292,25 +334,53 @@ def step_project(idx, p, t, tau, hardness, capped_flag):
             idx[a] = idx[j]
             p[a] = v
             t[a] = t[j]
+            c[a] = c[j]
+            r[a] = r[j]
             a += 1
         else:
-            gone[b] = idx[j]
+            i = idx[j]
+            gone[b] = i
+            full = capped_flag and v >= hardness
             if capped_flag:
-                capped[b] = v >= hardness
+                capped[b] = full
+            if full:
+                buf[_slot(i, nx, pad)] = hardness - r[j]
+            else:
+                buf[_slot(i, nx, pad)] = 0 - r[j]
+                c_low[_at(i)] = c[j]
             b += 1
     return m, gone, capped
 
 
+@njit(nogil=True, cache=True)
+def join(idx, p, t, c, r, n, where, values, c_full, p_ref, c_low):
+    """Append the points ``where`` with pressures ``values`` after the first ``n`` of the set.
+
+    Their direction starts at 0, their reference gap and pressure are read from the grids
+    ``c_full`` and ``p_ref``, and they leave the overlap test (``c_low = +inf``). The arrays must
+    have room for them. Returns the new count.
+    """
+    for j in range(where.size):
+        i = where[j]
+        idx[n + j] = i
+        p[n + j] = values[j]
+        t[n + j] = 0
+        c[n + j] = c_full[_at(i)]
+        r[n + j] = p_ref[_at(i)]
+        c_low[_at(i)] = np.inf
+    return n + where.size
+
+
 @njit(**_FAST)
-def write_increment(p, idx, p_ref, scale, nx, pad, buf):
-    """``p *= scale`` (unless ``scale`` is 1), then ``buf[slot(idx)] = p - p_ref[idx]`` (the increment)."""
+def write_increment(p, idx, r, scale, nx, pad, buf):
+    """``p *= scale`` (unless ``scale`` is 1), then ``buf[slot(idx)] = p - r`` (the increment over the
+    reference pressures ``r``, one per point)."""
     for j in range(idx.size):
         v = p[j]
         if scale != 1:
             v = v * scale
             p[j] = v
-        i = idx[j]
-        buf[_slot(i, nx, pad)] = v - p_ref[_at(i)]
+        buf[_slot(idx[j], nx, pad)] = v - r[j]
 
 
 @njit(nogil=True, cache=True)
