@@ -88,7 +88,8 @@ def test_contact_gaps_gather_and_center(shape, row, fresh, load_control):
     idx = rng.permutation(n)[: n // 4]
     c = rng.standard_normal(idx.size)
     out = np.empty(idx.size)
-    delta, shift, big, ss = compiled.contact_gaps(c, inc, idx, nx, pad, fresh, out, load_control, 0.7, 0.5)
+    slots = compiled.slots(idx, nx, pad).astype(np.int32)
+    delta, shift, big, ss = compiled.contact_gaps(c, inc, slots, fresh, out, load_control, 0.7, 0.5)
     d = c if fresh else c + inc_active[idx]
     expect_delta = 0.5 + d.sum() / d.size if load_control else 0.7
     assert delta == pytest.approx(expect_delta, rel=1e-12)
@@ -108,7 +109,7 @@ def test_writes_land_in_the_active_part(shape, row):
     idx = rng.permutation(n)[: n // 3]
     p = rng.random(idx.size)
     p0 = p.copy()
-    compiled.write_increment(p, idx, p_ref[idx], 2.0, nx, pad, buf)   # the reference pressures per point
+    compiled.write_increment(p, compiled.slots(idx, nx, pad), p_ref[idx], 2.0, buf)   # reference pressures per point
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
     rest = np.setdiff1d(np.arange(n), idx)
     others, scattered, filled = rest[:50], rest[50:60], rest[60:70]
@@ -150,9 +151,11 @@ def test_step_project_compacts_in_order(hardness):
     i0, t0, c0, r0 = idx.copy(), t.copy(), c.copy(), r.copy()
     c_low = np.full(5000, np.inf)
     buf = np.full(5000 // nx * (nx + pad), 9.0, np.float32)
-    m, gone, capped = compiled.step_project(idx, p, t, c, r, 1000, tau, H, hardness is not None, c_low, buf, nx, pad)
+    slots = compiled.slots(idx, nx, pad)
+    s0 = slots.copy()
+    m, gone, capped = compiled.step_project(slots, p, t, c, r, 1000, tau, H, hardness is not None, c_low, buf, nx, pad)
     assert m == keep.sum() and 0 < m < 1000
-    np.testing.assert_array_equal(idx[:m], i0[keep])
+    np.testing.assert_array_equal(slots[:m], s0[keep])
     np.testing.assert_allclose(p[:m], new[keep])
     np.testing.assert_array_equal(t[:m], t0[keep])
     np.testing.assert_array_equal(c[:m], c0[keep])
@@ -173,16 +176,17 @@ def test_step_project_compacts_in_order(hardness):
 
 def test_join_appends_with_reference_values():
     rng = np.random.default_rng(9)
-    n, room = 30, 50
-    idx, p, t, c, r = (np.zeros(room, np.int32), *(rng.random(room) for _ in range(4)))
-    before = [a[:n].copy() for a in (idx, p, t, c, r)]
+    n, room, nx, pad = 30, 50, 20, 22
+    slots, p, t, c, r = (np.zeros(room, np.int32), *(rng.random(room) for _ in range(4)))
+    before = [a[:n].copy() for a in (slots, p, t, c, r)]
     c_full, p_ref, c_low = rng.random(400), rng.random(400), rng.random(400)
     where = np.array([5, 77, 301], np.int32)
-    m = compiled.join(idx, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), c_full, p_ref, c_low)
+    m = compiled.join(slots, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), c_full, p_ref, c_low, nx, pad)
     assert m == n + 3
-    for a, b in zip((idx, p, t, c, r), before):
+    for a, b in zip((slots, p, t, c, r), before):
         np.testing.assert_array_equal(a[:n], b)                  # the set so far is left alone
-    np.testing.assert_array_equal(idx[n:m], where)
+    np.testing.assert_array_equal(slots[n:m], where + (where // nx) * pad)
+    np.testing.assert_array_equal(compiled.flat_indices(slots[n:m], nx, pad), where)
     np.testing.assert_array_equal(p[n:m], [1.0, 2.0, 3.0])
     assert not t[n:m].any()                                      # their direction starts at 0
     np.testing.assert_array_equal(c[n:m], c_full[where])
@@ -195,22 +199,21 @@ def test_set_direction_conjugates_and_restarts(zero_sum):
     rng = np.random.default_rng(7)
     n, nx, pad = 400, 40, 40
     idx = rng.permutation(n)[:120]
+    slots = compiled.slots(idx, nx, pad)
     g = rng.standard_normal(120)
     t = rng.standard_normal(120)
     buf = np.ones(n // nx * (nx + pad), np.float32)
-    gone = np.setdiff1d(np.arange(n), idx)[:10]
     expect = 0.5 * t + g
     if zero_sum:
         expect -= expect.mean()
-    slope = compiled.set_direction(t, g, 0.5, zero_sum, idx, gone, nx, pad, buf)
+    slope = compiled.set_direction(t, g, 0.5, zero_sum, slots, buf)
     np.testing.assert_allclose(t, expect, rtol=1e-12)
     assert slope == pytest.approx(g @ expect)
-    slot = lambda i: i + (i // nx) * pad  # noqa: E731
-    np.testing.assert_allclose(buf[slot(idx)], expect.astype(np.float32))
-    assert not buf[slot(gone)].any()
+    np.testing.assert_allclose(buf[slots], expect.astype(np.float32))
+    assert np.count_nonzero(buf != 1) == 120                   # written on the set only
     # a direction that is not downhill restarts from g
     t = -100 * g
-    slope = compiled.set_direction(t, g, 1.0, False, idx, gone, nx, pad, buf)
+    slope = compiled.set_direction(t, g, 1.0, False, slots, buf)
     np.testing.assert_allclose(t, g)
     assert slope == pytest.approx(g @ g)
 

@@ -106,19 +106,21 @@ def _dot(a, b) -> float:
 class _ContactSet:
     """The CG set ``I = {0 < p < H}``, compact: the first :attr:`n` entries of arrays with room to grow.
 
-    Per point: the flat index ``idx``, the pressure ``p``, the search direction ``t``, the gaps of the
-    current evaluation ``g``, and the reference gap ``c`` and pressure ``r`` (``c = u_ref - w - δ_ref``
-    and ``p_ref`` at the point, constant between refreshes). Keeping ``c`` and ``r`` with the point lets
+    Per point: its position ``s`` in the transform buffers (:func:`compiled.slots`; the flat index
+    follows by :meth:`flat`), the pressure ``p``, the search direction ``t``, the gaps of the current
+    evaluation ``g``, and the reference gap ``c`` and pressure ``r`` (``c = u_ref - w - δ_ref`` and
+    ``p_ref`` at the point, constant between refreshes). Keeping ``c`` and ``r`` with the point lets
     the iteration's passes read compact arrays instead of gathering from grid-sized ones; the set is
     compacted in place (:func:`compiled.step_project`) and joined points are appended
     (:func:`compiled.join`), so no array of the set is allocated per iteration.
     """
 
-    def __init__(self, idx, p):
+    def __init__(self, idx, p, layout, buffer_size):
         self.n = n = idx.size
+        self.layout = layout
         room = max(64, n + n // 4)
-        self.idx = np.empty(room, np.int32)
-        self.idx[:n] = idx
+        self.s = np.empty(room, np.int32 if buffer_size < 2**31 else np.int64)
+        self.s[:n] = compiled.slots(idx, *layout)
         self.p = np.empty(room, p.dtype)
         self.p[:n] = p
         self.t = np.zeros(room, p.dtype)        # the first direction is the gradient (β = 0)
@@ -132,15 +134,19 @@ class _ContactSet:
         if need <= self.idx.size:
             return
         room = need + need // 4
-        for name in ("idx", "p", "t", "g", "c", "r"):
+        for name in ("s", "p", "t", "g", "c", "r"):
             old = getattr(self, name)
             new = np.empty(room, old.dtype)
             new[:self.n] = old[:self.n]
             setattr(self, name, new)
 
+    def flat(self):
+        """The flat indices of the set's points (a new int32 array)."""
+        return compiled.flat_indices(self.s_, *self.layout)
 
-# ``cg.idx_``, ``cg.p_``, …: the first ``cg.n`` entries of ``cg.idx``, ``cg.p``, …
-for _name in ("idx", "p", "t", "g", "c", "r"):
+
+# ``cg.s_``, ``cg.p_``, …: the first ``cg.n`` entries of ``cg.s``, ``cg.p``, …
+for _name in ("s", "p", "t", "g", "c", "r"):
     setattr(_ContactSet, _name + "_", property(lambda self, _name=_name: getattr(self, _name)[:self.n]))
 del _name
 
@@ -192,7 +198,7 @@ class _Displacements:
     def refresh(self, cg, pl, H, delta):
         """Make the current pressures (the set ``cg`` and the plastic points ``pl`` at ``H``) the reference:
         one convolution in the working precision."""
-        idx, pI = cg.idx_, cg.p_
+        idx, pI = cg.flat(), cg.p_
         flat = self.conv.input_flat
         flat.fill(0)
         nx, pad = self.conv.buffer_layout
@@ -244,7 +250,7 @@ class _Displacements:
         for where, value in changed:
             if where.size:
                 compiled.write_values(where, float(value), self.p_ref, nx, pad, flat)
-        compiled.write_increment(cg.p_, cg.idx_, cg.r_, cg.p.dtype.type(scale), nx, pad, flat)
+        compiled.write_increment(cg.p_, cg.s_, cg.r_, cg.p.dtype.type(scale), flat)
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         self.low.inverse(self.low.forward())
@@ -252,8 +258,8 @@ class _Displacements:
 
     def contact_gaps(self, cg, load_control, delta):
         """The gaps of the set ``cg`` into ``cg.g`` (:func:`compiled.contact_gaps`): ``(δ, shift, max |g|, Σ g²)``."""
-        return compiled.contact_gaps(cg.c_, self._increment(), cg.idx_, self.nx, self.pad, self.fresh, cg.g_,
-                                     load_control, delta, self.delta_ref)
+        return compiled.contact_gaps(cg.c_, self._increment(), cg.s_, self.fresh, cg.g_, load_control, delta,
+                                     self.delta_ref)
 
     def at(self, where):
         """``u - w - δ_ref`` at flat indices (working precision) and their sum."""
@@ -279,8 +285,7 @@ class _Displacements:
         """Make ``cg.t`` the conjugate direction (:func:`compiled.set_direction`), write it into the
         direction operator (zero elsewhere: :meth:`overlaps` cleared it) and return ``(slope, energy)``:
         ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
-        slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.idx_, _NONE, self.nx, self.pad,
-                                       self.direction.input_flat)
+        slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.s_, self.direction.input_flat)
         if not slope > 0:
             return slope, 0.0
         self.counts["fft"] += 1
@@ -290,7 +295,7 @@ class _Displacements:
         """``p ← p - τ t`` on the set and its projection (:func:`compiled.step_project`): the points that
         left get their pressure written into the increment's input and the freed ones rejoin the overlap
         test. Returns ``(gone, capped)``."""
-        m, gone, capped = compiled.step_project(cg.idx, cg.p, cg.t, cg.c, cg.r, cg.n, tau,
+        m, gone, capped = compiled.step_project(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau,
                                                 H if H is not None else np.inf, H is not None, self.c_low,
                                                 self.low.input_flat, self.nx, self.pad)
         cg.n = m
@@ -299,7 +304,8 @@ class _Displacements:
     def join(self, cg, where, values):
         """Append the points ``where`` at pressures ``values`` to the set (:func:`compiled.join`)."""
         cg.reserve(where.size)
-        cg.n = compiled.join(cg.idx, cg.p, cg.t, cg.c, cg.r, cg.n, where, values, self.c, self.p_ref, self.c_low)
+        cg.n = compiled.join(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, where, values, self.c, self.p_ref, self.c_low,
+                             self.nx, self.pad)
 
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
@@ -429,9 +435,9 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
     p0 = p0.reshape(-1)
     idx, pl = compiled.split_sets(p0, np.inf if H is None else H)
-    cg = _ContactSet(idx, p0[idx])
-    del p0, idx
     disp = _Displacements(conv, w, counts)
+    cg = _ContactSet(idx, p0[idx], (disp.nx, disp.pad), disp.low.input_flat.size)
+    del p0, idx
 
     # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
     # the step of joining points when no CG step exists (e.g. fully plastic)
@@ -540,7 +546,7 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     if not disp.fresh:  # the returned displacements are exact convolutions of the pressures
         disp.refresh(cg, pl, H, delta)
     if load_control and cg.n:
-        delta = disp.delta_ref + disp.at(cg.idx_)[1] / cg.n
+        delta = disp.delta_ref + disp.at(cg.flat())[1] / cg.n
     p, u, g = disp.take_result(delta)   # the reference pressures are the iterate's (fresh)
     return result(p.reshape(shape), u.reshape(shape), g.reshape(shape), delta, it, residual, converged)
 
