@@ -131,7 +131,7 @@ class _ContactSet:
     def reserve(self, k):
         """Room for ``k`` more points (the arrays are grown by a quarter more than needed)."""
         need = self.n + k
-        if need <= self.idx.size:
+        if need <= self.s.size:
             return
         room = need + need // 4
         for name in ("s", "p", "t", "g", "c", "r"):
