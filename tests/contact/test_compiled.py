@@ -250,3 +250,16 @@ def test_center_reports_nan():
     d = np.array([1.0, -3.0, 2.0])
     assert compiled.center(d, 1.0) == (4.0, 0.0 + 16.0 + 1.0)
     np.testing.assert_array_equal(d, [0.0, -4.0, 1.0])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_reference_gaps_from_a_strided_buffer(dtype):
+    rng = np.random.default_rng(10)
+    buf = rng.standard_normal((6, 12)).astype(dtype)
+    u = buf[:, :10]                                   # the active part of the transform's rows
+    w = rng.standard_normal(60).astype(dtype)
+    c, c_low = np.empty(60, dtype), np.empty(60, np.float32)
+    compiled.reference_gaps(u, w, dtype(0.25), c, c_low)
+    expect = (u.reshape(-1) - w) - dtype(0.25)
+    np.testing.assert_array_equal(c, expect)           # the same rounding as numpy's two steps
+    np.testing.assert_array_equal(c_low, expect.astype(np.float32))

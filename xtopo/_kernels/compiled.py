@@ -22,7 +22,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ["slots", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps", "scan_overlaps", "set_direction",
-           "energy", "scale_spectrum", "split_sets", "step_project", "join", "write_increment", "write_values"]
+           "energy", "scale_spectrum", "reference_gaps", "split_sets", "step_project", "join", "write_increment",
+           "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -282,6 +283,20 @@ def scale_spectrum(spectrum, g, rows):
             w = gg[k]
             sp[2 * k] *= w
             sp[2 * k + 1] *= w
+
+
+@njit(nogil=True, cache=True)
+def reference_gaps(u, w, delta, c, c_low):
+    """``c = u - w - δ`` and ``c_low = c`` (in its precision) in one pass: ``u`` 2-D (rows of a transform
+    buffer, a strided view), ``w``, ``c`` and ``c_low`` flat on the active grid."""
+    rows, n = u.shape
+    for r in range(rows):
+        ur = u[r]
+        base = r * n
+        for j in range(n):
+            v = (ur[j] - w[base + j]) - delta
+            c[base + j] = v
+            c_low[base + j] = v
 
 
 @njit(nogil=True, cache=True)

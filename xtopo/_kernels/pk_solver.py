@@ -209,9 +209,7 @@ class _Displacements:
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         u = self.conv.inverse(self.conv.forward())
-        np.subtract(u, self.w.reshape(u.shape), out=self.c.reshape(u.shape))
-        self.c -= self.c.dtype.type(delta)
-        self.c_low[...] = self.c
+        compiled.reference_gaps(u.reshape(-1, u.shape[-1]), self.w, self.c.dtype.type(delta), self.c, self.c_low)
         self.hide(idx)
         self.hide(pl)
         self.p_ref[self.support] = 0
@@ -276,8 +274,8 @@ class _Displacements:
         while True:
             k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
                                             shift, self.where, self.where_gaps, self.direction.input_flat)
-            if k <= self.where.size:
-                return self.where[:k].copy(), self.where_gaps[:k].copy(), low
+            if k <= self.where.size:   # views: the next scan overwrites them, after the step has used them
+                return self.where[:k], self.where_gaps[:k], low
             self.where = np.empty(min(self.c.size, 2 * k), np.int32)
             self.where_gaps = np.empty(self.where.size, self.c.dtype)
 
