@@ -41,8 +41,10 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     c_low[contact] = np.inf
     shift = 1.5e-4
     where, gaps = np.empty(n, np.intp), np.empty(n)
+    clear = np.full(inc.size, 7.0, np.float32)   # the direction's buffer: cleared on the active grid
+    none = np.empty(0, np.float32)
 
-    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps)
+    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear)
 
     free = c_low != np.inf
     if fresh:
@@ -55,9 +57,11 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     np.testing.assert_array_equal(where[:k], expect)
     np.testing.assert_allclose(gaps[:k], expect_gaps, rtol=1e-12, atol=0)
     assert low == pytest.approx(expect_gaps.min(), rel=1e-12)
+    clear = clear.reshape(rows, nx + pad)
+    assert not clear[:, :nx].any() and (clear[:, nx:] == 7).all()   # the padding is left alone
     # a shorter output pair receives the first overlaps and the count of all (the caller grows it)
     short, short_gaps = np.empty(7, np.int32), np.empty(7)
-    assert compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, short, short_gaps) == (k, low)
+    assert compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, short, short_gaps, none) == (k, low)
     np.testing.assert_array_equal(short, expect[:7])
     np.testing.assert_allclose(short_gaps, expect_gaps[:7], rtol=1e-12, atol=0)
 
@@ -76,6 +80,26 @@ def test_gather_gaps_matches_numpy(shape, row, fresh):
 
 
 @pytest.mark.parametrize("shape,row", LAYOUTS)
+@pytest.mark.parametrize("fresh", [False, True])
+@pytest.mark.parametrize("load_control", [False, True])
+def test_contact_gaps_gather_and_center(shape, row, fresh, load_control):
+    """Compact reference gaps plus the increment, shifted by δ - δ_ref (δ the mean under load control)."""
+    rng, (nx, pad, rows), n, inc_active, inc = _increment(shape, row, 4, 1.0)
+    idx = rng.permutation(n)[: n // 4]
+    c = rng.standard_normal(idx.size)
+    out = np.empty(idx.size)
+    slots = compiled.slots(idx, nx, pad).astype(np.int32)
+    delta, shift, big, ss = compiled.contact_gaps(c, inc, slots, fresh, out, load_control, 0.7, 0.5)
+    d = c if fresh else c + inc_active[idx]
+    expect_delta = 0.5 + d.sum() / d.size if load_control else 0.7
+    assert delta == pytest.approx(expect_delta, rel=1e-12)
+    assert shift == delta - 0.5
+    np.testing.assert_allclose(out, d - shift, rtol=1e-12, atol=1e-15)
+    assert big == pytest.approx(np.abs(d - shift).max(), rel=1e-12)
+    assert ss == pytest.approx(np.sum((d - shift) ** 2), rel=1e-9)
+
+
+@pytest.mark.parametrize("shape,row", LAYOUTS)
 def test_writes_land_in_the_active_part(shape, row):
     rng = np.random.default_rng(5)
     nx, pad, rows = _layout(shape, row)
@@ -85,7 +109,7 @@ def test_writes_land_in_the_active_part(shape, row):
     idx = rng.permutation(n)[: n // 3]
     p = rng.random(idx.size)
     p0 = p.copy()
-    compiled.write_increment(p, idx, p_ref, 2.0, nx, pad, buf)
+    compiled.write_increment(p, compiled.slots(idx, nx, pad), p_ref[idx], 2.0, buf)   # reference pressures per point
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
     rest = np.setdiff1d(np.arange(n), idx)
     others, scattered, filled = rest[:50], rest[50:60], rest[60:70]
@@ -114,23 +138,60 @@ def test_split_sets(hardness):
 @pytest.mark.parametrize("hardness", [None, 0.8])
 def test_step_project_compacts_in_order(hardness):
     rng = np.random.default_rng(6)
-    idx = rng.permutation(5000)[:1000]
+    nx, pad = 100, 28
+    idx = rng.permutation(5000)[:1000].astype(np.int32)
     p = rng.random(1000)
     t = rng.standard_normal(1000)
+    c = rng.standard_normal(1000)      # reference gaps and pressures, one per point
+    r = rng.random(1000)
     tau = 0.3
     new = p - tau * t
     keep = (new > 0) & (new < hardness if hardness is not None else True)
     H = np.inf if hardness is None else hardness
-    i0, t0 = idx.copy(), t.copy()
-    m, gone, capped = compiled.step_project(idx, p, t, tau, H, hardness is not None)
+    i0, t0, c0, r0 = idx.copy(), t.copy(), c.copy(), r.copy()
+    c_low = np.full(5000, np.inf)
+    buf = np.full(5000 // nx * (nx + pad), 9.0, np.float32)
+    slots = compiled.slots(idx, nx, pad)
+    s0 = slots.copy()
+    m, gone, capped = compiled.step_project(slots, p, t, c, r, 1000, tau, H, hardness is not None, c_low, buf, nx, pad)
     assert m == keep.sum() and 0 < m < 1000
-    np.testing.assert_array_equal(idx[:m], i0[keep])
+    np.testing.assert_array_equal(slots[:m], s0[keep])
     np.testing.assert_allclose(p[:m], new[keep])
     np.testing.assert_array_equal(t[:m], t0[keep])
+    np.testing.assert_array_equal(c[:m], c0[keep])
+    np.testing.assert_array_equal(r[:m], r0[keep])
     np.testing.assert_array_equal(gone, i0[~keep])
     expect_capped = new[~keep] >= hardness if hardness is not None else np.zeros(0, bool)
     np.testing.assert_array_equal(capped, expect_capped)
     assert capped.any() == (hardness is not None)
+    # the points that left: their new pressure (0 or H) over the reference in the increment's buffer, and
+    # the freed ones back in the overlap test with their reference gap
+    at_cap = np.zeros(gone.size, bool) if hardness is None else expect_capped
+    slot = gone + (gone // nx) * pad
+    np.testing.assert_allclose(buf[slot], np.where(at_cap, H, 0.0) - r0[~keep], rtol=1e-6)
+    assert np.count_nonzero(buf != 9) == gone.size
+    np.testing.assert_array_equal(c_low[gone[~at_cap]], c0[~keep][~at_cap])
+    assert np.isinf(c_low[gone[at_cap]]).all() and np.count_nonzero(np.isfinite(c_low)) == (~at_cap).sum()
+
+
+def test_join_appends_with_reference_values():
+    rng = np.random.default_rng(9)
+    n, room, nx, pad = 30, 50, 20, 22
+    slots, p, t, c, r = (np.zeros(room, np.int32), *(rng.random(room) for _ in range(4)))
+    before = [a[:n].copy() for a in (slots, p, t, c, r)]
+    c_full, p_ref, c_low = rng.random(400), rng.random(400), rng.random(400)
+    where = np.array([5, 77, 301], np.int32)
+    m = compiled.join(slots, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), c_full, p_ref, c_low, nx, pad)
+    assert m == n + 3
+    for a, b in zip((slots, p, t, c, r), before):
+        np.testing.assert_array_equal(a[:n], b)                  # the set so far is left alone
+    np.testing.assert_array_equal(slots[n:m], where + (where // nx) * pad)
+    np.testing.assert_array_equal(compiled.flat_indices(slots[n:m], nx, pad), where)
+    np.testing.assert_array_equal(p[n:m], [1.0, 2.0, 3.0])
+    assert not t[n:m].any()                                      # their direction starts at 0
+    np.testing.assert_array_equal(c[n:m], c_full[where])
+    np.testing.assert_array_equal(r[n:m], p_ref[where])
+    assert np.isinf(c_low[where]).all() and np.isfinite(np.delete(c_low, where)).all()
 
 
 @pytest.mark.parametrize("zero_sum", [False, True])
@@ -138,22 +199,21 @@ def test_set_direction_conjugates_and_restarts(zero_sum):
     rng = np.random.default_rng(7)
     n, nx, pad = 400, 40, 40
     idx = rng.permutation(n)[:120]
+    slots = compiled.slots(idx, nx, pad)
     g = rng.standard_normal(120)
     t = rng.standard_normal(120)
     buf = np.ones(n // nx * (nx + pad), np.float32)
-    gone = np.setdiff1d(np.arange(n), idx)[:10]
     expect = 0.5 * t + g
     if zero_sum:
         expect -= expect.mean()
-    slope = compiled.set_direction(t, g, 0.5, zero_sum, idx, gone, nx, pad, buf)
+    slope = compiled.set_direction(t, g, 0.5, zero_sum, slots, buf)
     np.testing.assert_allclose(t, expect, rtol=1e-12)
     assert slope == pytest.approx(g @ expect)
-    slot = lambda i: i + (i // nx) * pad  # noqa: E731
-    np.testing.assert_allclose(buf[slot(idx)], expect.astype(np.float32))
-    assert not buf[slot(gone)].any()
+    np.testing.assert_allclose(buf[slots], expect.astype(np.float32))
+    assert np.count_nonzero(buf != 1) == 120                   # written on the set only
     # a direction that is not downhill restarts from g
     t = -100 * g
-    slope = compiled.set_direction(t, g, 1.0, False, idx, gone, nx, pad, buf)
+    slope = compiled.set_direction(t, g, 1.0, False, slots, buf)
     np.testing.assert_allclose(t, g)
     assert slope == pytest.approx(g @ g)
 
@@ -190,3 +250,16 @@ def test_center_reports_nan():
     d = np.array([1.0, -3.0, 2.0])
     assert compiled.center(d, 1.0) == (4.0, 0.0 + 16.0 + 1.0)
     np.testing.assert_array_equal(d, [0.0, -4.0, 1.0])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_reference_gaps_from_a_strided_buffer(dtype):
+    rng = np.random.default_rng(10)
+    buf = rng.standard_normal((6, 12)).astype(dtype)
+    u = buf[:, :10]                                   # the active part of the transform's rows
+    w = rng.standard_normal(60).astype(dtype)
+    c, c_low = np.empty(60, dtype), np.empty(60, np.float32)
+    compiled.reference_gaps(u, w, dtype(0.25), c, c_low)
+    expect = (u.reshape(-1) - w) - dtype(0.25)
+    np.testing.assert_array_equal(c, expect)           # the same rounding as numpy's two steps
+    np.testing.assert_array_equal(c_low, expect.astype(np.float32))

@@ -103,6 +103,54 @@ def _dot(a, b) -> float:
     return float(np.einsum("i,i->", a, b, dtype=np.float64))
 
 
+class _ContactSet:
+    """The CG set ``I = {0 < p < H}``, compact: the first :attr:`n` entries of arrays with room to grow.
+
+    Per point: its position ``s`` in the transform buffers (:func:`compiled.slots`; the flat index
+    follows by :meth:`flat`), the pressure ``p``, the search direction ``t``, the gaps of the current
+    evaluation ``g``, and the reference gap ``c`` and pressure ``r`` (``c = u_ref - w - δ_ref`` and
+    ``p_ref`` at the point, constant between refreshes). Keeping ``c`` and ``r`` with the point lets
+    the iteration's passes read compact arrays instead of gathering from grid-sized ones; the set is
+    compacted in place (:func:`compiled.step_project`) and joined points are appended
+    (:func:`compiled.join`), so no array of the set is allocated per iteration.
+    """
+
+    def __init__(self, idx, p, layout, buffer_size):
+        self.n = n = idx.size
+        self.layout = layout
+        room = max(64, n + n // 4)
+        self.s = np.empty(room, np.int32 if buffer_size < 2**31 else np.int64)
+        self.s[:n] = compiled.slots(idx, *layout)
+        self.p = np.empty(room, p.dtype)
+        self.p[:n] = p
+        self.t = np.zeros(room, p.dtype)        # the first direction is the gradient (β = 0)
+        self.g = np.empty(room, p.dtype)
+        self.c = np.empty(room, p.dtype)
+        self.r = np.empty(room, p.dtype)
+
+    def reserve(self, k):
+        """Room for ``k`` more points (the arrays are grown by a quarter more than needed)."""
+        need = self.n + k
+        if need <= self.s.size:
+            return
+        room = need + need // 4
+        for name in ("s", "p", "t", "g", "c", "r"):
+            old = getattr(self, name)
+            new = np.empty(room, old.dtype)
+            new[:self.n] = old[:self.n]
+            setattr(self, name, new)
+
+    def flat(self):
+        """The flat indices of the set's points (a new int32 array)."""
+        return compiled.flat_indices(self.s_, *self.layout)
+
+
+# ``cg.s_``, ``cg.p_``, …: the first ``cg.n`` entries of ``cg.s``, ``cg.p``, …
+for _name in ("s", "p", "t", "g", "c", "r"):
+    setattr(_ContactSet, _name + "_", property(lambda self, _name=_name: getattr(self, _name)[:self.n]))
+del _name
+
+
 class _Displacements:
     """The iterate's gaps: exact at a reference, single-precision increments in between.
 
@@ -147,8 +195,10 @@ class _Displacements:
         self._no_increment = np.zeros(1, self.low.dtype)
 
     # -- the reference ------------------------------------------------------------------------
-    def refresh(self, idx, pI, pl, H, delta):
-        """Make the current pressures the reference: one convolution in the working precision."""
+    def refresh(self, cg, pl, H, delta):
+        """Make the current pressures (the set ``cg`` and the plastic points ``pl`` at ``H``) the reference:
+        one convolution in the working precision."""
+        idx, pI = cg.flat(), cg.p_
         flat = self.conv.input_flat
         flat.fill(0)
         nx, pad = self.conv.buffer_layout
@@ -159,9 +209,7 @@ class _Displacements:
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         u = self.conv.inverse(self.conv.forward())
-        np.subtract(u, self.w.reshape(u.shape), out=self.c.reshape(u.shape))
-        self.c -= self.c.dtype.type(delta)
-        self.c_low[...] = self.c
+        compiled.reference_gaps(u.reshape(-1, u.shape[-1]), self.w, self.c.dtype.type(delta), self.c, self.c_low)
         self.hide(idx)
         self.hide(pl)
         self.p_ref[self.support] = 0
@@ -169,6 +217,8 @@ class _Displacements:
         if pl.size:
             self.p_ref[pl] = H
         self.support = np.concatenate([idx, pl]) if pl.size else idx.copy()
+        cg.c_[...] = self.c[idx]
+        cg.r_[...] = pI
         self.delta_ref = float(delta)
         self.low.input_flat.fill(0)
         self.fresh = True
@@ -186,22 +236,28 @@ class _Displacements:
         """The float32 increment ``G * (p - p_ref)`` in its buffer layout (a placeholder when fresh)."""
         return self._no_increment if self.fresh else self.low.output_flat
 
-    def update(self, idx, pI, changed, scale):
+    def update(self, cg, changed, scale):
         """Increment ``G * (p - p_ref)`` of the current pressures (one float32 convolution).
 
-        ``changed``: ``(points, pressure)`` pairs of points that left the CG set or joined the
-        plastic one since the last call (their pressure is now 0 or the hardness). ``pI`` is
-        multiplied by ``scale`` first (in place; load control).
+        ``changed``: ``(points, pressure)`` pairs of points outside the set ``cg`` whose pressure
+        became 0 or the hardness since the last call and that :meth:`step` has not written (joins
+        from the plastic set, or to it). The set's pressures are multiplied by ``scale`` first (in
+        place; load control).
         """
         flat, nx, pad = self.low.input_flat, self.nx, self.pad
         for where, value in changed:
             if where.size:
                 compiled.write_values(where, float(value), self.p_ref, nx, pad, flat)
-        compiled.write_increment(pI, idx, self.p_ref, pI.dtype.type(scale), nx, pad, flat)
+        compiled.write_increment(cg.p_, cg.s_, cg.r_, cg.p.dtype.type(scale), flat)
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         self.low.inverse(self.low.forward())
         self.fresh = False
+
+    def contact_gaps(self, cg, load_control, delta):
+        """The gaps of the set ``cg`` into ``cg.g`` (:func:`compiled.contact_gaps`): ``(δ, shift, max |g|, Σ g²)``."""
+        return compiled.contact_gaps(cg.c_, self._increment(), cg.s_, self.fresh, cg.g_, load_control, delta,
+                                     self.delta_ref)
 
     def at(self, where):
         """``u - w - δ_ref`` at flat indices (working precision) and their sum."""
@@ -210,26 +266,44 @@ class _Displacements:
         return d, total
 
     def overlaps(self, shift):
-        """Free points where ``u - w - δ_ref < shift`` (the gap is negative), their gaps and the lowest."""
+        """Free points where ``u - w - δ_ref < shift`` (the gap is negative), their gaps and the lowest.
+
+        The scan clears the direction's buffer on the way (:meth:`set_direction` writes the direction
+        only on the set): every evaluation runs it before a direction is set.
+        """
         while True:
             k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
-                                            shift, self.where, self.where_gaps)
-            if k <= self.where.size:
-                return self.where[:k].copy(), self.where_gaps[:k].copy(), low
+                                            shift, self.where, self.where_gaps, self.direction.input_flat)
+            if k <= self.where.size:   # views: the next scan overwrites them, after the step has used them
+                return self.where[:k], self.where_gaps[:k], low
             self.where = np.empty(min(self.c.size, 2 * k), np.int32)
             self.where_gaps = np.empty(self.where.size, self.c.dtype)
 
-    def set_direction(self, idx, tI, gI, beta, zero_sum):
-        """Make ``tI`` the conjugate direction (:func:`compiled.set_direction`), write it into the
-        direction operator (zero elsewhere) and return ``(slope, energy)``: ``Σ g t`` and
-        ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
-        self.direction.input.fill(0)
-        slope = compiled.set_direction(tI, gI, beta, zero_sum, idx, _NONE, self.nx, self.pad,
-                                       self.direction.input_flat)
+    def set_direction(self, cg, beta, zero_sum):
+        """Make ``cg.t`` the conjugate direction (:func:`compiled.set_direction`), write it into the
+        direction operator (zero elsewhere: :meth:`overlaps` cleared it) and return ``(slope, energy)``:
+        ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
+        slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.s_, self.direction.input_flat)
         if not slope > 0:
             return slope, 0.0
         self.counts["fft"] += 1
         return slope, self.direction.energy(self.direction.forward())
+
+    def step(self, cg, tau, H):
+        """``p ← p - τ t`` on the set and its projection (:func:`compiled.step_project`): the points that
+        left get their pressure written into the increment's input and the freed ones rejoin the overlap
+        test. Returns ``(gone, capped)``."""
+        m, gone, capped = compiled.step_project(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau,
+                                                H if H is not None else np.inf, H is not None, self.c_low,
+                                                self.low.input_flat, self.nx, self.pad)
+        cg.n = m
+        return gone, capped
+
+    def join(self, cg, where, values):
+        """Append the points ``where`` at pressures ``values`` to the set (:func:`compiled.join`)."""
+        cg.reserve(where.size)
+        cg.n = compiled.join(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, where, values, self.c, self.p_ref, self.c_low,
+                             self.nx, self.pad)
 
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
@@ -370,10 +444,9 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
     p0 = p0.reshape(-1)
     idx, pl = compiled.split_sets(p0, np.inf if H is None else H)
-    pI = p0[idx]
-    del p0
-    tI = None   # the first direction is the gradient: it takes the gaps' array
     disp = _Displacements(conv, w, counts)
+    cg = _ContactSet(idx, p0[idx], (disp.nx, disp.pad), disp.low.input_flat.size)
+    del p0, idx
 
     # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
     # the step of joining points when no CG step exists (e.g. fully plastic)
@@ -381,25 +454,22 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     tau_fallback = 0.25 / kii if kii > 0 else 0.0
 
     delta = float(penetration) if not load_control else 0.0
-    disp.refresh(idx, pI, pl, H, delta)
+    disp.refresh(cg, pl, H, delta)
     scale = _length_scale(w)
     if not scale > 0:
         # a flat surface: the deformation by the starting pressures (at least one pixel's own
         # indentation under their mean — a periodic flat under uniform pressure does not move)
-        p_mean = (float(np.sum(pI, dtype=np.float64)) + (H or 0) * pl.size) / w.size
+        p_mean = (float(np.sum(cg.p_, dtype=np.float64)) + (H or 0) * pl.size) / w.size
         scale = max(float(np.max(np.abs(disp.displacement()))), p_mean * kii) or 1.0
     G_old = 0.0
     residual = math.inf
     converged = False
     it = 0
     while True:
-        # gaps relative to the reference: g = (u - w - δ_ref) - (δ - δ_ref)
-        gI, total = disp.at(idx)
-        nI = idx.size
-        if load_control and nI:
-            delta = disp.delta_ref + total / nI
-        shift = dtype.type(delta - disp.delta_ref)
-        res, G = compiled.center(gI, shift)
+        # gaps relative to the reference: g = (u - w - δ_ref) - (δ - δ_ref); under load control δ is
+        # the mean of u - w over the set
+        delta, shift, res, G = disp.contact_gaps(cg, load_control, delta)
+        nI = cg.n
         # plastic points whose gap opened
         if pl.size:
             g_pl = disp.at(pl)[0] - shift
@@ -416,7 +486,7 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         elif disp.mixed and residual <= max(tol, refresh_below):
             # the increment's float32 rounding scales with it: before trusting a small residual,
             # and whenever it has fallen by _REFRESH, evaluate in the working precision
-            disp.refresh(idx, pI, pl, H, delta)
+            disp.refresh(cg, pl, H, delta)
             continue
         if callback is not None:
             callback(it, residual)
@@ -430,11 +500,9 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         # points that just joined); one that is no longer downhill — the sets moved under it —
         # restarts from g
         tau = 0.0
-        if tI is None:
-            tI = gI
         if nI:
             beta = G / G_old if G_old > 0 else 0.0
-            slope, denom = disp.set_direction(idx, tI, gI, dtype.type(beta), load_control)
+            slope, denom = disp.set_direction(cg, dtype.type(beta), load_control)
             G_old = G
             if denom > 0 and slope > 0:
                 tau = slope / denom
@@ -456,21 +524,12 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         if pl.size and opened.any():
             joined.append((pl[opened], H - step * g_pl[opened], True))
             pl = pl[~opened]
-        # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic); `changed` collects the
-        # points whose pressure became 0 or H (the increment's input), `gone` those that left the set
+        # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic), the set compacted in place;
+        # `changed` collects the other points whose pressure became 0 or H (the increment's input)
         changed = []
-        kept, gone, capped = compiled.step_project(idx, pI, tI, dtype.type(tau), H if H is not None else np.inf,
-                                                   H is not None)   # the set compacted in place
-        if gone.size:
-            if capped.any():
-                pl = np.concatenate([pl, gone[capped]])
-                changed.append((gone[capped], H))
-                freed = gone[~capped]
-            else:
-                freed = gone
-            changed.append((freed, 0))
-            disp.show(freed)
-            idx, pI, tI = idx[:kept], pI[:kept], tI[:kept]
+        gone, capped = disp.step(cg, dtype.type(tau), H)
+        if capped.any():
+            pl = np.concatenate([pl, gone[capped]])
         for where, value, was_plastic in joined:
             if H is not None:
                 full = value >= H
@@ -484,22 +543,19 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
             if was_plastic and not pos.all():
                 changed.append((where[~pos], 0))
                 disp.show(where[~pos])
-            where, value = where[pos], value[pos]
-            if not was_plastic:
-                disp.hide(where)
-            idx = np.concatenate([idx, where])
-            pI = np.concatenate([pI, value.astype(dtype, copy=False)])
-            tI = np.concatenate([tI, np.zeros(where.size, dtype)])
+            if not pos.all():
+                where, value = where[pos], value[pos]
+            disp.join(cg, where, value.astype(dtype, copy=False))
         scale_p = 1.0
         if load_control:
-            total = pixel_area * float(np.sum(pI, dtype=np.float64))
+            total = pixel_area * float(np.sum(cg.p_, dtype=np.float64))
             if total > 0:
                 scale_p = load / total
-        disp.update(idx, pI, changed, scale_p)
+        disp.update(cg, changed, scale_p)
     if not disp.fresh:  # the returned displacements are exact convolutions of the pressures
-        disp.refresh(idx, pI, pl, H, delta)
-    if load_control and idx.size:
-        delta = disp.delta_ref + disp.at(idx)[1] / idx.size
+        disp.refresh(cg, pl, H, delta)
+    if load_control and cg.n:
+        delta = disp.delta_ref + disp.at(cg.flat())[1] / cg.n
     p, u, g = disp.take_result(delta)   # the reference pressures are the iterate's (fresh)
     return result(p.reshape(shape), u.reshape(shape), g.reshape(shape), delta, it, residual, converged)
 

@@ -1,0 +1,174 @@
+"""Cost of one contact-solver iteration in float64 FFT pairs of the fastest backend (issue 27).
+
+For each grid the same seeded fractal surface as ``bench_contact.py`` is solved at the same
+mean pressure ``--repeat`` times on one scene. Around every solve a forward+inverse float64 real
+FFT pair on the solver's FFT grid (a measured FFTW plan, one thread, aligned buffers) is timed
+``--pairs`` times, so that each solve is compared with a pair measured under the same load. Per
+solve:
+
+* ``loop/it``  the iteration loop's time (first to last residual callback) per iteration,
+* ``pairs/it`` that time over the median pair of the pairs timed next to the solve (goal ≤ 1.5),
+* ``loop, CPU time`` the same ratio in CPU time of the solving thread (``time.thread_time``) for
+  both the loop and the pairs: on a loaded machine it leaves out the time slices other processes
+  take (their cache pressure stays in),
+* ``solve/it`` the whole solve (initial pressures, exact convolutions, result) per iteration, in pairs.
+
+It prints min / median / max over the repeats, the iterations and the area fraction (equal before
+and after a change of the solver), and the load average (``os.getloadavg``) before and after each grid.
+
+Usage::
+
+    python benchmarks/bench_iteration.py                          # periodic 512 1024 2048, float64 + float32
+    python benchmarks/bench_iteration.py --periodic 1024 --free 512 --dtype float64
+    python benchmarks/bench_iteration.py --tree /work/main --tree .   # the same cases on two source trees,
+                                                                      # interleaved (before/after in one run)
+
+Every case runs in a fresh subprocess with ``PYTHONPATH`` set to its tree.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+MEAN_PRESSURE = 0.005
+
+
+def _pair(shape):
+    """A measured one-thread FFTW float64 forward+inverse pair on ``shape``: a callable."""
+    import pyfftw
+
+    r_in = pyfftw.empty_aligned(shape, dtype="float64")
+    spec = pyfftw.empty_aligned(shape[:-1] + (shape[-1] // 2 + 1,), dtype="complex128")
+    r_out = pyfftw.empty_aligned(shape, dtype="float64")
+    axes = tuple(range(len(shape)))
+    fwd = pyfftw.FFTW(r_in, spec, axes=axes, flags=("FFTW_MEASURE",), threads=1)
+    bwd = pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD", flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
+                      threads=1)
+    r_in[...] = np.random.default_rng(0).random(shape)
+
+    def run():
+        fwd.execute()
+        bwd.execute()
+
+    return run
+
+
+def _now():
+    """Wall and CPU (this thread's) time: the CPU time leaves out the time slices other processes take."""
+    return time.perf_counter(), time.thread_time()
+
+
+def _time(fn, k):
+    """``k`` timings of ``fn()``: (wall, cpu) pairs."""
+    out = []
+    for _ in range(k):
+        w, c = _now()
+        fn()
+        w1, c1 = _now()
+        out.append((w1 - w, c1 - c))
+    return out
+
+
+def _median(rows, i):
+    return statistics.median(r[i] for r in rows)
+
+
+def run_case(n, periodic, dtype, tol, repeat, pairs):
+    """One grid in this process: per solve, loop and solve time per iteration and the pairs around it."""
+    from xtopo import datasets
+    from xtopo.contact import Scene
+
+    # the surface of bench_contact.py (not imported: it puts its own tree first on the path)
+    ds = datasets.fractal_surface((n, n), 1.0, hurst=0.8, rms_slope=0.1, short_cutoff=4.0 / n, seed=11,
+                                  periodic=periodic, units="um")
+    scene = Scene(ds, dtype=dtype)
+    pair = _pair(tuple(scene.fft_shape))
+    solve = dict(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
+    r = scene.solve(**solve)               # warm-up: plans, compiled kernels, work arrays
+    _time(pair, 2)
+    rows = []
+    for _ in range(repeat):
+        around = _time(pair, pairs)
+        stamps = []
+        t0 = _now()
+        r = scene.solve(**solve, callback=lambda i, res: stamps.append(_now()))
+        t1 = _now()
+        around += _time(pair, pairs)
+        it = int(r.iterations)
+        rows.append(dict(loop=(stamps[-1][0] - stamps[0][0]) / it, solve=(t1[0] - t0[0]) / it, pair=_median(around, 0),
+                         loop_cpu=(stamps[-1][1] - stamps[0][1]) / it, pair_cpu=_median(around, 1)))
+    return dict(rows=rows, iterations=it, area=float(r.area_fraction), converged=bool(r.converged),
+                transforms=int(r.attrs.get("transforms", -1)), exact=int(r.attrs.get("exact_convolutions", -1)),
+                backend=scene.backend)
+
+
+def case(tree, n, boundary, dtype, tol, repeat, pairs):
+    # measured plans from the first solve (by default a grid new to FFTW's wisdom is measured at the third)
+    env = dict(os.environ, PYTHONPATH=os.path.abspath(tree), XTOPO_FFTW_PLANNER="measure")
+    cmd = [sys.executable, __file__, "--case", str(n), boundary, dtype, str(tol), str(repeat), str(pairs)]
+    out = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                         cwd=os.path.abspath(tree))
+    for line in out.stdout.splitlines()[::-1]:
+        if line.startswith("{"):
+            return json.loads(line)
+    return {"error": ((out.stderr or "").strip().splitlines() or ["?"])[-1][:160]}
+
+
+def _spread(values):
+    return f"{statistics.median(values):5.2f} [{min(values):.2f}, {max(values):.2f}]"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--periodic", type=int, nargs="*", default=[512, 1024, 2048])
+    ap.add_argument("--free", type=int, nargs="*", default=[])
+    ap.add_argument("--dtype", nargs="*", default=["float64", "float32"])
+    ap.add_argument("--tol", type=float, default=1e-6)
+    ap.add_argument("--repeat", type=int, default=5, help="solves per case")
+    ap.add_argument("--pairs", type=int, default=5, help="FFT pairs timed before and after each solve")
+    ap.add_argument("--tree", action="append", default=None,
+                    help="source tree to import xtopo from (repeatable; default: this one)")
+    ap.add_argument("--case", nargs=6, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.case:
+        n, boundary, dtype, tol, repeat, pairs = args.case
+        print(json.dumps(run_case(int(n), boundary == "periodic", dtype, float(tol), int(repeat), int(pairs))))
+        return
+    trees = args.tree or [os.path.dirname(HERE)]
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, pair: measured FFTW "
+          f"float64, 1 thread; median [min, max] over the solves")
+    print(f"{'grid':>14} {'dtype':>8} {'tree':>18} {'iters':>5} {'area':>9} {'pair ms':>8} "
+          f"{'loop pairs/it':>20} {'loop, CPU time':>20} {'solve pairs/it':>20} {'loop ms/it':>8}  load")
+    for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
+        for n in sizes:
+            for dtype in args.dtype:
+                for tree in trees:
+                    load = os.getloadavg()[0]
+                    r = case(tree, n, boundary, dtype, args.tol, args.repeat, args.pairs)
+                    name = os.path.basename(os.path.abspath(tree))
+                    grid = f"{boundary} {n}"
+                    if "error" in r:
+                        print(f"{grid:>14} {dtype:>8} {name:>18} failed: {r['error']}")
+                        continue
+                    rows = r["rows"]
+                    loop = [x["loop"] / x["pair"] for x in rows]
+                    cpu = [x["loop_cpu"] / x["pair_cpu"] for x in rows]
+                    whole = [x["solve"] / x["pair"] for x in rows]
+                    print(f"{grid:>14} {dtype:>8} {name:>18} {r['iterations']:5d} {r['area']:9.6f} "
+                          f"{1e3 * statistics.median(x['pair'] for x in rows):8.2f} {_spread(loop):>20} "
+                          f"{_spread(cpu):>20} {_spread(whole):>20} "
+                          f"{1e3 * statistics.median(x['loop'] for x in rows):8.2f}  "
+                          f"{load:.2f}-{os.getloadavg()[0]:.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
