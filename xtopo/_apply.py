@@ -16,6 +16,8 @@ an underflowed 0: results are finite and right, or an error.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import xarray as xr
 
@@ -85,25 +87,31 @@ def _declared(kernel, dtypes, height_power=None, what: str = "this analysis", he
 
     ``heights_out``: the outputs are heights on the input's scale after a fit (detrend): a value below
     float64's rounding of the largest input height is rounding noise (the residual of a flat line),
-    and is 0 rather than refused when it would underflow on the way back."""
-    def run(h, *args, **kwargs):
-        e = scale_exponent(h) if height_power is not None else 0
-        hs = np.ldexp(h, -e) if e else h
-        try:
-            out = kernel(hs, *args, **kwargs)
-        except MissingDataError as exc:  # the kernels say what is wrong; the advice is the layer's above
-            raise MissingDataError(f"{exc}; fill them first, e.g. with xtopo.preprocess.fill_missing, or crop to a "
-                                   "complete region") from None
-        outs = (out,) if len(dtypes) == 1 else tuple(out)
-        if e and heights_out:
-            noise = 4 * np.finfo(np.float64).eps * float(np.nanmax(np.abs(hs), initial=0.0))
-            outs = tuple(np.where(np.abs(o) > noise, o, 0.0 * o) for o in outs)
-        powers = height_power if height_power is not None else (None,) * len(outs)
-        res = tuple(np.asarray(rescaled(np.asarray(o, dtype=d), e, p, what), dtype=d)
-                    for o, p, d in zip(outs, powers, dtypes))
-        return res[0] if len(dtypes) == 1 else res
+    and is 0 rather than refused when it would underflow on the way back.
 
-    return run
+    A partial of a module-level function, not a closure: dask tokenizes the function of every lazy
+    analysis, and a closure is pickled by value for it (cloudpickle), which cost a twin of a thousand
+    measurements seconds of graph building."""
+    return functools.partial(_run_declared, kernel, tuple(dtypes), height_power, what, heights_out)
+
+
+def _run_declared(kernel, dtypes, height_power, what, heights_out, h, *args, **kwargs):
+    """The body of :func:`_declared`'s function."""
+    e = scale_exponent(h) if height_power is not None else 0
+    hs = np.ldexp(h, -e) if e else h
+    try:
+        out = kernel(hs, *args, **kwargs)
+    except MissingDataError as exc:  # the kernels say what is wrong; the advice is the layer's above
+        raise MissingDataError(f"{exc}; fill them first, e.g. with xtopo.preprocess.fill_missing, or crop to a "
+                               "complete region") from None
+    outs = (out,) if len(dtypes) == 1 else tuple(out)
+    if e and heights_out:
+        noise = 4 * np.finfo(np.float64).eps * float(np.nanmax(np.abs(hs), initial=0.0))
+        outs = tuple(np.where(np.abs(o) > noise, o, 0.0 * o) for o in outs)
+    powers = height_power if height_power is not None else (None,) * len(outs)
+    res = tuple(np.asarray(rescaled(np.asarray(o, dtype=d), e, p, what), dtype=d)
+                for o, p, d in zip(outs, powers, dtypes))
+    return res[0] if len(dtypes) == 1 else res
 
 
 def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_sizes=None, output_dtypes=None,

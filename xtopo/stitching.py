@@ -24,6 +24,7 @@ import numpy as np
 import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS
+from ._one_task import one_task
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
 from .analysis.psd import WINDOWS
 from .analysis.reliability import reliability_cutoff
@@ -188,8 +189,9 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
     dim = xr.DataArray(names, dims="measurement", name="measurement", attrs={"long_name": "measurement"})
     coord_var = (coord, grid, dict(first[coord].attrs))
 
-    def stack(items):
-        return xr.concat(items, dim=dim).rename({"_grid": coord}).assign_coords({coord: coord_var})
+    def stack(items):  # lazy: one chunk along measurement (apply_ufunc's own rechunk split the grid n ways)
+        out = xr.concat(items, dim=dim).rename({"_grid": coord}).assign_coords({coord: coord_var})
+        return out if out.chunks is None else out.chunk({"measurement": -1})
 
     stacked = stack([v for v, _ in per])
     err = stack([xr.full_like(v, np.nan) if e is None else e for v, e in per])
@@ -363,7 +365,7 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
         curve = func(ds, **extra, **kw, reliable=False)
         coord = _curve_coord(curve)
         curves[name] = _reliable_part(curve, ds, coord, reliable)
-        curves[name], errors[name] = _predicted_error(curves[name], ds, coord, quantity)
+        curves[name], errors[name] = one_task(*_predicted_error(curves[name], ds, coord, quantity))
         settings[name] = _setting(ds)
     return curves, _pool_errors(errors, settings)
 
@@ -565,7 +567,8 @@ def twin_sdrp(tree, order: Annotated[int, Choice(1, 2)] = 1, *, per_decade: Anno
                                                 & (grid <= (x[-1] - x[0]) / 2)]
         curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
                                       reliable)
-        curves[name], errors[name] = _predicted_error(curves[name], ds, "distance", ("slope", "curvature")[order - 1])
+        curves[name], errors[name] = one_task(*_predicted_error(curves[name], ds, "distance",
+                                                                ("slope", "curvature")[order - 1]))
     out = average_curves(curves, points=grid, errors=_pool_errors(errors, settings), max_error=max_error)
     return _with_provenance(out, tree, "twin_sdrp", order=order, per_decade=per_decade, units=units,
                             reliable=reliable, max_error=max_error)
