@@ -116,7 +116,8 @@ def test_twin_averages_carry_provenance_lazily():
     b = fractal_surface((256,), 1e-5, hurst=0.7, seed=2, periodic=False)   # read from no file
     tree = xtopo.twin({"a": a.chunk(), "b": b.chunk()}, description="two scans")
     tree.attrs["history"] = "assembled from the lab notebook"
-    calls = {"psd": dict(areal=False, window="auto"), "acf": {}, "vbm": {}, "sdrp": dict(order=2)}
+    calls = {"psd": dict(areal=False, window="auto"), "acf": {}, "vbm": dict(kind="area", average="mean"),
+             "sdrp": dict(order=2)}
     with dask.config.set(scheduler=_raise):
         lazy = {name: getattr(tree.topo, name)(**kw, per_decade=5) for name, kw in calls.items()}
     for name, res in lazy.items():

@@ -445,6 +445,13 @@ _EXTRA = {
         Average ``Ciso`` of area scans instead of ``C1D`` along x (default False).
     window : {"auto", "hann", None}
         Window of each spectrum, as in :func:`xtopo.analysis.psd.psd` (default ``"auto"``).""",
+    "twin_vbm": """
+    kind : {"area", "1d"}
+        Square blocks of area scans (paper §4.8, default) or segments of their profiles along x
+        (SurfaceTopography's container average), as :func:`xtopo.analysis.vbm.vbm`.
+    average : {"mean", "rms"}
+        Arithmetic mean of the blocks' RMS heights (paper, default) or the RMS over all
+        blocks (SurfaceTopography).""",
     "twin_sdrp": """
     order : {1, 2}
         Slope (1, default) or curvature (2).""",
@@ -545,12 +552,12 @@ def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
     from .analysis.vbm import vbm
 
     if ds.attrs.get("measurement_kind") == "profiles" and ds["height"].ndim == 2:
-        return vbm(ds.rename(y="_profile"), **kw).mean("_profile", keep_attrs=True)
+        kw["kind"] = "1d"
     return vbm(ds, **kw)
 
 
-def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, reliable: bool = True,
-             max_error: float | None = None) -> xr.Dataset:
+def twin_vbm(tree, *, kind: str = "area", average: str = "mean", per_decade: int = PER_DECADE,
+             units: str | None = None, reliable: bool = True, max_error: float | None = None) -> xr.Dataset:
     """Average variable-bandwidth RMS height of a twin.
 
     {criterion} A measurement's predicted error is ``1/(2√N)`` with ``N`` independent windows.
@@ -562,10 +569,12 @@ def twin_vbm(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     {returns}
     """
     _settings(per_decade, max_error)
-    curves, errors = _per_measurement(tree, _vbm, {}, {}, units, reliable, quantity="vbm")
+    kind, average = option(kind, ("area", "1d"), "kind"), option(average, ("mean", "rms"), "average")
+    curves, errors = _per_measurement(tree, _vbm, {"kind": kind}, {}, units, reliable, quantity="vbm",
+                                      average=average)
     out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
-    return _with_provenance(out, tree, "twin_vbm", per_decade=per_decade, units=units, reliable=reliable,
-                            max_error=max_error)
+    return _with_provenance(out, tree, "twin_vbm", kind=kind, average=average, per_decade=per_decade, units=units,
+                            reliable=reliable, max_error=max_error)
 
 
 def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str | None = None,
