@@ -4,6 +4,7 @@ twin (against its ground truth) and on a real AFM + optical + stylus twin."""
 
 import numpy as np
 import pytest
+import xarray as xr
 
 import xtopo
 from xtopo.datasets import example_twin, prescribed_psd
@@ -100,6 +101,9 @@ def test_prewhitening_ignores_a_tilt():
     for kw, same in (({"prewhiten": True}, True), ({}, False)):
         a, b = psd(s, **kw).values, psd(tilted, **kw).values
         assert np.allclose(a, b, rtol=1e-6, atol=1e-9 * a.max()) == same, kw
+    lazy = psd(xr.concat([s, tilted], dim="sample").chunk({"sample": 1}), prewhiten=True)  # a batch, lazily
+    assert lazy.chunks is not None
+    np.testing.assert_allclose(lazy.values, [psd(s, prewhiten=True).values] * 2, rtol=1e-6)
     with pytest.raises(xtopo.XtopoError, match="prewhiten"):
         psd(s, kind="iso", prewhiten=True)
 
