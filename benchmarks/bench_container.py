@@ -190,7 +190,8 @@ def run(path: str, label: str, repeats: int) -> list:
               f"{100 * r['median_dev']:7.1f}% {100 * r['max_dev']:7.0f}% {r['common']:6d}   {st_t:>22} {x_t:>22} "
               f"{ratio:6.2f}")
     print("   VBM: areal squares, mean of their RMS heights (paper §4.8, xtopo's default); VBM1: the same definition "
-          "as SurfaceTopography (profiles along x, RMS over all segments: twin.topo.vbm(kind='1d', average='rms'))")
+          "as SurfaceTopography (profiles along x, RMS over all segments: twin.topo.vbm(kind='1d', average='rms'));\n"
+          "        SurfaceTopography's nonuniform line scans take the mean of the segments' RMS heights, as VBM does")
     ok = bool(rows) and all(r["covered"] >= 0.9 and r["median_dev"] <= 0.25 for r in rows if r["name"] != "VBM")
     print(f"   acceptance (covered >= 90 %, median deviation <= 25 %; VBM compared like with like, VBM1): "
           f"{'met' if ok else 'NOT met'}")
