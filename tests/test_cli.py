@@ -39,6 +39,45 @@ def test_analyze_files_reports_bad_file_and_keeps_good(tmp_path, capsys):
     assert (tmp_path / "out.nc").exists()
 
 
+def _container_twin(seed):
+    area = xtopo.datasets.fractal_surface((32, 48), (1e-6, 1.5e-6), hurst=0.8, rms_height=1e-8, periodic=False,
+                                          seed=seed).assign_attrs(tip_radius=2e-8, tip_radius_units="m")
+    line = xtopo.datasets.fractal_surface(400, 2e-5, hurst=0.8, rms_height=5e-8, periodic=False, seed=seed + 1)
+    return xtopo.twin({"afm": area, "stylus": line}, name=f"sample {seed}")
+
+
+def test_analyze_a_contact_engineering_download(tmp_path, capsys):
+    """`xtopo analyze download.zip` read the ZIP as one (unreadable) file; now it is the twin open_twin gives, with
+    the same outputs as for files, and --surface picks one surface of a container holding several."""
+    import xarray as xr
+
+    one = xtopo.to_container(_container_twin(0), tmp_path / "one.zip")
+    out = tmp_path / "one.nc"
+    assert main(["analyze", str(one), "-o", str(out), "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "2 measurements" in printed and "afm" in printed and "stylus" in printed
+    tree = xr.open_datatree(out)
+    assert set(tree.children) == {"psd", "acf", "vbm", "sdrp"} and list(tree["psd"]["measurement"].values) == [
+        "afm", "stylus"]
+    expected = xtopo.open_twin(one).topo.psd()
+    np.testing.assert_allclose(tree["psd"]["average"].values, expected.average.values, rtol=1e-12)
+    tree.close()
+
+    two = xtopo.to_container({"first": _container_twin(0), "second": _container_twin(1)}, tmp_path / "two.zip")
+    assert main(["analyze", str(two), "-o", str(tmp_path / "two.nc"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "--surface" in err and "'first', 'second'" in err  # names the option and the surfaces to choose from
+    for choice in ("second", "1"):
+        assert main(["analyze", str(two), "--surface", choice, "-o", str(tmp_path / "two.nc"), "-q"]) == 0
+        capsys.readouterr()
+        with xr.open_datatree(tmp_path / "two.nc") as got:
+            want = xtopo.open_twin(two, surface="second").topo.vbm()
+            np.testing.assert_allclose(got["vbm"]["average"].values, want.average.values, rtol=1e-12)
+    html = tmp_path / "two.html"
+    assert main(["report", str(two), "--surface", "first", "-o", str(html), "--analyses", "psd", "-q"]) == 0
+    assert html.stat().st_size > 0
+
+
 def test_console_script_help():
     r = subprocess.run([sys.executable, "-m", "xtopo.cli", "analyze", "--help"], capture_output=True, text=True)
     assert r.returncode == 0 and "example twin" in r.stdout

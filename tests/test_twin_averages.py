@@ -4,6 +4,7 @@ twin (against its ground truth) and on a real AFM + optical + stylus twin."""
 
 import numpy as np
 import pytest
+import xarray as xr
 
 import xtopo
 from xtopo.datasets import example_twin, prescribed_psd
@@ -38,7 +39,8 @@ def _check_example(tree, seed):
         x = avg[coord].values[covered]
         decades = np.log10(x.max() / x.min())
         assert decades >= 5.5, (seed, name, decades)
-        assert not bool(avg["left_out"].any())                       # nothing deleted by default
+        # nothing deleted by default but the lowest wavevector of each windowed spectrum (flag 1, with its reason)
+        assert set(np.unique(avg["left_out"].values)) <= ({0, 1} if name == "psd" else {0}), (seed, name)
         # every measurement contributes (the 0.5 mm stylus campaign overlaps the others everywhere: still in)
         assert bool(avg.curves.notnull().any(coord).all()), (seed, name)
         assert (avg.uncertainty.values[covered] >= 0).all(), (seed, name)  # known wherever averaged
@@ -47,7 +49,8 @@ def _check_example(tree, seed):
     dev = psd.average.values[ok] / _truth(tree, "psd")(psd.q.values[ok]) - 1
     # the deviations are what the predicted standard error says: 90 % of points within 2 sigma
     z = np.abs(dev) / psd.relative_error.values[ok]
-    assert np.mean(z <= 2) >= 0.9, (seed, np.sort(z)[-5:])
+    assert np.mean(z <= 2) >= 0.9 and z.max() <= 3, (seed, np.sort(z)[-5:])
+    assert np.median(np.abs(dev)) <= 0.10, (seed, np.median(np.abs(dev)))
     acf = averages["acf"]
     ok = acf["count"].values > 0
     dev_acf = acf.average.values[ok] / _truth(tree, "acf")(acf.distance.values[ok]) - 1
@@ -62,15 +65,55 @@ def tree():
 
 def test_example_twin_averages_are_continuous_and_follow_the_truth(tree):
     """example_twin(seed=7) had 31 of 71 PSD points over 4.3 decades with 13 holes and the stylus range gone;
-    the ACF zig-zagged between two measurements. Seed 0: PSD median deviation 7.6 %, its largest (100 %) at
-    the longest wavelengths of the 5 µm AFM scans, where the predicted relative error is 30-50 %."""
-    median, _ = _check_example(tree, 0)
-    assert median <= 0.10
+    the ACF zig-zagged between two measurements. The Hann window's main lobe then biased the longest
+    wavelengths of every AFM size upwards (+100 % at 2.5 µm on seed 0); prewhitened: median 5.4 %, max 43 %."""
+    median, largest = _check_example(tree, 0)
+    assert median <= 0.10 and largest <= 0.5
+
+
+def test_prewhitening_removes_the_window_bias_at_the_longest_wavelengths(tree):
+    """C1D ∝ q^-2.6 smoothed by the Hann window's main lobe: at k = 2 the windowed heights' spectrum of the
+    nine AFM scans is about twice the truth, the prewhitened one (windowed slopes / |D̃x|²) within 25 %;
+    from k = 8 on both agree (a flat slope spectrum changes nothing there)."""
+    from xtopo.analysis.psd import psd
+    from xtopo.stitching import _complete
+
+    truth = prescribed_psd(tree)
+    plain, white = [], []
+    for name in [n for n in tree.children if n.startswith("afm")]:
+        ds = _complete(tree[name].to_dataset(), name)
+        for out, kw in ((plain, {}), (white, {"prewhiten": True})):
+            c = psd(ds, kind="1d", reliable=False, **kw)
+            out.append(c.values[1:40] / truth.c1d(c.q.values[1:40]))
+    plain, white = np.mean(plain, axis=0), np.mean(white, axis=0)
+    assert plain[1] > 1.5 and abs(white[1] - 1) < 0.25, (plain[:4], white[:4])
+    np.testing.assert_allclose(white[7:], plain[7:], rtol=0.1)
+
+
+def test_prewhitening_ignores_a_tilt():
+    """The slopes of a tilted profile differ by a constant, which the centring removes: its prewhitened spectrum
+    is the untilted one's, while the windowed heights' spectrum picks the tilt up at the longest wavelengths."""
+    from xtopo.analysis.psd import psd
+
+    s = xtopo.datasets.fractal_surface((16, 256), (1e-6, 1.6e-5), hurst=0.8, rms_height=1e-8, seed=3,
+                                       periodic=False)
+    tilted = s.assign(height=s.height + 1e-3 * s.x)
+    for kw, same in (({"prewhiten": True}, True), ({}, False)):
+        a, b = psd(s, **kw).values, psd(tilted, **kw).values
+        assert np.allclose(a, b, rtol=1e-6, atol=1e-9 * a.max()) == same, kw
+    lazy = psd(xr.concat([s, tilted], dim="sample").chunk({"sample": 1}), prewhiten=True)  # a batch, lazily
+    assert lazy.chunks is not None
+    np.testing.assert_allclose(lazy.values, [psd(s, prewhiten=True).values] * 2, rtol=1e-6)
+    with pytest.raises(xtopo.XtopoError, match="prewhiten"):
+        psd(s, kind="iso", prewhiten=True)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2, 7])
 def test_other_seeds_are_continuous_and_within_their_uncertainty(seed):
+    """Median deviation 6.3 / 8.4 / 8.1 %. A single point may still be off by more than 50 % where few
+    independent modes enter (seed 2: +69 % at λ = 1.6 mm, two 5 mm stylus campaigns, predicted error 56 %):
+    random, within 3 predicted standard errors everywhere."""
     _check_example(example_twin(seed), seed)
 
 

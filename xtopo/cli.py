@@ -26,13 +26,37 @@ def _load_measurements(files, args):
     if not files:
         tree = example_twin()
         return {name: preprocess(node.to_dataset(), args) for name, node in tree.children.items()}, "example twin", []
+    from .io.container import is_container
+
     out, failed = {}, []
     for i, f in progress_bar(list(enumerate(files)), desc="reading files", unit="file", enabled=_progress(args)):
         try:
-            out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args, i)), args)
+            if is_container(f):  # a contact.engineering download: its measurements, preprocessed as it says
+                for name, ds in _container_measurements(f, getattr(args, "surface", None)).items():
+                    out[name if name not in out else f"{os.path.basename(f)}:{name}"] = preprocess(ds, args)
+            else:
+                out[os.path.basename(f)] = preprocess(open_topography(f, **read_options(args, i)), args)
         except Exception as exc:  # reported per file; the good ones go on
             failed.append((f, exc))
     return out, f"{len(files)} file(s)", failed
+
+
+def _container_measurements(path, surface) -> dict:
+    """The measurements of one surface of a contact.engineering container (``--surface``: name, else index)."""
+    from .errors import ValidationError
+    from .twins import open_twin
+
+    try:
+        try:
+            tree = open_twin(path, surface=surface)
+        except ValidationError:
+            if surface is None or not surface.lstrip("-").isdigit():
+                raise
+            tree = open_twin(path, surface=int(surface))  # not a surface's name: its index
+    except ValidationError as exc:
+        raise ValidationError(str(exc).replace("surface=", "--surface").replace(
+            " (name or index), or read all with xtopo.io.open_container", " (name or index)")) from None
+    return {name: node.to_dataset() for name, node in tree.children.items()}
 
 
 def _read_inputs(args):
@@ -126,8 +150,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("analyze", help="analyse measurements (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin when none are "
                                    "given), print a summary table and write the results to NetCDF.")
-    p.add_argument("files", nargs="*", help="measurement files (any supported format)")
+    p.add_argument("files", nargs="*", help="measurement files (any supported format) or contact.engineering "
+                                            "downloads (ZIP)")
     p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
+    p.add_argument("--surface", help="surface of a contact.engineering download with several (name or index)")
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
     add_preprocess_options(p)
     add_read_options(p)
@@ -139,8 +165,10 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Read measurement files (or use the built-in example twin), and write one "
                                    "HTML page with the summary table, the stitched PSD/ACF/VBM/curvature "
                                    "averages and a map of every measurement. Opens offline in any browser.")
-    r.add_argument("files", nargs="*", help="measurement files (any supported format)")
+    r.add_argument("files", nargs="*", help="measurement files (any supported format) or contact.engineering "
+                                            "downloads (ZIP)")
     r.add_argument("-o", "--output", default="xtopo-report.html", help="output HTML file (default: %(default)s)")
+    r.add_argument("--surface", help="surface of a contact.engineering download with several (name or index)")
     r.add_argument("--title", help="page title")
     r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")

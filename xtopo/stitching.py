@@ -40,6 +40,10 @@ __all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "A
 PER_DECADE = 10
 #: coordinate holding the independent modes of each wavevector of a spectrum
 _MODES = "independent_modes"
+#: boolean coordinate of a curve marking points a stated long-scale criterion leaves out (attr ``criterion``)
+UNRELIABLE = "unreliable"
+#: ``left_out`` flags: why a value available on a measurement's range was not averaged
+_FLAGS = {"long_scale_criterion": 1, "statistical_criterion": 2}
 
 
 def _common_units(ms: dict, units=None) -> str:
@@ -129,7 +133,10 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
     deletes nothing unless asked: with ``max_error``, at each point only the measurements of
     smallest predicted error are averaged as long as each lowers the predicted error of the
     mean, and points whose error stays above ``max_error`` are left out; ``left_out`` says
-    which values that dropped.
+    which values that dropped. A curve may carry a boolean coordinate ``unreliable`` along its
+    coordinate (attr ``criterion``: why; e.g. the lowest wavevector of a windowed spectrum, see
+    :func:`twin_psd`): those points are not averaged, and the collocation points they would have
+    reached are flagged in ``left_out`` too.
 
     Parameters
     ----------
@@ -160,7 +167,8 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
         error, units of the average), ``relative_error`` (the same relative to the average)
         and ``count`` (measurements averaged). On (``measurement``, coordinate): ``curves``
         (the values averaged, NaN elsewhere), ``curve_error`` (each curve's predicted
-        relative error) and ``left_out`` (values dropped by ``max_error``). Per measurement
+        relative error) and ``left_out`` (CF flags: 1 where a curve's ``unreliable`` points would
+        have given a value, 2 where ``max_error`` dropped one; attr ``criterion`` says why). Per measurement
         ``reliability_cutoff`` and ``reliability_criterion`` where the curves carry one.
     """
     tol = max_error
@@ -185,7 +193,9 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
     else:
         grid = points
     names = list(curves)
-    per = [_onto(curves[n], coord, grid, method, (errors or {}).get(n)) for n in names]
+    flagged = {n: c for n, c in curves.items() if UNRELIABLE in c.coords}
+    per = [_onto(curves[n].where(~curves[n][UNRELIABLE]) if n in flagged else curves[n], coord, grid, method,
+                 (errors or {}).get(n)) for n in names]
     dim = xr.DataArray(names, dims="measurement", name="measurement", attrs={"long_name": "measurement"})
     coord_var = (coord, grid, dict(first[coord].attrs))
 
@@ -196,6 +206,9 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
     stacked = stack([v for v, _ in per])
     err = stack([xr.full_like(v, np.nan) if e is None else e for v, e in per])
     available = stacked.notnull()
+    # where a curve's unreliable points would have reached (the whole curve collocated, as the averaged part)
+    reach = stack([_onto(flagged[n].drop_vars(_MODES, errors="ignore"), coord, grid, method)[0] if n in flagged
+                   else v for n, (v, _) in zip(names, per)]).notnull()
     if tol is not None:
         used, sigma = xr.apply_ufunc(select_for_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
                                      output_core_dims=[["measurement"], []], dask="parallelized",
@@ -213,9 +226,16 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
     se.attrs = {"units": units, "long_name": "predicted standard error of the average"}
     rel = (se / average).assign_attrs(units="1", long_name="predicted relative standard error of the average")
     err = err.where(available).assign_attrs(units="1", long_name="predicted relative standard error of each curve")
-    left = (available & stacked.isnull()).assign_attrs(
-        units="1", long_name="values left out by the statistical criterion",
-        criterion="none" if tol is None else f"predicted relative standard error of the average above {tol:g}")
+    reasons = sorted({str(c[UNRELIABLE].attrs.get("criterion", "unreliable points of a curve"))
+                      for c in flagged.values()})
+    if tol is not None:
+        reasons.append(f"predicted relative standard error of the average above {tol:g}")
+    left = xr.where(available & stacked.isnull(), np.int8(_FLAGS["statistical_criterion"]),
+                    xr.where(reach & ~available, np.int8(_FLAGS["long_scale_criterion"]), np.int8(0)))
+    left = left.astype(np.int8).assign_attrs(
+        units="1", long_name="values left out of the average, and why (0: none)",
+        flag_values=np.array(list(_FLAGS.values()), dtype=np.int8), flag_meanings=" ".join(_FLAGS),
+        criterion="; ".join(reasons) or "none")
     out = xr.Dataset({"average": average, "uncertainty": se, "relative_error": rel, "count": count,
                       "curves": stacked, "curve_error": err, "left_out": left})
     cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else xr.Variable((), np.nan)
@@ -425,6 +445,13 @@ _EXTRA = {
         Average ``Ciso`` of area scans instead of ``C1D`` along x (default False).
     window : {"auto", "hann", None}
         Window of each spectrum, as in :func:`xtopo.analysis.psd.psd` (default ``"auto"``).""",
+    "twin_vbm": """
+    kind : {"area", "1d"}
+        Square blocks of area scans (paper §4.8, default) or segments of their profiles along x
+        (SurfaceTopography's container average), as :func:`xtopo.analysis.vbm.vbm`.
+    average : {"mean", "rms"}
+        Arithmetic mean of the blocks' RMS heights (paper, default) or the RMS over all
+        blocks (SurfaceTopography).""",
     "twin_sdrp": """
     order : {1, 2}
         Slope (1, default) or curvature (2).""",
@@ -445,7 +472,12 @@ def twin_psd(tree, *, areal: Annotated[bool, Flag()] = False, window: Annotated[
              ) -> xr.Dataset:
     """Average PSD of a twin: 1D PSDs (``C1D`` along x) or, with ``areal=True``, ``Ciso``.
 
-    ``areal=True`` needs every measurement to be an area scan. {criterion} A spectrum's
+    ``areal=True`` needs every measurement to be an area scan. 1D spectra of nonperiodic
+    measurements are prewhitened (``psd(prewhiten=True)``: the windowed slopes' spectrum
+    divided by ``|D̃_x(q)|²``, which removes the Hann window's bias at a scan's longest
+    wavelengths, 1.7-2.7× at ``k = 2`` for ``C1D ∝ q^-2.6``), and their lowest wavevector
+    ``2π/L``, inside the window's main lobe around ``q = 0``, is not averaged: ``left_out``
+    flags where it would have contributed. {criterion} A spectrum's
     predicted error in a collocation bin is ``1/√N`` with ``N`` the independent Fourier modes of
     its reliable wavevectors there (:func:`~xtopo.analysis.statistical_reliability.independent_samples`).
 
@@ -465,10 +497,31 @@ def twin_psd(tree, *, areal: Annotated[bool, Flag()] = False, window: Annotated[
         curves, errors = _per_measurement(tree, psd, {"kind": "iso"}, {}, units, reliable, window=window)
     else:
         curves, errors = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
-                                          window=window)
+                                          window=window, prewhiten=True)
+        curves = {n: _main_lobe(c) for n, c in curves.items()}
     out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
     return _with_provenance(out, tree, "twin_psd", areal=areal, window=window, per_decade=per_decade, units=units,
                             reliable=reliable, max_error=max_error)
+
+
+def _main_lobe(curve: xr.DataArray) -> xr.DataArray:
+    """A 1D spectrum with its lowest wavevector ``2π/L`` marked :data:`UNRELIABLE` where it was windowed.
+
+    The Hann window's main lobe spans ±2 bins: the bin ``k = 1`` lies inside the lobe around
+    ``q = 0``, so its expectation is set by the mean removed from each profile and by the
+    wavelengths longer than the scan, which the measurement does not resolve (a long-scale
+    limit of the windowed estimator, as the tip radius and the resolution are short-scale
+    limits, paper §4.3 and §4.9). From ``k = 2`` on, the prewhitened spectrum
+    (:func:`~xtopo._kernels.spectra.prewhitening`) is within a few per cent of the truth on average.
+    """
+    if curve.attrs.get("window") != "hann":
+        return curve
+    q = np.asarray(curve["q"].values, dtype=float)
+    first = q[q > 0].min(initial=np.inf)
+    return curve.assign_coords({UNRELIABLE: ("q", (q > 0) & (q < 1.5 * first), {
+        "long_name": "points left out of the average",
+        "criterion": "lowest wavevector 2π/L of each Hann-windowed spectrum (inside the window's main lobe "
+                     "around q = 0: set by the removed mean and by wavelengths longer than the scan)"})})
 
 
 @checked
@@ -503,12 +556,14 @@ def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
     from .analysis.vbm import vbm
 
     if ds.attrs.get("measurement_kind") == "profiles" and ds["height"].ndim == 2:
-        return vbm(ds.rename(y="_profile"), **kw).mean("_profile", keep_attrs=True)
+        kw["kind"] = "1d"
     return vbm(ds, **kw)
 
 
 @checked
-def twin_vbm(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
+def twin_vbm(tree, *, kind: Annotated[str, Choice("area", "1d")] = "area",
+             average: Annotated[str, Choice("mean", "rms")] = "mean",
+             per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
              units: Annotated[str | None, LengthUnit()] = None,
              reliable: Annotated[bool, Flag()] = True, max_error: Annotated[float | None, _MAX_ERROR] = None
              ) -> xr.Dataset:
@@ -522,10 +577,11 @@ def twin_vbm(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
 
     {returns}
     """
-    curves, errors = _per_measurement(tree, _vbm, {}, {}, units, reliable, quantity="vbm")
+    curves, errors = _per_measurement(tree, _vbm, {"kind": kind}, {}, units, reliable, quantity="vbm",
+                                      average=average)
     out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
-    return _with_provenance(out, tree, "twin_vbm", per_decade=per_decade, units=units, reliable=reliable,
-                            max_error=max_error)
+    return _with_provenance(out, tree, "twin_vbm", kind=kind, average=average, per_decade=per_decade, units=units,
+                            reliable=reliable, max_error=max_error)
 
 
 @checked

