@@ -5,9 +5,11 @@ Usage (from the repository root)::
     python benchmarks/bench_batch.py                    # FFT-bound stand-in workload
     python benchmarks/bench_batch.py --solver contact   # the real contact solver (xtopo.contact)
 
-The batch is 16 measurements × 4 loads, one item per task (64 tasks), on a
+The batch is 16 measurements × 4 loads in chunks of one item (64 chunks), on a
 ``LocalCluster(n_workers=k, threads_per_worker=1, processes=True)`` with one FFT
-thread per task. Reported (medians over ``--repeat`` runs):
+thread per task, run twice in the same clusters, alternately: one chunk per task
+(``XTOPO_BATCH_TASK_SECONDS=0``, as before issue 27) and packed (several chunks per
+task, the default). Reported (medians over ``--repeat`` runs, min/median/max of the walls):
 
 * ``serial``: the 64 items one after the other in this process (pure solve time), with
   the BLAS/OpenMP thread limits dask gives its workers (``OMP/OPENBLAS/MKL_NUM_THREADS=1``);
@@ -16,9 +18,10 @@ thread per task. Reported (medians over ``--repeat`` runs):
 * speedup = t(1 worker) / t(2 workers) (goal ≥ 1.7 on 2 free cores), next to the machine's
   ceiling at that moment: the same work in 1 vs 2 plain processes without Dask (on a shared
   machine the other core may simply not be free);
-* per-task overhead = (t(1 worker) − serial) / 64, also as a fraction of the mean solve time,
-  and (t(1 worker) − Σ in-worker compute time from the task stream) / 64, which does not
-  depend on the serial run being timed under the same machine load.
+* per-item overhead = (t(1 worker) − the items' own compute time, ``func`` called directly) / 64,
+  also as a fraction of an item, and (t(1 worker) − Σ in-task time from the task stream) / 64,
+  the part outside the tasks (scheduling, transfers), which does not depend on the serial run
+  being timed under the same machine load.
 """
 
 from __future__ import annotations
@@ -112,47 +115,67 @@ def main(argv=None):
         serial.append(time.perf_counter() - t)
     t_serial = statistics.median(serial)
 
+    # the items' own compute time: func called directly, one item after the other (no batch, no Dask)
+    import xarray as xr
+
+    items = [(ds if isinstance(ds, xr.Dataset) else xtopo.open_topography(ds), load)
+             for ds in (ms.values() if isinstance(ms, dict) else ms) for load in loads]
+    pure = []
+    for _ in range(args.repeat):
+        t = time.perf_counter()
+        for ds, load in items:
+            func(ds, [load])
+        pure.append(time.perf_counter() - t)
+    t_pure = statistics.median(pure)
+
+    # one chunk per task (packing off, as before issue 27) and packed tasks, alternately in the same clusters
+    modes = {"one chunk a task": "0", "packed": None}
     walls, in_task = {}, {}
     for n in (1, 2):
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                           silence_logs=50) as cluster, Client(cluster) as client:
             batch.run(func, dict(list(ms.items())[:n]) if isinstance(ms, dict) else ms[:n], loads[:1],
                       client=client, progress=False)  # warm-up: imports in every worker
-            times, computes = [], []
+            times, computes = {m: [] for m in modes}, {m: [] for m in modes}
             for r in range(args.repeat):
                 from distributed import get_task_stream
 
-                with get_task_stream(client) as ts:
-                    t = time.perf_counter()
-                    res = batch.run(func, ms, loads, chunks=chunks, client=client, progress=False)
-                    times.append(time.perf_counter() - t)
-                computes.append(sum(ss["stop"] - ss["start"] for rec in ts.data for ss in rec["startstops"]
-                                    if ss["action"] == "compute"))
-                if res.attrs["n_failed"]:
-                    raise SystemExit(f"failures: {res.attrs['failed_items']}")
-            walls[n] = statistics.median(times)
-            in_task[n] = statistics.median(computes)
+                for mode, env in modes.items():
+                    if env is None:
+                        os.environ.pop("XTOPO_BATCH_TASK_SECONDS", None)
+                    else:
+                        os.environ["XTOPO_BATCH_TASK_SECONDS"] = env
+                    with get_task_stream(client) as ts:
+                        t = time.perf_counter()
+                        res = batch.run(func, ms, loads, chunks=chunks, client=client, progress=False)
+                        times[mode].append(time.perf_counter() - t)
+                    computes[mode].append(sum(ss["stop"] - ss["start"] for rec in ts.data
+                                              for ss in rec["startstops"] if ss["action"] == "compute"))
+                    if res.attrs["n_failed"]:
+                        raise SystemExit(f"failures: {res.attrs['failed_items']}")
+            os.environ.pop("XTOPO_BATCH_TASK_SECONDS", None)
+            for mode in modes:
+                walls[n, mode] = (min(times[mode]), statistics.median(times[mode]), max(times[mode]))
+                in_task[n, mode] = statistics.median(computes[mode])
 
     ceiling = _ceiling(func, ms, loads, chunks)
     per_task = t_serial / n_tasks
-    overhead = (walls[1] - t_serial) / n_tasks
-    solve_1 = in_task[1] / n_tasks
-    overhead_1 = (walls[1] - in_task[1]) / n_tasks
-    print(f"workload: {args.solver}, {args.size}² grid, {n_tasks} tasks (16 measurements × {len(loads)} loads), "
-          f"{'files' if args.to_files else 'in-memory Datasets'}, cpus={len(os.sched_getaffinity(0))}, "
-          f"load average {os.getloadavg()[0]:.1f}")
-    print(f"serial (in process):  {t_serial:7.2f} s   ({per_task * 1e3:.1f} ms per task)")
-    print(f"1 worker process:     {walls[1]:7.2f} s")
-    print(f"2 worker processes:   {walls[2]:7.2f} s")
-    print(f"in-worker solve time per task: {in_task[1] / n_tasks * 1e3:.1f} ms (1 worker), "
-          f"{in_task[2] / n_tasks * 1e3:.1f} ms (2 workers; longer = the workers did not get a free core each)")
-    print(f"speedup 1 → 2 workers: {walls[1] / walls[2]:.2f}×  (goal ≥ 1.7× on 2 free cores)")
-    print(f"machine ceiling now:   {ceiling:.2f}×  (the same work in 1 vs 2 plain processes, no Dask); "
-          f"parallel efficiency of the batch relative to it: {100 * walls[1] / walls[2] / ceiling:.0f} %")
-    print(f"per-task overhead vs serial run:      {overhead * 1e3:.1f} ms = {100 * overhead / per_task:.1f} % "
-          "of the serial solve time")
-    print(f"per-task overhead vs in-worker solve: {overhead_1 * 1e3:.1f} ms = {100 * overhead_1 / solve_1:.1f} % "
-          f"of the in-worker solve time ({solve_1 * 1e3:.1f} ms, 1 worker; task stream)")
+    print(f"workload: {args.solver}, {args.size}² grid, {n_tasks} items (16 measurements × {len(loads)} loads, "
+          f"chunks of one item), {'files' if args.to_files else 'in-memory Datasets'}, "
+          f"cpus={len(os.sched_getaffinity(0))}, load average {os.getloadavg()[0]:.1f}")
+    print(f"items' own compute (func called directly): {t_pure:7.2f} s ({t_pure / n_tasks * 1e3:.1f} ms per item)")
+    print(f"serial batch (sync scheduler):            {t_serial:7.2f} s   ({per_task * 1e3:.1f} ms per item)")
+    for mode in modes:
+        w1, w2 = walls[1, mode], walls[2, mode]
+        print(f"{mode}: 1 worker {w1[0]:.2f}/{w1[1]:.2f}/{w1[2]:.2f} s, 2 workers {w2[0]:.2f}/{w2[1]:.2f}/{w2[2]:.2f} s"
+              " (min/median/max)")
+        overhead = (w1[1] - t_pure) / n_tasks
+        print(f"  per-item overhead on 1 worker (wall - items' own compute) / items: {overhead * 1e3:.1f} ms = "
+              f"{100 * overhead / (t_pure / n_tasks):.0f} % of an item; in-task time per item "
+              f"{in_task[1, mode] / n_tasks * 1e3:.1f} ms; outside the tasks (wall - in-task) / items "
+              f"{(w1[1] - in_task[1, mode]) / n_tasks * 1e3:.1f} ms")
+        print(f"  speedup 1 → 2 workers: {w1[1] / w2[1]:.2f}×  (machine ceiling now {ceiling:.2f}×: the same work "
+              "in 1 vs 2 plain processes)")
     return 0
 
 

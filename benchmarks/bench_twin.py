@@ -9,8 +9,10 @@ The twin is ``--count`` xtopo NetCDF files (maps of 256²–1024², line scans o
 (read + 1D PSD, serially in this process: all, or ``--serial-sample`` of them extrapolated),
 the cluster's wall time from the paths to the computed average (split into opening the
 twin, building the graph and computing it), its ratio to the goal 1.3 × sum / workers,
-each worker's peak RSS (``getrusage``: the whole life of the worker, warm-up included) and
-the load average before and after. The average is checked: count > 0 at every collocation
+each worker's peak RSS (``getrusage``: the whole life of the worker, warm-up included), the
+load average before and after, and CPU times, which do not depend on the machine's load (the
+client's opening and graph building, the client and scheduler while computing, each worker),
+with the wall time they imply on free cores. The average is checked: count > 0 at every collocation
 point inside the union of the measurements' reliable ranges.
 """
 
@@ -101,22 +103,25 @@ def _serial(paths, sample: int | None) -> tuple[float, str]:
     """Sum of the per-measurement analysis times, in this process, one after the other."""
     _analysis(paths[0])  # warm-up: imports, FFT plans
     chosen = paths if not sample or sample >= len(paths) else paths[:: max(1, len(paths) // sample)][:sample]
-    t = time.perf_counter()
+    t, cpu = time.perf_counter(), time.process_time()
     for p in chosen:
         _analysis(p)
-    spent = time.perf_counter() - t
+    spent, cpu = time.perf_counter() - t, time.process_time() - cpu
     if len(chosen) == len(paths):
-        return spent, f"all {len(paths)} measured"
-    return spent * len(paths) / len(chosen), f"{len(chosen)} of {len(paths)} measured, extrapolated"
+        return spent, cpu, f"all {len(paths)} measured"
+    scale = len(paths) / len(chosen)
+    return spent * scale, cpu * scale, f"{len(chosen)} of {len(paths)} measured, extrapolated"
 
 
 def _worker_peak():
-    """Peak RSS of this worker process since it started (bytes) and its RSS now."""
+    """Peak RSS of this worker process since it started (bytes), its RSS now and its CPU time (s)."""
     import resource
 
     import psutil
 
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, psutil.Process().memory_info().rss
+    cpu = psutil.Process().cpu_times()
+    return (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024, psutil.Process().memory_info().rss,
+            cpu.user + cpu.system)
 
 
 def _check_counts(result) -> str:
@@ -144,9 +149,9 @@ def bench_cluster(n: int, workers: int, directory: str | None, sample: int | Non
         paths = _make_files(directory, n)
         print(f"{n} measurement files in {directory} ({time.perf_counter() - t:.1f} s to write the missing ones)")
         load0 = os.getloadavg()
-        serial, how = _serial(paths, sample)
-        print(f"serial: sum of per-measurement analysis times (read + 1D PSD) {serial:.1f} s ({how}); "
-              f"load average {load0[0]:.1f} before, {os.getloadavg()[0]:.1f} after")
+        serial, serial_cpu, how = _serial(paths, sample)
+        print(f"serial: sum of per-measurement analysis times (read + 1D PSD) {serial:.1f} s, CPU {serial_cpu:.1f} s "
+              f"({how}); load average {load0[0]:.1f} before, {os.getloadavg()[0]:.1f} after")
         cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                                    memory_limit="4GB", dashboard_address=":0", silence_logs=50))
         client = stack.enter_context(Client(cluster))
@@ -154,14 +159,14 @@ def bench_cluster(n: int, workers: int, directory: str | None, sample: int | Non
         xtopo.twin(paths[:2 * workers]).topo.psd().compute()
         base = client.run(_worker_peak)
         load0 = os.getloadavg()
-        t = time.perf_counter()
+        t, cpu0 = time.perf_counter(), time.process_time()
         tree = xtopo.twin(paths)
         opened = time.perf_counter() - t
         graph = tree.topo.psd()
-        built = time.perf_counter() - t
+        built, cpu1 = time.perf_counter() - t, time.process_time()
         n_tasks = len(graph.__dask_graph__())
         result = graph.compute()
-        wall = time.perf_counter() - t
+        wall, cpu2 = time.perf_counter() - t, time.process_time()
         load1 = os.getloadavg()
         peaks = client.run(_worker_peak)
     goal = 1.3 * serial / workers
@@ -170,6 +175,12 @@ def bench_cluster(n: int, workers: int, directory: str | None, sample: int | Non
           f"{workers} = {goal:.1f} s; wall / goal = {wall / goal:.2f}")
     print(f"  load average {load0[0]:.1f} before, {load1[0]:.1f} after (1-min; {len(os.sched_getaffinity(0))} cores); "
           + _check_counts(result))
+    worker_cpu = {w: peaks[w][2] - base[w][2] for w in peaks}
+    print(f"  CPU time (load-independent): client opening + graph {cpu1 - cpu0:.1f} s, client and scheduler while "
+          f"computing {cpu2 - cpu1:.1f} s, workers {' + '.join(f'{v:.1f}' for v in worker_cpu.values())} s "
+          f"(serial analyses {serial_cpu:.1f} s). On free cores: about {cpu1 - cpu0:.1f} + "
+          f"{max(worker_cpu.values()):.1f} = {cpu1 - cpu0 + max(worker_cpu.values()):.1f} s, "
+          f"{(cpu1 - cpu0 + max(worker_cpu.values())) / (1.3 * serial_cpu / workers):.2f} × the goal in CPU terms")
     for w in sorted(peaks):
         print(f"  worker {w}: peak RSS {peaks[w][0] / 2**20:.0f} MiB (after warm-up {base[w][1] / 2**20:.0f} MiB, "
               f"now {peaks[w][1] / 2**20:.0f} MiB)")

@@ -830,3 +830,34 @@ def test_distributed_batch_preprocesses_in_the_workers(tilted_with_hole, cluster
     want = xtopo.analysis.scalars.scalars(_preprocessed(ds))
     for name in res.measurement.values:
         xr.testing.assert_allclose(res.drop_vars(_BOOKKEEPING).sel(measurement=name, drop=True), want, rtol=1e-12)
+
+
+def test_small_chunks_are_packed_into_few_tasks(tmp_path, cluster):
+    """Chunks far shorter than a task's overhead run several to a task (timed on one chunk per worker first);
+    the store still holds one file per chunk and the results equal the serial run's."""
+    from distributed import get_task_stream
+
+    _, client = cluster
+    ms = _surfaces(8, size=32)
+    work = functools.partial(fft_work, iterations=2)
+    batch.run(work, ms, LOADS[:1], client=client, progress=False)  # imports in the workers
+    with get_task_stream(client) as ts:
+        res = batch.run(work, ms, LOADS, chunks={"measurement": 1, "load": 1}, client=client,
+                        store=tmp_path / "store", progress=False)
+    tasks = {rec["key"] for rec in ts.data if str(rec["key"]).startswith("xtopo-batch-")}
+    n_chunks = 8 * len(LOADS)
+    assert res.attrs["chunks_computed"] == n_chunks and res.attrs["n_failed"] == 0
+    assert len(tasks) < n_chunks / 2
+    assert len([f for f in os.listdir(tmp_path / "store") if f.startswith("chunk-")]) == n_chunks
+    serial = batch.run(work, ms, LOADS, chunks={"measurement": 1, "load": 1}, scheduler="sync", progress=False)
+    xr.testing.assert_allclose(_data(res), _data(serial), rtol=1e-12)
+
+
+def test_group_size_from_chunk_cost(monkeypatch):
+    from xtopo.batch._dispatch import _group_size
+
+    assert _group_size(0.001, 1000, 2) == 125   # 0.25 s of work a task, at most 1000 / (4 × 2)
+    assert _group_size(0.001, 20, 2) == 3       # at least four tasks a worker
+    assert _group_size(1.0, 1000, 2) == 1       # long chunks: one a task
+    monkeypatch.setenv("XTOPO_BATCH_TASK_SECONDS", "0")
+    assert _group_size(0.001, 1000, 2) == 1     # packing off

@@ -17,8 +17,10 @@ import contextlib
 import os
 import uuid
 
+import numpy as np
+
 from ..errors import XtopoError
-from ._task import run_chunk
+from ._task import run_chunk, run_chunks
 
 __all__ = ["fft_env", "execute"]
 
@@ -113,28 +115,81 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
         return _gather_distributed(client, chunks, progress, retries)
 
 
+#: seconds of work a task should carry before small chunks are packed into it (a distributed task costs
+#: 2.5-10 ms of scheduling and transfer on the reference machine: at most a few per cent of this);
+#: ``XTOPO_BATCH_TASK_SECONDS`` overrides it, 0 gives every chunk a task of its own
+TASK_SECONDS = 0.25
+
+
+def _group_size(seconds: float, remaining: int, workers: int) -> int:
+    """Chunks per task: enough for :data:`TASK_SECONDS` of work at ``seconds`` per chunk, but at least
+    four tasks per worker (so that the workers finish together and a killed worker loses little)."""
+    target = float(os.environ.get("XTOPO_BATCH_TASK_SECONDS", TASK_SECONDS))
+    want = int(np.ceil(target / max(seconds, 1e-6)))
+    return max(1, min(want, -(-remaining // (4 * max(workers, 1)))))
+
+
 def _gather_distributed(client, chunks, progress, retries) -> dict:
+    """Run ``chunks`` on the client's workers: first two chunks per worker, timed, then the rest packed
+    into tasks of :func:`_group_size` chunks. A chunk whose group failed as a whole (its worker died too
+    often, or it raised) runs again in a task of its own."""
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
-    futures = {client.submit(run_chunk, chunk, key=f"xtopo-batch-{chunk.key[:16]}-{token}", pure=False,
-                             retries=retries): chunk.key for chunk in chunks}
-    if progress and futures:
-        from distributed import progress as _progress
+    workers = max(1, sum(client.nthreads().values()))  # tasks that run at once
+    pending = list(chunks)
+    out, spent = {}, []
 
-        _progress(list(futures))
-    out = {}
-    for fut in as_completed(list(futures)):
-        key = futures[fut]
-        if fut.status == "error":
-            exc = fut.exception()
-            out[key] = exc if isinstance(exc, BaseException) else XtopoError(str(exc))
-        elif fut.status == "cancelled":
-            out[key] = XtopoError("task was cancelled (the scheduler lost it)")
+    def submit(group, retry=retries):
+        return client.submit(run_chunks, group, key=f"xtopo-batch-{group[0].key[:16]}-{len(group)}-{token}",
+                             pure=False, retries=retry), group
+
+    # two probes a worker: a worker's first chunk may carry its imports; the group size is taken from the
+    # quickest of the first workers + 1 chunks
+    probes = dict(submit([c]) for c in pending[:2 * workers])
+    pending = pending[2 * workers:]
+    waiting = as_completed(list(probes))
+    groups = dict(probes)
+
+    def show(futures):  # distributed's bar (blocks until they are done) over every task of the batch
+        if progress and futures:
+            from distributed import progress as _progress
+
+            _progress(futures)
+
+    if not pending:
+        show(list(probes))
+    for fut in waiting:
+        group = groups.pop(fut)
+        if fut.status == "finished":
+            for key, res, seconds in fut.result():
+                if isinstance(res, BaseException) and len(group) > 1:
+                    waiting.add(_resubmit(submit, groups, [c for c in group if c.key == key]))
+                    continue
+                out[key] = res
+                spent.append(seconds)
+        elif len(group) > 1:  # isolate the chunk that failed the group
+            for c in group:
+                waiting.add(_resubmit(submit, groups, [c]))
         else:
-            out[key] = fut.result()
+            exc = fut.exception() if fut.status == "error" else None
+            out[group[0].key] = exc if isinstance(exc, BaseException) else XtopoError(
+                "task was cancelled (the scheduler lost it)" if fut.status == "cancelled" else str(exc))
         fut.release()
+        if pending and (len(spent) > workers or not groups):  # timed (or the probes failed: one chunk a task)
+            size = _group_size(min(spent), len(pending), workers) if spent else 1
+            new = dict(submit(pending[i:i + size]) for i in range(0, len(pending), size))
+            pending = []
+            groups.update(new)
+            waiting.update(list(new))
+            show([f for f in probes if f in groups] + list(new))
     return out
+
+
+def _resubmit(submit, groups, group):
+    fut, group = submit(group)
+    groups[fut] = group
+    return fut
 
 
 def _execute_local(chunks, scheduler, workers, progress) -> dict:

@@ -64,7 +64,10 @@ def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict |
     chunks : int or dict, optional
         Items per task: an int is measurements per chunk; a dict names both,
         e.g. ``{"measurement": 1, "load": 4}`` (``-1``/None: all). Default: one measurement
-        with all parameter values per task.
+        with all parameter values per task. A chunk is what the store keeps and reuses; on a
+        distributed client, chunks that take less than about 0.25 s each (timed on the first
+        ones) are packed several to a task (``XTOPO_BATCH_TASK_SECONDS`` sets the target, 0
+        turns packing off).
     client : distributed.Client, optional
         Run on this client. Default: the active client, if any.
     scheduler : str, optional

@@ -66,7 +66,9 @@ def chunk_dataset(names, sources, results, errors, params, dim) -> xr.Dataset:
         coords[HISTORY] = (MEASUREMENT, history, dict(_HISTORY_ATTRS))
     good = [r.drop_attrs(deep=False).assign_attrs({k: v for k, v in r.attrs.items() if k != "history"})
             .expand_dims({MEASUREMENT: [n]}) for n, r in zip(names, results) if r is not None]
-    if good:
+    if len(good) == len(names) == 1:  # a chunk of one measurement: nothing to align (a third of its overhead)
+        ds = good[0]
+    elif good:
         ds = xr.concat(good, dim=MEASUREMENT, join="outer", combine_attrs="drop_conflicts", data_vars="all")
         ds = ds.reindex({MEASUREMENT: list(names)})
     else:
@@ -74,7 +76,8 @@ def chunk_dataset(names, sources, results, errors, params, dim) -> xr.Dataset:
     err_dims = (MEASUREMENT,) if params is None else (MEASUREMENT, dim)
     if params is not None:
         attrs = ds[dim].attrs if dim in ds.coords else {}
-        ds = ds.reindex({dim: list(params)}) if dim in ds.dims else ds
+        if dim in ds.dims and list(ds[dim].values) != list(params):
+            ds = ds.reindex({dim: list(params)})
         coords[dim] = (dim, list(params), attrs)
     err = np.array(errors, dtype=object).reshape([len(names)] + ([] if params is None else [len(params)]))
     ds = _blank_missing_strings(ds.assign_coords(coords))

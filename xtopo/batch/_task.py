@@ -21,7 +21,7 @@ from ..preprocess import apply_steps
 from ._results import chunk_dataset
 from ._store import IO_LOCK, Store, func_name
 
-__all__ = ["Chunk", "run_chunk", "error_message"]
+__all__ = ["Chunk", "run_chunk", "run_chunks", "error_message"]
 
 
 class Chunk(NamedTuple):
@@ -160,3 +160,35 @@ def run_chunk(chunk: Chunk) -> xr.Dataset:
     if chunk.store is not None:
         Store(chunk.store).write(ds, chunk.key, sum(bool(e) for row in errors for e in row))
     return ds
+
+
+def run_chunks(chunks: list) -> list:
+    """Several chunks in one task (small items need not each pay a task's overhead), one after the other.
+
+    A chunk that raises does not stop the others (a task of one chunk raises, so that distributed's
+    ``retries`` apply to it). A chunk whose file is already in the store
+    (an earlier attempt of this task, on a worker that was then killed) is read back, not
+    computed again.
+
+    Returns
+    -------
+    list of tuple
+        ``(key, Dataset or the exception, seconds)`` per chunk.
+    """
+    import time
+
+    out = []
+    for chunk in chunks:
+        t = time.perf_counter()
+        try:
+            ds = None
+            if chunk.store is not None:
+                store = Store(chunk.store)
+                if os.path.exists(store.path(chunk.key)):
+                    ds = store.reusable(chunk.key)
+            out.append((chunk.key, run_chunk(chunk) if ds is None else ds, time.perf_counter() - t))
+        except Exception as exc:
+            if len(chunks) == 1:
+                raise
+            out.append((chunk.key, exc, time.perf_counter() - t))
+    return out
