@@ -30,7 +30,7 @@ from .conventions import convert_length, height_of, lateral_dims, length_factor,
 from .errors import GridError, UnitsError, XtopoError
 from .twins import measurements as _measurements
 
-__all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES", "TwinAnalysis"]
+__all__ = ["average_curves", "twin_average", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES", "TwinAnalysis"]
 
 #: default density of collocation points
 PER_DECADE = 10
@@ -253,15 +253,20 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
         raise GridError(f"measurement {name!r}: {exc}") from None
 
 
-def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: str):
+def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity):
     """Long-scale (statistical) information of a measurement's curve for the twin average.
 
     Spectra: each wavevector carries its independent Fourier modes (relative error ``1/√N``
     of a bin holding ``N``). ACF and SDRP: the predicted relative error of
     :func:`~xtopo.analysis.statistical_reliability.stencil_error`. VBM: ``1/(2√N)`` with ``N``
     independent windows. Returns the curve (spectra: with the modes as a coordinate)
-    and the error on the curve's points (None for spectra).
+    and the error on the curve's points (None for spectra, and for ``quantity=None``: no error model).
+    A callable ``quantity`` is the error model of a :class:`TwinAnalysis` (its ``error``).
     """
+    if quantity is None:
+        return curve, None
+    if callable(quantity):
+        return curve, quantity(ds, curve).assign_coords({coord: curve[coord]})
     direction = curve.attrs.get("direction", "x")
     x = np.asarray(curve[coord].values, dtype=float)
     if coord == "q":
@@ -416,8 +421,14 @@ _TWIN_PARAMETERS = """tree : xarray.DataTree
         point (e.g. :data:`xtopo.analysis.statistical_reliability.MAX_RELATIVE_ERROR`); the values it
         drops are marked in ``left_out``. Default None: every reliable point is averaged."""
 
-#: Parameters of one average beyond those all four share (after ``tree``).
+#: Parameters of one average beyond those all share (after ``tree``).
 _EXTRA = {
+    "twin_average": """
+    measure : callable
+        The analysis of one measurement, ``measure(ds, **kwargs, reliable=...)`` returning a curve.
+    error : callable, optional
+        Its error model: ``error(ds, curve)``, the predicted relative standard error of the curve's points
+        (a DataArray on its coordinate); replicates share the median (see :func:`_pool_errors`).""",
     "twin_psd": """
     areal : bool
         Average ``Ciso`` of area scans instead of ``C1D`` along x (default False).
@@ -488,6 +499,32 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
     out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
     return _with_provenance(out, tree, "twin_acf", per_decade=per_decade, units=units, reliable=reliable,
                             max_error=max_error)
+
+
+def twin_average(tree, measure: Callable, *, error: Callable | None = None, per_decade: int = PER_DECADE,
+                 units: str | None = None, reliable: bool = True, max_error: float | None = None,
+                 **kwargs) -> xr.Dataset:
+    """Average over a twin of any scale-dependent analysis of one measurement, binned.
+
+    The generic twin average of a :class:`TwinAnalysis` declared with ``measure=``: each
+    measurement's curve ``measure(ds, **kwargs, reliable=False)`` (on a length or wavevector
+    coordinate) is masked below its short cutoff and averaged in log bins as :func:`twin_acf`
+    does. {criterion} Without an error model, ``uncertainty`` is NaN.
+
+    Parameters
+    ----------
+    {parameters}
+    **kwargs
+        Further arguments of ``measure``.
+
+    {returns}
+    """
+    _settings(per_decade, max_error)
+    curves, errors = _per_measurement(tree, measure, kwargs, kwargs, units, reliable, quantity=error)
+    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
+    return _with_provenance(out, tree, "twin_average", measure=measure.__name__,
+                            error=None if error is None else error.__name__, per_decade=per_decade,
+                            units=units, reliable=reliable, max_error=max_error, **kwargs)
 
 
 def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
@@ -566,7 +603,7 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
                             reliable=reliable, max_error=max_error)
 
 
-for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):
+for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp, twin_average):
     _f.__doc__ = _f.__doc__.format(criterion=_CRITERION, returns=_TWIN_RETURNS,
                                    parameters=_TWIN_PARAMETERS.format(extra=_EXTRA.get(_f.__name__, "")))
 
@@ -580,9 +617,9 @@ class TwinAnalysis:
     ----------
     name : str
         Key (group name in the NetCDF output, ``--analyses`` of the CLI).
-    function : callable
+    function : callable or None
         The twin average, ``function(tree, **kwargs, per_decade=..., ...)`` returning the
-        Dataset of :func:`average_curves`.
+        Dataset of :func:`average_curves`; None: :func:`twin_average` of :attr:`measure`.
     coord : str
         Its coordinate (``q``: wavevector, 1/length; others: lengths).
     averaging : str
@@ -593,19 +630,29 @@ class TwinAnalysis:
     title : str
         Plot title.
     kwargs : dict
-        Fixed arguments of ``function`` (SDRP: ``order=2``, the curvature of Figure 5).
+        Fixed arguments of ``function`` (SDRP: ``order=2``, the curvature of Figure 5), or of
+        :attr:`measure`.
+    measure : callable, optional
+        The analysis of one measurement that :func:`twin_average` averages (with ``function=None``):
+        a new scale-dependent analysis needs this record and its module, nothing else.
+    error : callable, optional
+        The error model :func:`twin_average` uses, ``error(ds, curve)`` (None: uncertainty unknown).
     """
 
     name: str
-    function: Callable
+    function: Callable | None
     coord: str
     averaging: str
     error_model: str
     title: str
     kwargs: Mapping = field(default_factory=dict)
+    measure: Callable | None = None
+    error: Callable | None = None
 
     def __call__(self, tree, **kwargs) -> xr.Dataset:
-        """The twin average of this analysis (``kwargs`` as of :attr:`function`)."""
+        """The twin average of this analysis (``kwargs`` as of :attr:`function`, or of :func:`twin_average`)."""
+        if self.function is None:
+            return twin_average(tree, self.measure, error=self.error, **{**self.kwargs, **kwargs})
         return self.function(tree, **{**self.kwargs, **kwargs})
 
 

@@ -13,7 +13,7 @@ from ..errors import GridError, XtopoError
 from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare, provenance
 from .reliability import apply_reliability
 
-__all__ = ["sdrp"]
+__all__ = ["sdrp", "default_distances"]
 
 
 def check_order(order) -> int:
@@ -21,6 +21,17 @@ def check_order(order) -> int:
     if integer(order, "order") > 2:
         raise XtopoError(f"order must be 1 or 2, got {order!r}")
     return int(order)
+
+
+def default_distances(n: int, dx: float, order: int, dim: str, what: str) -> np.ndarray:
+    """Stencil lengths ``ℓ = order·η·Δx`` of a scale-dependent derivative of a scan of ``n`` points:
+    10 per decade from ``order·Δx`` to ``L/2``, at integer ``η`` (no interpolation, which biases the slope
+    low at fractional η: benchmarks/tradeoffs.py gives half the error, and faster; duplicates dropped)."""
+    lo, hi = order * dx, n * dx / 2
+    if hi < lo:
+        raise GridError(f"the scan is too short for {what} ({n} points along {dim!r})")
+    nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
+    return np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
 
 
 def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = True) -> xr.DataArray:
@@ -61,13 +72,7 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
     other = [d for d in prep.lat if d != dim]
     n, dx = h.sizes[dim], prep.spacing(dim)
     if distances is None:
-        lo, hi = order * dx, n * dx / 2
-        if hi < lo:
-            raise GridError(f"the scan is too short for sdrp(order={order}) ({n} points along {dim!r})")
-        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
-        # integer scale factors: no interpolation, which biases the slope low at fractional η
-        # (benchmarks/tradeoffs.py: half the error of log-spaced fractional η, and faster)
-        distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
+        distances = default_distances(n, dx, order, dim, f"sdrp(order={order})")
     distances = lengths(distances, "distances", u, n * dx)
     etas = distances / (order * dx)
     out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
