@@ -24,6 +24,7 @@ import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
+from .analysis.curvature_kurtosis import curvature_kurtosis, curvature_kurtosis_error
 from .analysis.reliability import reliability_cutoff
 from .analysis.statistical_reliability import independent_samples, sampling_cutoff, stencil_error
 from .conventions import convert_length, height_of, lateral_dims, length_factor, unit_argument
@@ -666,6 +667,9 @@ ANALYSES: dict[str, TwinAnalysis] = {a.name: a for a in (
                  "variable-bandwidth RMS height"),
     TwinAnalysis("sdrp", twin_sdrp, "distance", "points", "variance of the mean square curvature (stencil_error)",
                  "scale-dependent RMS curvature", {"order": 2}),
+    TwinAnalysis("curvature_kurtosis", None, "distance", "bin", "√(24/N)/3 of a Gaussian surface, N independent "
+                 "stretches", "kurtosis of the scale-dependent curvature", measure=curvature_kurtosis,
+                 error=curvature_kurtosis_error),
 )}
 
 
