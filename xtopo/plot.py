@@ -32,6 +32,7 @@ import xarray as xr
 from ._checks import integer, mapping, positive_number, text, xarray_object
 from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
+from ._optional import require
 
 __all__ = ["plot", "topography", "curve", "spectrum_map", "twin_curves", "twin_figure", "contact_area", "contact_maps",
            "measurement_maps", "downsample", "unit_label", "PALETTE"]
@@ -59,10 +60,9 @@ def _hv():
     Importing a plotting backend does not change a backend the user already selected
     with ``hv.extension``.
     """
-    import holoviews as hv
-
+    hv = require("holoviews", "plotting")  # the [plot] extra, loaded on first use (startup time)
     current = hv.Store.current_backend if hv.Store.renderers else None
-    import holoviews.plotting.bokeh  # noqa: F401
+    require("holoviews.plotting.bokeh", "plotting")
     try:
         import holoviews.plotting.mpl  # noqa: F401
     except ImportError:  # pragma: no cover - matplotlib is optional

@@ -16,6 +16,7 @@ import os
 import xarray as xr
 
 from ._checks import flag, mapping, option
+from ._optional import require
 from .errors import XtopoError
 from .stitching import ANALYSES as _REGISTRY
 
@@ -221,8 +222,8 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     str
         ``path`` when given, else the HTML text.
     """
-    import holoviews as hv
-    from bokeh.layouts import gridplot
+    hv = require("holoviews", "the report")  # the [plot] extra, loaded on first use (startup time)
+    gridplot = require("bokeh.layouts", "the report").gridplot
 
     from . import plot as _plot
     from ._version import __version__

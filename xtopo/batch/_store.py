@@ -18,6 +18,7 @@ import threading
 
 import xarray as xr
 
+from .._optional import require
 from .._tokens import callable_token
 from .._version import __version__
 from ..io.netcdf import PROVENANCE_KEYS, atomic_write, read_netcdf, to_netcdf
@@ -74,7 +75,7 @@ def chunk_key(func, dim, names, prints, params, preprocess=()) -> str:
     (``<function f at 0x...>``: never reused by a new process) and abbreviates large arrays
     (``[1., 1., ..., 1.]``: reused when the array changed).
     """
-    from dask.base import tokenize
+    tokenize = require("dask.base", "xtopo.batch").tokenize  # the [dask] extra, loaded on first use
 
     inputs = {"f": callable_token(func), "dim": dim, "names": list(names), "m": list(prints),
               "p": None if params is None else tokenize(list(params)), "v": __version__}
