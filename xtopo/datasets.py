@@ -20,9 +20,9 @@ import xarray as xr
 
 from ._checks import flag, integer, lengths, option, per_axis, positive_number, real_array, real_number
 from ._kernels import fft as _fft
-from ._kernels.derivatives import fourier_first, wavevectors
-from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
-                          spacing, unit_argument)
+from ._kernels.derivatives import forward_difference, fourier_first, wavevectors
+from ._kernels.spectra import rfft_multiplicity
+from .conventions import append_history, height_of, lateral_dims, make_measurement, spacing, unit_argument
 from ._progress import progress_bar
 from .errors import GridError, XtopoError
 
@@ -209,8 +209,6 @@ def _grid_q(shape, spacings):
 
 def _rfft_weights(shape):
     """Multiplicity of each rfft mode in the full spectrum (1 or 2)."""
-    from ._kernels.spectra import rfft_multiplicity
-
     n = shape[-1]
     return np.broadcast_to(rfft_multiplicity(1, n), tuple(shape[:-1]) + (n // 2 + 1,))
 
@@ -295,8 +293,6 @@ def fractal_surface(shape, size, *, hurst: float, rms_height: float | None = Non
     h = _synthesize(gshape, gsize, psd.c_native(qabs), np.random.default_rng(seed))
     if rms_height is not None or rms_slope is not None:
         if rms_slope is not None:
-            from ._kernels.derivatives import forward_difference
-
             meas = np.sqrt(sum(np.mean(forward_difference(h, dx, periodic=True, axis=ax) ** 2)
                                for ax, (_, dx) in zip(range(-dim, 0), symbols)))
         else:

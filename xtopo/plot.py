@@ -30,9 +30,11 @@ import numpy as np
 import xarray as xr
 
 from ._checks import integer, mapping, positive_number, text, xarray_object
-from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
+from .conventions import LATERAL_DIMS, X, Y, height_of, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
 from ._optional import require
+from .stitching import ANALYSES, PER_DECADE
+from .twins import measurements
 
 __all__ = ["plot", "topography", "curve", "spectrum_map", "twin_curves", "twin_figure", "contact_area", "contact_maps",
            "measurement_maps", "downsample", "unit_label", "PALETTE"]
@@ -230,8 +232,6 @@ def topography(obj, *, max_pixels: int = MAX_PIXELS, cmap: str = "viridis", titl
     max_pixels = integer(max_pixels, "max_pixels", minimum=2)  # also for profiles, which do not use it
     cmap, title, variable = _cmap(cmap), text(title, "title"), text(variable, "variable", optional=False)
     if isinstance(obj, xr.Dataset):
-        from .conventions import height_of
-
         if variable != "height" and variable not in obj.data_vars:
             raise XtopoError(f"variable={variable!r} is not a data variable of the Dataset; choose from "
                              f"{sorted(map(str, obj.data_vars))}")
@@ -550,8 +550,6 @@ def twin_figure(tree, *, analyses=None, groups: dict | None = None, labels: dict
     holoviews.Layout
     """
     hv = _hv()
-    from .stitching import ANALYSES, PER_DECADE
-    from .twins import measurements
 
     ms = measurements(tree)
     names = list(ANALYSES) if analyses is None else [str(a) for a in analyses]
@@ -699,7 +697,6 @@ def measurement_maps(tree, *, max_pixels: int = 256, cols: int = 3):
         Panels per row.
     """
     hv = _hv()
-    from .twins import measurements
 
     ms = measurements(tree) if isinstance(tree, xr.DataTree) else mapping(tree, "measurement_maps() tree")
     cols = integer(cols, "cols")

@@ -24,14 +24,23 @@ import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS, flag, integer, lengths, option, positive_number
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
+from ._progress import progress_bar
+from .analysis._scale import provenance
+from .analysis.acf import acf
 from .analysis.curvature_kurtosis import curvature_kurtosis, curvature_kurtosis_error
+from .analysis.psd import psd
 from .analysis.reliability import reliability_cutoff
+from .analysis.sdrp import check_order, sdrp
 from .analysis.statistical_reliability import independent_samples, sampling_cutoff, stencil_error
+from .analysis.vbm import vbm
 from .conventions import convert_length, height_of, lateral_dims, length_factor, unit_argument
 from .errors import GridError, UnitsError, XtopoError
+from .preprocess import fill_missing
+from .summary import summary_table
 from .twins import measurements as _measurements
 
-__all__ = ["average_curves", "twin_average", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES", "TwinAnalysis"]
+__all__ = ["average_curves", "twin_average", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES",
+           "TwinAnalysis"]
 
 #: default density of collocation points
 PER_DECADE = 10
@@ -243,8 +252,6 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
     A measurement without any valid height raises a GridError that names it (in-memory data;
     on dask the fill's own error comes at ``.compute()``).
     """
-    from .preprocess import fill_missing
-
     h = height_of(ds)
     if h.chunks is None and bool(np.isfinite(h.values).all()):
         return ds  # complete: no second fill_missing line after --fill-missing (issue 26)
@@ -385,8 +392,6 @@ def _with_provenance(out: xr.Dataset, tree, analysis: str, **params) -> xr.Datas
     coordinates along ``measurement``
     ('' for one without). Only attrs and coordinates built from attrs: a lazy average stays lazy.
     """
-    from .analysis._scale import provenance
-
     names = [str(n) for n in out["measurement"].values]
     if "units" in params and params["units"] is None:
         params["units"] = _common_units(_measurements(tree))
@@ -462,8 +467,6 @@ def twin_psd(tree, *, areal: bool = False, window="auto", per_decade: int = PER_
 
     {returns}
     """
-    from .analysis.psd import psd
-
     _settings(per_decade, max_error)
     if flag(areal, "areal"):
         ms = _measurements(tree)
@@ -492,8 +495,6 @@ def twin_acf(tree, *, per_decade: int = PER_DECADE, units: str | None = None, re
 
     {returns}
     """
-    from .analysis.acf import acf
-
     _settings(per_decade, max_error)
     curves, errors = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
                                       quantity="acf")
@@ -532,8 +533,6 @@ def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
     """VBM of a measurement; a set of parallel profiles (``measurement_kind="profiles"``: rows far
     apart, as the stylus scans of :func:`xtopo.datasets.example_twin`) is the mean of its profiles'
     line-scan VBMs, not one VBM of a map with rows as far apart as the scan is long."""
-    from .analysis.vbm import vbm
-
     if ds.attrs.get("measurement_kind") == "profiles" and ds["height"].ndim == 2:
         return vbm(ds.rename(y="_profile"), **kw).mean("_profile", keep_attrs=True)
     return vbm(ds, **kw)
@@ -573,8 +572,6 @@ def twin_sdrp(tree, order: int = 1, *, per_decade: int = PER_DECADE, units: str 
 
     {returns}
     """
-    from .analysis.sdrp import check_order, sdrp
-
     order = check_order(order)
     reliable = flag(reliable, "reliable")
     _settings(per_decade, max_error)
@@ -692,11 +689,8 @@ def analyze_twin(tree, *, per_decade: int = PER_DECADE, progress: bool | None = 
         :data:`ANALYSES` (``psd``, ``acf``, ``vbm``, ``sdrp``: the curvature) with the
         averages, uncertainties, counts and per-measurement curves (computed).
     """
-    from .summary import summary_table
-
     ms = _measurements(tree)
     results = {"/": summary_table(ms).assign_attrs({**tree.attrs, "title": tree.attrs.get("title", "twin analysis")})}
-    from ._progress import progress_bar
 
     for name, analysis in progress_bar(ANALYSES.items(), desc="twin averages", unit="analysis", enabled=progress):
         results[f"/{name}"] = analysis(tree, per_decade=per_decade).compute()

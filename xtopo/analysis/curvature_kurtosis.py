@@ -15,14 +15,13 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral
-from .._checks import lengths
 from .._kernels.scaled import scaled_difference
 from .._kernels.spectra import check_finite
 from ..conventions import X
 from ..errors import UndefinedValueWarning, warn
-from ._scale import finish, length_coord, prepare, provenance
+from ._scale import finish, length_coord, provenance
 from .reliability import apply_reliability
-from .sdrp import default_distances
+from .sdrp import stencils
 from .statistical_reliability import independent_samples
 
 __all__ = ["curvature_kurtosis", "curvature_kurtosis_error"]
@@ -71,14 +70,8 @@ def curvature_kurtosis(obj, *, dim: str = X, distances=None, reliable: bool = Tr
         everywhere (a flat or linear profile).
     """
     given = distances
-    prep = prepare(obj)
+    prep, other, dx, distances = stencils(obj, dim, distances, 2, "curvature_kurtosis")
     h, u = prep.h, prep.units
-    prep.check_dim(dim)
-    other = [d for d in prep.lat if d != dim]
-    n, dx = h.sizes[dim], prep.spacing(dim)
-    if distances is None:
-        distances = default_distances(n, dx, 2, dim, "curvature_kurtosis")
-    distances = lengths(distances, "distances", u, n * dx)
     out = apply_lateral(_kurtosis, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
                         output_sizes={"distance": distances.size},
                         kwargs=dict(etas=distances / (2 * dx), periodic=prep.periodic, rows=len(other)),

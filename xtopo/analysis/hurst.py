@@ -26,6 +26,11 @@ import xarray as xr
 from .._checks import option
 from ..errors import XtopoError
 from ._scale import prepare, provenance
+from .acf import acf
+from .psd import psd
+from .reliability import reliable_scales
+from .sdrp import sdrp
+from .vbm import vbm
 
 __all__ = ["hurst", "fit_power_law", "fit_power_law_whittle"]
 
@@ -170,10 +175,6 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
     else:
         option(method, _METHODS, "method")
         option(kind, ("1d", "iso"), "kind")
-        from .acf import acf
-        from .psd import psd
-        from .sdrp import sdrp
-        from .vbm import vbm
 
         prep = prepare(obj)
         length_units = prep.units
@@ -242,8 +243,6 @@ def hurst(obj, method: str = "psd", *, kind: str = "1d", dim: str = "x", scale_r
 def _reliable(da, x, is_q):
     """Which abscissae of a result are reliable: a lazy result (tip-radius cutoff on dask) masks its
     unreliable scales instead of dropping them, so its cutoff coordinate says which they are."""
-    from .reliability import reliable_scales
-
     if "reliability_cutoff" not in da.coords:
         return np.ones(x.shape, bool)
     cut = np.asarray(da.coords["reliability_cutoff"].values, dtype=float).reshape(1, -1)  # computes a lazy cutoff

@@ -13,7 +13,7 @@ from ..errors import GridError, XtopoError
 from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare, provenance
 from .reliability import apply_reliability
 
-__all__ = ["sdrp", "default_distances"]
+__all__ = ["sdrp", "stencils"]
 
 
 def check_order(order) -> int:
@@ -23,15 +23,25 @@ def check_order(order) -> int:
     return int(order)
 
 
-def default_distances(n: int, dx: float, order: int, dim: str, what: str) -> np.ndarray:
-    """Stencil lengths ``ℓ = order·η·Δx`` of a scale-dependent derivative of a scan of ``n`` points:
-    10 per decade from ``order·Δx`` to ``L/2``, at integer ``η`` (no interpolation, which biases the slope
-    low at fractional η: benchmarks/tradeoffs.py gives half the error, and faster; duplicates dropped)."""
-    lo, hi = order * dx, n * dx / 2
-    if hi < lo:
-        raise GridError(f"the scan is too short for {what} ({n} points along {dim!r})")
-    nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
-    return np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
+def stencils(obj, dim: str, distances, order: int, what: str):
+    """What a scale-dependent derivative of ``order`` along ``dim`` needs: the prepared measurement, the
+    other lateral dims, the spacing and the stencil lengths ``ℓ = order·η·Δx`` (checked).
+
+    Default lengths: 10 per decade from ``order·Δx`` to ``L/2`` at integer ``η`` (no interpolation, which
+    biases the slope low at fractional η: benchmarks/tradeoffs.py gives half the error, and faster;
+    duplicates dropped, so fewer points at the smallest scales).
+    """
+    prep = prepare(obj)
+    prep.check_dim(dim)
+    other = [d for d in prep.lat if d != dim]
+    n, dx = prep.h.sizes[dim], prep.spacing(dim)
+    if distances is None:
+        lo, hi = order * dx, n * dx / 2
+        if hi < lo:
+            raise GridError(f"the scan is too short for {what} ({n} points along {dim!r})")
+        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
+        distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
+    return prep, other, dx, lengths(distances, "distances", prep.units, n * dx)
 
 
 def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = True) -> xr.DataArray:
@@ -66,14 +76,8 @@ def sdrp(obj, order: int = 1, *, dim: str = X, distances=None, reliable: bool = 
     """
     given = distances
     order = check_order(order)
-    prep = prepare(obj)
+    prep, other, dx, distances = stencils(obj, dim, distances, order, f"sdrp(order={order})")
     h, u = prep.h, prep.units
-    prep.check_dim(dim)
-    other = [d for d in prep.lat if d != dim]
-    n, dx = h.sizes[dim], prep.spacing(dim)
-    if distances is None:
-        distances = default_distances(n, dx, order, dim, f"sdrp(order={order})")
-    distances = lengths(distances, "distances", u, n * dx)
     etas = distances / (order * dx)
     out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
                         output_sizes={"distance": etas.size},
