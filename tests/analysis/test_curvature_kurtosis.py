@@ -88,6 +88,7 @@ def test_the_record_puts_it_in_the_twin_averages_cli_report_and_batch(tmp_path, 
     with xr.open_datatree(tmp_path / "out.nc") as out:
         assert NAME in out.children
 
+    assert set(ANALYSES) <= set(batch._analyze._available_analyses())  # batch finds every twin analysis's module
     res = batch.analyze(ms, [NAME], scheduler="sync", progress=False)
     for name, ds in ms.items():
         np.testing.assert_allclose(res[NAME].sel(measurement=name).dropna("distance").values,
