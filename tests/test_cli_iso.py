@@ -10,6 +10,7 @@ import xarray as xr
 
 import xtopo
 from xtopo.conventions import make_measurement
+from xtopo.stitching import ANALYSES
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 A, LAM = 1e-6, 100e-6  # m: amplitude 1 µm, wavelength 0.1 mm
@@ -39,7 +40,7 @@ def test_analyze_iso_prints_and_stores_the_profile_set(cosine_file, tmp_path):
     assert "3.75 µm   1.2 mm" in r.stdout  # the cut-offs used: λs by the ISO 3274 ratio (1.2 mm/320)
     line = [ln for ln in r.stdout.splitlines() if ln.startswith("cosine")][-1]  # the ISO table, after the summary
     assert "637 nm" in line  # Ra = 2A/π (the table's row), λs = 1.2 mm / 320 = 3.75 µm passes λ = 0.1 mm
-    assert "groups: summary at the root, psd, acf, vbm, sdrp, iso" in r.stdout
+    assert f"groups: summary at the root, {', '.join(ANALYSES)}, iso" in r.stdout
     iso = xr.open_datatree(out)["iso"].to_dataset()  # the measurement coordinate is inherited from the root
     assert float(iso.Ra.sel(measurement="cosine.nc")) == pytest.approx(2 * A / np.pi, rel=2e-3)
     assert float(iso.Rz.sel(measurement="cosine.nc")) == pytest.approx(2 * A, rel=2e-3)

@@ -15,6 +15,8 @@ import sys
 import types
 import weakref
 
+from ._optional import require
+
 __all__ = ["callable_token"]
 
 
@@ -57,7 +59,7 @@ def _by_reference(func) -> bool:
 
 def callable_token(func) -> str:
     """A token of ``func`` by content: dask's ``tokenize`` plus the code of its Python functions."""
-    from dask.base import tokenize
+    tokenize = require("dask.base", "a token of a function (the result cache, batch stores)").tokenize  # [dask]
 
     if type(func) is not types.FunctionType or not _by_reference(func):
         return tokenize(func, _codes(func))

@@ -53,6 +53,7 @@ import xxhash
 from ._checks import integer, make_directory, xarray_object
 from ._checks import path as checked_path
 from ._kernels._cache_dir import default_directory
+from ._optional import require
 from ._tokens import callable_token
 from ._tree import _immutable, freeze
 from ._version import __version__
@@ -126,7 +127,7 @@ def _key(func, data_sum: str, params: dict) -> str:
     A name or ``repr`` is not enough: every lambda is ``<lambda>``, closures of one factory share
     a qualified name, and numpy abbreviates the repr of large arrays.
     """
-    from dask.base import tokenize
+    tokenize = require("dask.base", "the result cache").tokenize  # the [dask] extra, loaded on first use
 
     blob = json.dumps({"f": callable_token(func), "data": data_sum, "params": tokenize(params), "version": __version__},
                       sort_keys=True)

@@ -9,6 +9,12 @@ import argparse
 import os
 import sys
 
+from ._progress import progress_bar
+from ._version import __version__
+from .cli_commands import (add_commands, add_iso_options, add_preprocess_options, add_probe_options, add_read_options,
+                           iso_options, iso_report, preprocess, read_options)
+from .errors import XtopoError
+
 __all__ = ["main"]
 
 
@@ -18,9 +24,7 @@ def _progress(args):
 
 
 def _load_measurements(files, args):
-    from ._progress import progress_bar
-    from .cli_commands import preprocess, read_options
-    from .datasets import example_twin
+    from .datasets import example_twin  # deferred: xtopo --version/--help load no numpy
     from .io import open_topography
 
     if not files:
@@ -92,8 +96,7 @@ def _average_line(name: str, r) -> str:
 def _cmd_analyze(args) -> int:
     import xarray as xr
 
-    from .cli_commands import iso_options, iso_report
-    from .io.netcdf import tree_to_netcdf
+    from .io.netcdf import tree_to_netcdf  # deferred: xtopo --version/--help load no numpy
     from .stitching import ANALYSES, analyze_twin
     from .summary import format_table
     from .twins import twin
@@ -113,7 +116,7 @@ def _cmd_analyze(args) -> int:
     groups = ", ".join(ANALYSES) + (", iso" if iso is not None else "")
     print(f"\nwrote {args.output} (groups: summary at the root, {groups})")
     if args.report:
-        from .report import report
+        from .report import report  # deferred: xtopo --version/--help load no numpy
 
         report(measurements, args.report, title=f"xtopo analysis: {what}", iso=iso_options(args),
                progress=_progress(args))
@@ -122,8 +125,7 @@ def _cmd_analyze(args) -> int:
 
 
 def _cmd_report(args) -> int:
-    from .cli_commands import iso_options
-    from .report import ANALYSES, report
+    from .report import ANALYSES, report  # deferred: xtopo --version/--help load no numpy
 
     analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
     unknown = [a for a in analyses if a not in ANALYSES]
@@ -141,9 +143,6 @@ def _cmd_report(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from ._version import __version__
-    from .cli_commands import add_iso_options, add_preprocess_options, add_probe_options, add_read_options
-
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -178,7 +177,6 @@ def build_parser() -> argparse.ArgumentParser:
     add_probe_options(r)
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bars (shown only on a terminal)")
     r.set_defaults(func=_cmd_report)
-    from .cli_commands import add_commands  # issue 7: info, contact, batch, convert
 
     add_commands(sub)
     return parser
@@ -250,7 +248,6 @@ def _main(argv) -> int:
         parser.print_help()
         return 2
     from . import accessors  # noqa: F401  (registers .topo; skipped when the package was imported by the command)
-    from .errors import XtopoError
 
     try:
         return args.func(args)

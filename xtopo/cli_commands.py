@@ -11,6 +11,9 @@ import json
 import math
 import os
 import sys
+from ._format import format_columns, format_quantities
+from ._kernels import DEGREES
+from .errors import UnitsError, XtopoError
 
 __all__ = ["add_commands", "add_preprocess_options", "add_read_options", "parse_channel", "preprocess",
            "preprocess_steps", "read_options"]
@@ -38,8 +41,7 @@ def _length(value: str) -> float:
     """A length with its unit (``20nm``, ``0.5 um``; metres without one) → metres (``--tip-radius``)."""
     import re
 
-    from .conventions import length_factor
-    from .errors import UnitsError
+    from .conventions import length_factor  # deferred: xtopo --help loads no numpy
 
     m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\d\s].*)?", value)
     if not m:
@@ -78,8 +80,6 @@ def read_options(args, index: int | None = None) -> dict:
         if not values:
             continue
         if len(values) not in (1, n):
-            from .errors import XtopoError
-
             raise XtopoError(f"--{key.replace('_', '-')} takes one value for every file or one per file; got "
                              f"{len(values)} for {n} files")
         options[key] = values[0] if len(values) == 1 else values[index] if index is not None else list(values)
@@ -88,8 +88,6 @@ def read_options(args, index: int | None = None) -> dict:
 
 def add_preprocess_options(p) -> None:
     """``--detrend MODE`` and ``--fill-missing``: the preprocessing of paper §3.2 for commands that analyse."""
-    from ._kernels import DEGREES
-
     g = p.add_argument_group("preprocessing (paper §3.2; each step is recorded in the history attribute)")
     g.add_argument("--detrend", choices=tuple(DEGREES), default=None,
                    help="subtract the least-squares mean, plane (tilt) or quadratic (curvature) from the heights "
@@ -105,7 +103,7 @@ def preprocess_steps(args) -> tuple:
 
     Detrending first fits the background to the measured heights only (the fill would otherwise enter it).
     """
-    from .preprocess import checked_steps
+    from .preprocess import checked_steps  # deferred: xtopo --help loads no numpy
 
     return checked_steps([("detrend", getattr(args, "detrend", None)),
                           ("fill_missing", getattr(args, "fill_missing", False))], "--detrend/--fill-missing")
@@ -113,7 +111,7 @@ def preprocess_steps(args) -> tuple:
 
 def preprocess(ds, args):
     """``ds`` after the steps :func:`add_preprocess_options` asked for (:func:`preprocess_steps`)."""
-    from .preprocess import apply_steps
+    from .preprocess import apply_steps  # deferred: xtopo --help loads no numpy
 
     return apply_steps(ds, preprocess_steps(args))
 
@@ -151,7 +149,7 @@ def iso_report(measurements: dict, args):
     Returns ``(table, errors)``: ``(None, {})`` without ``--iso``; ``errors`` names the
     measurements whose ISO parameters failed (printed to stderr).
     """
-    from .analysis._iso_sets import format_iso_table, iso_table
+    from .analysis._iso_sets import format_iso_table, iso_table  # deferred: xtopo --help loads no numpy
     from .summary import text_table
 
     options = iso_options(args)
@@ -171,8 +169,6 @@ def _err(msg: str) -> None:
 
 
 def _fmt_size(size, units) -> str:
-    from ._format import format_quantities
-
     if not size:
         return "?"
     if any(s is None for s in size):
@@ -184,8 +180,7 @@ def _fmt_size(size, units) -> str:
 
 
 def _cmd_info(args) -> int:
-    import xtopo.io as xio
-    from ._format import format_quantities
+    import xtopo.io as xio  # deferred: xtopo --help loads no numpy
     from .conventions import height_of, lateral_dims, physical_size
     from .summary import format_percent
 
@@ -247,7 +242,7 @@ def _control(args) -> tuple[str, list]:
     """``("load", --loads)`` or ``("mean_pressure", --mean-pressures)``, the values checked before any file is
     read, as the library checks them (:func:`xtopo.contact.solve.control_value`) but with messages that name
     the option given."""
-    from .contact.models import scene_models
+    from .contact.models import scene_models  # deferred: xtopo --help loads no numpy
     from .contact.solve import control_value
 
     control, values = ("load", args.loads) if args.loads is not None else ("mean_pressure", args.mean_pressures)
@@ -256,8 +251,7 @@ def _control(args) -> tuple[str, list]:
 
 
 def _cmd_contact(args) -> int:
-    from ._format import format_columns
-    from .batch import _contact_item, _require_contact
+    from .batch import _contact_item, _require_contact  # deferred: xtopo --help loads no numpy
     from .io import open_topography
     from .io.netcdf import to_netcdf
 
@@ -286,7 +280,7 @@ def _cmd_contact(args) -> int:
 
 
 def _report_batch(result, store_dir) -> int:
-    from .io.netcdf import to_netcdf
+    from .io.netcdf import to_netcdf  # deferred: xtopo --help loads no numpy
 
     failed = json.loads(result.attrs.get("failed_items", "[]"))
     n_items = int(result["error"].size)
@@ -328,7 +322,7 @@ def _positive_float(value: str) -> float:
 
 
 def _cmd_batch_contact(args) -> int:
-    from .batch import _require_contact, contact
+    from .batch import _require_contact, contact  # deferred: xtopo --help loads no numpy
 
     _require_contact()
     common = _batch_common(args)
@@ -342,7 +336,7 @@ def _cmd_batch_contact(args) -> int:
 
 
 def _cmd_batch_analyze(args) -> int:
-    from .batch import analyze
+    from .batch import analyze  # deferred: xtopo --help loads no numpy
 
     result = analyze(args.files, analyses=args.analyses, **_batch_common(args))
     return _report_batch(result, args.output)
@@ -352,7 +346,7 @@ def _cmd_batch_analyze(args) -> int:
 
 
 def _cmd_convert(args) -> int:
-    import xtopo.io as xio
+    import xtopo.io as xio  # deferred: xtopo --help loads no numpy
 
     ds = preprocess(xio.open_topography(args.file, channel=args.channel, units=args.units, **read_options(args)),
                     args)

@@ -21,9 +21,9 @@ import xarray as xr
 
 from ._checks import per_axis, real_array
 from ._kernels import fft as _fft
-from ._kernels.derivatives import fourier_first, wavevectors
-from .conventions import (HEIGHT, append_history, height_of, is_periodic, lateral_dims, make_measurement,
-                          spacing)
+from ._kernels.derivatives import forward_difference, fourier_first, wavevectors
+from ._kernels.spectra import rfft_multiplicity
+from .conventions import append_history, height_of, lateral_dims, make_measurement, spacing
 from ._progress import progress_bar
 from .errors import GridError, XtopoError
 from .params import Choice, Count, Flag, Kind, Lengths, LengthUnit, OneOf, Positive, Real, Refused, checked, preflight
@@ -204,8 +204,6 @@ def _grid_q(shape, spacings):
 
 def _rfft_weights(shape):
     """Multiplicity of each rfft mode in the full spectrum (1 or 2)."""
-    from ._kernels.spectra import rfft_multiplicity
-
     n = shape[-1]
     return np.broadcast_to(rfft_multiplicity(1, n), tuple(shape[:-1]) + (n // 2 + 1,))
 
@@ -286,8 +284,6 @@ def fractal_surface(shape: Annotated[tuple, Shape()], size, *, hurst: Annotated[
     h = _synthesize(gshape, gsize, psd.c_native(qabs), np.random.default_rng(seed))
     if rms_height is not None or rms_slope is not None:
         if rms_slope is not None:
-            from ._kernels.derivatives import forward_difference
-
             meas = np.sqrt(sum(np.mean(forward_difference(h, dx, periodic=True, axis=ax) ** 2)
                                for ax, (_, dx) in zip(range(-dim, 0), symbols)))
         else:

@@ -31,9 +31,12 @@ import numpy as np
 import xarray as xr
 
 from ._checks import positive_number
-from .conventions import LATERAL_DIMS, X, Y, length_factor, normalize_units
+from ._optional import require
+from .conventions import LATERAL_DIMS, X, Y, height_of, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
 from .params import Count, Data, Dict, Text, checked
+from .stitching import ANALYSES, PER_DECADE
+from .twins import measurements
 
 _PIXELS = Count(min=2)
 
@@ -63,10 +66,9 @@ def _hv():
     Importing a plotting backend does not change a backend the user already selected
     with ``hv.extension``.
     """
-    import holoviews as hv
-
+    hv = require("holoviews", "plotting")  # the [plot] extra, loaded on first use (startup time)
     current = hv.Store.current_backend if hv.Store.renderers else None
-    import holoviews.plotting.bokeh  # noqa: F401
+    require("holoviews.plotting.bokeh", "plotting")
     try:
         import holoviews.plotting.mpl  # noqa: F401
     except ImportError:  # pragma: no cover - matplotlib is optional
@@ -234,8 +236,6 @@ def topography(obj, *, max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS, cmap: s
     hv = _hv()
     cmap = _cmap(cmap)
     if isinstance(obj, xr.Dataset):
-        from .conventions import height_of
-
         if variable != "height" and variable not in obj.data_vars:
             raise XtopoError(f"variable={variable!r} is not a data variable of the Dataset; choose from "
                              f"{sorted(map(str, obj.data_vars))}")
@@ -558,8 +558,6 @@ def twin_figure(tree, *, analyses=None, groups: Annotated[dict | None, Dict()] =
     holoviews.Layout
     """
     hv = _hv()
-    from .stitching import ANALYSES, PER_DECADE
-    from .twins import measurements
 
     ms = measurements(tree)
     names = list(ANALYSES) if analyses is None else [str(a) for a in analyses]
@@ -704,7 +702,6 @@ def measurement_maps(tree, *, max_pixels: Annotated[int, _PIXELS] = 256, cols: A
         Panels per row.
     """
     hv = _hv()
-    from .twins import measurements
 
     ms = measurements(tree) if isinstance(tree, xr.DataTree) else Dict().check(tree, "measurement_maps() tree")
     if not ms:

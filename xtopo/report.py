@@ -15,9 +15,22 @@ import os
 
 import xarray as xr
 
+from . import plot as _plot
 from ._checks import flag, mapping, option
+from ._optional import require
+from ._progress import progress_bar
+from ._version import __version__
+from .analysis._iso_sets import format_iso_table, iso_table
+from .analysis.reliability import reliability_cutoff
+from .conventions import MASK, length_factor
 from .errors import XtopoError
+from .io.netcdf import atomic_write
+from .plot import group_colours
+from .preprocess import STEPS
+from .stitching import _complete
 from .stitching import ANALYSES as _REGISTRY
+from .summary import _fmt_len, summary_table, table_rows
+from .twins import measurements, twin
 
 __all__ = ["report", "ANALYSES"]
 
@@ -60,8 +73,6 @@ def _analyses(analyses) -> tuple:
 
 
 def _as_twin(source) -> xr.DataTree:
-    from .twins import twin
-
     if isinstance(source, xr.DataTree):
         return source
     if isinstance(source, xr.Dataset):
@@ -72,15 +83,11 @@ def _as_twin(source) -> xr.DataTree:
 
 
 def _table_html(table: xr.Dataset) -> str:
-    from .summary import table_rows
-
     return _cells_html(*table_rows(table))
 
 
 def _iso_html(ms: dict, options: dict) -> str:
     """The ISO parameters section (:mod:`xtopo.analysis._iso_sets`), errors per measurement included."""
-    from .analysis._iso_sets import format_iso_table, iso_table
-
     table, errors = iso_table(ms, **options)
     cut = ", ".join(f"{k} = {v}" for k, v in options.items() if v is not None) or "no filter, form removed"
     out = f"<h2>ISO parameters</h2><p>{html.escape(cut)}</p>"
@@ -98,9 +105,6 @@ def _cells_html(header, rows) -> str:
 def _preprocessing(ds: xr.Dataset) -> str:
     """What was done to a measurement's heights: its recorded preprocessing steps (``history``) and
     the harmonic fill of missing data the twin averages apply (paper §3.2)."""
-    from .conventions import MASK
-    from .preprocess import STEPS
-
     steps = [line.strip() for line in str(ds.attrs.get("history", "")).splitlines()
              if line.strip().split("(")[0].rsplit(".", 1)[-1] in STEPS]
     missing = bool(ds[MASK].any()) if MASK in ds else bool(ds["height"].isnull().any())
@@ -111,11 +115,6 @@ def _preprocessing(ds: xr.Dataset) -> str:
 
 def _reliability_rows(ms: dict) -> list:
     """Per measurement: preprocessing, short reliability cutoff (paper §4.9) and its cause."""
-    from .analysis.reliability import reliability_cutoff
-    from .conventions import length_factor
-    from .stitching import _complete
-    from .summary import _fmt_len
-
     causes = {"resolution": "instrument resolution", "tip_radius": "tip radius (eq. 13, c = 1/2)",
               "none": "no resolution or tip radius given"}
     rows = []
@@ -139,8 +138,6 @@ def _reliability_rows(ms: dict) -> list:
 
 def _legend_html(groups: dict, labels: dict) -> str:
     """One legend for all twin panels: a coloured swatch per instrument group, the average in black."""
-    from .plot import group_colours
-
     items = [(colour, labels.get(g, g)) for g, colour in group_colours(groups).items()]
     items.append(("#000", "average (band: ± predicted standard error)"))
     return '<ul class="legend">' + "".join(
@@ -149,8 +146,6 @@ def _legend_html(groups: dict, labels: dict) -> str:
 
 def _labels(table: xr.Dataset) -> dict:
     """Legend text per measurement: name plus instrument where it says more than the name."""
-    from .summary import table_rows
-
     _, rows = table_rows(table)
     out = {}
     for i, row in enumerate(rows):
@@ -221,13 +216,8 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     str
         ``path`` when given, else the HTML text.
     """
-    import holoviews as hv
-    from bokeh.layouts import gridplot
-
-    from . import plot as _plot
-    from ._version import __version__
-    from .summary import summary_table
-    from .twins import measurements
+    hv = require("holoviews", "the report")  # the [plot] extra, loaded on first use (startup time)
+    gridplot = require("bokeh.layouts", "the report").gridplot
 
     analyses = _analyses(analyses)
     maps = flag(maps, "maps")
@@ -250,8 +240,6 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     if iso is not None:
         sections.append(("", [_iso_html(ms, mapping(iso, "iso"))]))
     if analyses:
-        from ._progress import progress_bar
-
         figures, errors = [], []
         for name in progress_bar(analyses, desc="twin averages", unit="analysis", enabled=progress):
             try:
@@ -278,7 +266,6 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     page = _html_page(title, blocks)
     if path is None:
         return page
-    from .io.netcdf import atomic_write
 
     def write(tmp):
         with open(tmp, "w", encoding="utf-8") as fh:

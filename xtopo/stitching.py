@@ -26,15 +26,24 @@ import xarray as xr
 from ._checks import MAX_SPARSE_BINS
 from ._one_task import one_task
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
-from .analysis.psd import WINDOWS
+from ._progress import progress_bar
+from .analysis._scale import provenance
+from .analysis.acf import acf
+from .analysis.curvature_kurtosis import curvature_kurtosis, curvature_kurtosis_error
+from .analysis.psd import WINDOWS, psd
 from .analysis.reliability import reliability_cutoff
+from .analysis.sdrp import sdrp
 from .analysis.statistical_reliability import independent_samples, sampling_cutoff, stencil_error
+from .analysis.vbm import vbm
 from .conventions import convert_length, height_of, lateral_dims, length_factor
 from .errors import GridError, UnitsError, XtopoError
 from .params import Choice, Count, Flag, Lengths, LengthUnit, Positive, checked
+from .preprocess import fill_missing
+from .summary import summary_table
 from .twins import measurements as _measurements
 
-__all__ = ["average_curves", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES", "TwinAnalysis"]
+__all__ = ["average_curves", "twin_average", "twin_psd", "twin_acf", "twin_vbm", "twin_sdrp", "ANALYSES",
+           "TwinAnalysis"]
 
 #: default density of collocation points
 PER_DECADE = 10
@@ -265,8 +274,6 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
     A measurement without any valid height raises a GridError that names it (in-memory data;
     on dask the fill's own error comes at ``.compute()``).
     """
-    from .preprocess import fill_missing
-
     h = height_of(ds)
     if h.chunks is None and bool(np.isfinite(h.values).all()):
         return ds  # complete: no second fill_missing line after --fill-missing (issue 26)
@@ -276,15 +283,20 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
         raise GridError(f"measurement {name!r}: {exc}") from None
 
 
-def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity: str):
+def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity):
     """Long-scale (statistical) information of a measurement's curve for the twin average.
 
     Spectra: each wavevector carries its independent Fourier modes (relative error ``1/√N``
     of a bin holding ``N``). ACF and SDRP: the predicted relative error of
     :func:`~xtopo.analysis.statistical_reliability.stencil_error`. VBM: ``1/(2√N)`` with ``N``
     independent windows. Returns the curve (spectra: with the modes as a coordinate)
-    and the error on the curve's points (None for spectra).
+    and the error on the curve's points (None for spectra, and for ``quantity=None``: no error model).
+    A callable ``quantity`` is the error model of a :class:`TwinAnalysis` (its ``error``).
     """
+    if quantity is None:
+        return curve, None
+    if callable(quantity):
+        return curve, quantity(ds, curve).assign_coords({coord: curve[coord]})
     direction = curve.attrs.get("direction", "x")
     x = np.asarray(curve[coord].values, dtype=float)
     if coord == "q":
@@ -401,8 +413,6 @@ def _with_provenance(out: xr.Dataset, tree, analysis: str, **params) -> xr.Datas
     coordinates along ``measurement``
     ('' for one without). Only attrs and coordinates built from attrs: a lazy average stays lazy.
     """
-    from .analysis._scale import provenance
-
     names = [str(n) for n in out["measurement"].values]
     if "units" in params and params["units"] is None:
         params["units"] = _common_units(_measurements(tree))
@@ -438,8 +448,14 @@ _TWIN_PARAMETERS = """tree : xarray.DataTree
         point (e.g. :data:`xtopo.analysis.statistical_reliability.MAX_RELATIVE_ERROR`); the values it
         drops are marked in ``left_out``. Default None: every reliable point is averaged."""
 
-#: Parameters of one average beyond those all four share (after ``tree``).
+#: Parameters of one average beyond those all share (after ``tree``).
 _EXTRA = {
+    "twin_average": """
+    measure : callable
+        The analysis of one measurement, ``measure(ds, **kwargs, reliable=...)`` returning a curve.
+    error : callable, optional
+        Its error model: ``error(ds, curve)``, the predicted relative standard error of the curve's points
+        (a DataArray on its coordinate); replicates share the median (see :func:`_pool_errors`).""",
     "twin_psd": """
     areal : bool
         Average ``Ciso`` of area scans instead of ``C1D`` along x (default False).
@@ -487,8 +503,6 @@ def twin_psd(tree, *, areal: Annotated[bool, Flag()] = False, window: Annotated[
 
     {returns}
     """
-    from .analysis.psd import psd
-
     if areal:
         ms = _measurements(tree)
         lines = [n for n, ds in ms.items() if ds["height"].ndim != 2]
@@ -540,8 +554,6 @@ def twin_acf(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
 
     {returns}
     """
-    from .analysis.acf import acf
-
     curves, errors = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
                                       quantity="acf")
     out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
@@ -549,12 +561,37 @@ def twin_acf(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
                             max_error=max_error)
 
 
+@checked
+def twin_average(tree, measure: Callable, *, error: Callable | None = None,
+                 per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
+                 units: Annotated[str | None, LengthUnit()] = None, reliable: Annotated[bool, Flag()] = True,
+                 max_error: Annotated[float | None, _MAX_ERROR] = None, **kwargs) -> xr.Dataset:
+    """Average over a twin of any scale-dependent analysis of one measurement, binned.
+
+    The generic twin average of a :class:`TwinAnalysis` declared with ``measure=``: each
+    measurement's curve ``measure(ds, **kwargs, reliable=False)`` (on a length or wavevector
+    coordinate) is masked below its short cutoff and averaged in log bins as :func:`twin_acf`
+    does. {criterion} Without an error model, ``uncertainty`` is NaN.
+
+    Parameters
+    ----------
+    {parameters}
+    **kwargs
+        Further arguments of ``measure``.
+
+    {returns}
+    """
+    curves, errors = _per_measurement(tree, measure, kwargs, kwargs, units, reliable, quantity=error)
+    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
+    return _with_provenance(out, tree, "twin_average", measure=measure.__name__,
+                            error=None if error is None else error.__name__, per_decade=per_decade,
+                            units=units, reliable=reliable, max_error=max_error, **kwargs)
+
+
 def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
     """VBM of a measurement; a set of parallel profiles (``measurement_kind="profiles"``: rows far
     apart, as the stylus scans of :func:`xtopo.datasets.example_twin`) is the mean of its profiles'
     line-scan VBMs, not one VBM of a map with rows as far apart as the scan is long."""
-    from .analysis.vbm import vbm
-
     if ds.attrs.get("measurement_kind") == "profiles" and ds["height"].ndim == 2:
         kw["kind"] = "1d"
     return vbm(ds, **kw)
@@ -601,8 +638,6 @@ def twin_sdrp(tree, order: Annotated[int, Choice(1, 2)] = 1, *, per_decade: Anno
 
     {returns}
     """
-    from .analysis.sdrp import sdrp
-
     ms = _measurements(tree)
     units = _common_units(ms, units)
     lo, hi = np.inf, 0.0
@@ -630,7 +665,7 @@ def twin_sdrp(tree, order: Annotated[int, Choice(1, 2)] = 1, *, per_decade: Anno
                             reliable=reliable, max_error=max_error)
 
 
-for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp):
+for _f in (twin_psd, twin_acf, twin_vbm, twin_sdrp, twin_average):
     _f.__doc__ = _f.__doc__.format(criterion=_CRITERION, returns=_TWIN_RETURNS,
                                    parameters=_TWIN_PARAMETERS.format(extra=_EXTRA.get(_f.__name__, "")))
 
@@ -644,9 +679,9 @@ class TwinAnalysis:
     ----------
     name : str
         Key (group name in the NetCDF output, ``--analyses`` of the CLI).
-    function : callable
+    function : callable or None
         The twin average, ``function(tree, **kwargs, per_decade=..., ...)`` returning the
-        Dataset of :func:`average_curves`.
+        Dataset of :func:`average_curves`; None: :func:`twin_average` of :attr:`measure`.
     coord : str
         Its coordinate (``q``: wavevector, 1/length; others: lengths).
     averaging : str
@@ -657,19 +692,29 @@ class TwinAnalysis:
     title : str
         Plot title.
     kwargs : dict
-        Fixed arguments of ``function`` (SDRP: ``order=2``, the curvature of Figure 5).
+        Fixed arguments of ``function`` (SDRP: ``order=2``, the curvature of Figure 5), or of
+        :attr:`measure`.
+    measure : callable, optional
+        The analysis of one measurement that :func:`twin_average` averages (with ``function=None``):
+        a new scale-dependent analysis needs this record and its module, nothing else.
+    error : callable, optional
+        The error model :func:`twin_average` uses, ``error(ds, curve)`` (None: uncertainty unknown).
     """
 
     name: str
-    function: Callable
+    function: Callable | None
     coord: str
     averaging: str
     error_model: str
     title: str
     kwargs: Mapping = field(default_factory=dict)
+    measure: Callable | None = None
+    error: Callable | None = None
 
     def __call__(self, tree, **kwargs) -> xr.Dataset:
-        """The twin average of this analysis (``kwargs`` as of :attr:`function`)."""
+        """The twin average of this analysis (``kwargs`` as of :attr:`function`, or of :func:`twin_average`)."""
+        if self.function is None:
+            return twin_average(tree, self.measure, error=self.error, **{**self.kwargs, **kwargs})
         return self.function(tree, **{**self.kwargs, **kwargs})
 
 
@@ -683,6 +728,9 @@ ANALYSES: dict[str, TwinAnalysis] = {a.name: a for a in (
                  "variable-bandwidth RMS height"),
     TwinAnalysis("sdrp", twin_sdrp, "distance", "points", "variance of the mean square curvature (stencil_error)",
                  "scale-dependent RMS curvature", {"order": 2}),
+    TwinAnalysis("curvature_kurtosis", None, "distance", "bin", "√(24/N)/3 of a Gaussian surface, N independent "
+                 "stretches", "kurtosis of the scale-dependent curvature", measure=curvature_kurtosis,
+                 error=curvature_kurtosis_error),
 )}
 
 
@@ -707,11 +755,8 @@ def analyze_twin(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
         :data:`ANALYSES` (``psd``, ``acf``, ``vbm``, ``sdrp``: the curvature) with the
         averages, uncertainties, counts and per-measurement curves (computed).
     """
-    from .summary import summary_table
-
     ms = _measurements(tree)
     results = {"/": summary_table(ms).assign_attrs({**tree.attrs, "title": tree.attrs.get("title", "twin analysis")})}
-    from ._progress import progress_bar
 
     for name, analysis in progress_bar(ANALYSES.items(), desc="twin averages", unit="analysis", enabled=progress):
         results[f"/{name}"] = analysis(tree, per_decade=per_decade).compute()

@@ -8,6 +8,7 @@ module builds, stores and restores twins.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 from collections.abc import Iterable, Mapping
 
@@ -27,11 +28,12 @@ __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
 
 
 def _open_lazily(path) -> xr.Dataset:
-    """Open a file for a twin: xtopo NetCDF stays lazy (dask), other formats are read now."""
+    """Open a file for a twin: xtopo NetCDF stays lazy (dask, where installed), other formats are read now."""
     if any(fmt.name == "netcdf" for fmt in detect(path)):
-        ds = read_netcdf(path, lazy=True)
+        lazy = importlib.util.find_spec("dask") is not None  # without the [dask] extra: read now
+        ds = read_netcdf(path, lazy=lazy)
         if "xtopo_version" in ds.attrs and "height" in ds:
-            return validate(ds.chunk())
+            return validate(ds.chunk() if lazy else ds)
         ds.close()
     return open_topography(path)
 

@@ -11,6 +11,7 @@ import xarray as xr
 
 from ..conventions import HEIGHT, X, convert_length, lateral_dims
 from ..errors import XtopoError
+from ..summary import _fmt_len
 from .iso21920 import iso21920
 from .iso25178 import iso25178
 
@@ -114,8 +115,6 @@ def format_iso_table(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
 
     Lengths are in readable units, material ratios in %; ``-`` where a value is missing.
     """
-    from ..summary import _fmt_len
-
     names = list(table.data_vars)
     header = ["measurement"] + [f"{n}/%" if table[n].attrs.get("units") == "%" else n for n in names]
     rows = []

@@ -10,7 +10,7 @@ from .._checks import bin_count
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is_nonuniform, is_periodic,
                            lateral_dims, provenance_of, shared_length_unit, spacing)
-from ..errors import GridError, XtopoError
+from ..errors import GridError
 
 __all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance"]
 

@@ -10,7 +10,7 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._checks import bin_count
 from .._kernels.derivatives import forward_difference, second_difference
-from ..conventions import X, Y, height_of, is_periodic, lateral_dims, shared_length_unit, spacing
+from ..conventions import X, height_of, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import XtopoError
 from ..params import Choice, Count, checked
 from ._scale import provenance

@@ -28,6 +28,11 @@ import xarray as xr
 from ..errors import XtopoError
 from ..params import Choice, Flag, Interval, checked
 from ._scale import prepare, provenance
+from .acf import acf
+from .psd import psd
+from .reliability import reliable_scales
+from .sdrp import sdrp
+from .vbm import vbm
 
 __all__ = ["hurst", "fit_power_law", "fit_power_law_whittle"]
 
@@ -172,10 +177,6 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
         length_units = _length_units(da)
         lengths = None
     else:
-        from .acf import acf
-        from .psd import psd
-        from .sdrp import sdrp
-        from .vbm import vbm
 
         prep = prepare(obj)
         length_units = prep.units
@@ -244,8 +245,6 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
 def _reliable(da, x, is_q):
     """Which abscissae of a result are reliable: a lazy result (tip-radius cutoff on dask) masks its
     unreliable scales instead of dropping them, so its cutoff coordinate says which they are."""
-    from .reliability import reliable_scales
-
     if "reliability_cutoff" not in da.coords:
         return np.ones(x.shape, bool)
     cut = np.asarray(da.coords["reliability_cutoff"].values, dtype=float).reshape(1, -1)  # computes a lazy cutoff

@@ -15,7 +15,31 @@ from ..params import Choice, Flag, Lengths, checked
 from ._scale import POINTS_PER_DECADE, finish, length_coord, prepare, provenance
 from .reliability import apply_reliability
 
-__all__ = ["sdrp"]
+__all__ = ["sdrp", "stencils"]
+
+
+def stencils(obj, dim: str, distances, order: int, what: str):
+    """What a scale-dependent derivative of ``order`` along ``dim`` needs: the prepared measurement, the
+    other lateral dims, the spacing and the stencil lengths ``ℓ = order·η·Δx`` (at most the scan length).
+
+    Default lengths: 10 per decade from ``order·Δx`` to ``L/2`` at integer ``η`` (no interpolation, which
+    biases the slope low at fractional η: benchmarks/tradeoffs.py gives half the error, and faster;
+    duplicates dropped, so fewer points at the smallest scales).
+    """
+    prep = prepare(obj)
+    prep.check_dim(dim)
+    other = [d for d in prep.lat if d != dim]
+    n, dx = prep.h.sizes[dim], prep.spacing(dim)
+    if distances is None:
+        lo, hi = order * dx, n * dx / 2
+        if hi < lo:
+            raise GridError(f"the scan is too short for {what} ({n} points along {dim!r})")
+        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
+        distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
+    elif np.any(distances > n * dx):
+        raise XtopoError(f"distances must be positive finite lengths of at most {n * dx:g} {prep.units} (the size "
+                         f"of the measurement), got {distances[distances > n * dx].tolist()}")
+    return prep, other, dx, distances
 
 
 @checked
@@ -52,22 +76,8 @@ def sdrp(obj, order: Annotated[int, Choice(1, 2)] = 1, *, dim: str = X,
         ``distance``; at ``ℓ = Δx`` (order 1) it equals RΔq, at ``ℓ = 2Δx`` (order 2) RΔ²q.
     """
     given = distances
-    prep = prepare(obj)
+    prep, other, dx, distances = stencils(obj, dim, distances, order, f"sdrp(order={order})")
     h, u = prep.h, prep.units
-    prep.check_dim(dim)
-    other = [d for d in prep.lat if d != dim]
-    n, dx = h.sizes[dim], prep.spacing(dim)
-    if distances is None:
-        lo, hi = order * dx, n * dx / 2
-        if hi < lo:
-            raise GridError(f"the scan is too short for sdrp(order={order}) ({n} points along {dim!r})")
-        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
-        # integer scale factors: no interpolation, which biases the slope low at fractional η
-        # (benchmarks/tradeoffs.py: half the error of log-spaced fractional η, and faster)
-        distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
-    elif np.any(distances > n * dx):
-        raise XtopoError(f"distances must be positive finite lengths of at most {n * dx:g} {u} (the size of the "
-                         f"measurement), got {distances[distances > n * dx].tolist()}")
     etas = distances / (order * dx)
     out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
                         output_sizes={"distance": etas.size},

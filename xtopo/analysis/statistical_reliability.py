@@ -2,8 +2,8 @@
 
 Short scales are limited by the instrument (:mod:`xtopo.analysis.reliability`, paper §4.9); long
 scales by statistics: a scan of length ``L`` holds few independent samples of wavelengths near ``L``.
-The twin averages (:mod:`xtopo.stitching`, paper §4.10) use the predicted relative standard errors of
-this module to decide where a measurement's curve contributes, and report them.
+The twin averages (:mod:`xtopo.stitching`, paper §4.10) report the uncertainty of each point from the
+predicted relative standard errors of this module (and, with ``max_error``, leave out what is too uncertain).
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import pkgutil
 
 import xarray as xr
 
+from .. import analysis
 from ..errors import XtopoError
 from ._engine import run
 
@@ -17,8 +18,6 @@ __all__ = ["analyze"]
 @functools.lru_cache(maxsize=1)
 def _available_analyses() -> tuple[str, ...]:
     """The :mod:`xtopo.analysis` modules that hold a function of their name (what ``analyses`` may name)."""
-    from .. import analysis
-
     names = sorted(m.name for m in pkgutil.iter_modules(analysis.__path__) if not m.name.startswith("_"))
     return tuple(n for n in names if callable(getattr(importlib.import_module(f"xtopo.analysis.{n}"), n, None)))
 

@@ -16,6 +16,7 @@ import xarray as xr
 
 from .._checks import flag, integer, mapping
 from ..errors import XtopoError
+from ..io.open import check_options, open_topography
 from ._results import ERROR, HISTORY, MEASUREMENT, SOURCE
 
 __all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options", "per_measurement"]
@@ -133,7 +134,6 @@ def checked_read_options(read_options, n: int | None = None) -> dict:
                          f"{type(read_options).__name__}")
     if not read_options:
         return {}
-    from ..io.open import check_options, open_topography
 
     allowed = [k for k, v in inspect.signature(open_topography).parameters.items() if v.kind is v.KEYWORD_ONLY]
     unknown = sorted(set(read_options) - set(allowed))

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 import xarray as xr
+from ..io.netcdf import prepare_for_netcdf
 
 __all__ = ["MEASUREMENT", "ERROR", "HISTORY", "SOURCE", "chunk_dataset", "failure_block", "combine", "failed_items"]
 
@@ -82,7 +83,6 @@ def chunk_dataset(names, sources, results, errors, params, dim) -> xr.Dataset:
     err = np.array(errors, dtype=object).reshape([len(names)] + ([] if params is None else [len(params)]))
     ds = _blank_missing_strings(ds.assign_coords(coords))
     ds[ERROR] = (err_dims, err, dict(_ERROR_ATTRS))
-    from ..io.netcdf import prepare_for_netcdf
 
     return prepare_for_netcdf(ds, provenance=False)
 

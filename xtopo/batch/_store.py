@@ -18,8 +18,13 @@ import threading
 
 import xarray as xr
 
+from .._checks import make_directory
+from .._checks import path as checked_path
+from .._optional import require
 from .._tokens import callable_token
 from .._version import __version__
+from ..cache import checksum
+from ..errors import XtopoError
 from ..io.netcdf import PROVENANCE_KEYS, atomic_write, read_netcdf, to_netcdf
 
 __all__ = ["Store", "chunk_key", "fingerprint", "func_name", "IO_LOCK"]
@@ -50,8 +55,6 @@ def fingerprint(source) -> str:
     size or modification time, and with it the key of every chunk that uses it.
     """
     if isinstance(source, xr.Dataset):
-        from ..cache import checksum
-
         return "dataset:" + checksum(source)
     path = os.path.abspath(os.fspath(source))
     try:
@@ -74,7 +77,7 @@ def chunk_key(func, dim, names, prints, params, preprocess=()) -> str:
     (``<function f at 0x...>``: never reused by a new process) and abbreviates large arrays
     (``[1., 1., ..., 1.]``: reused when the array changed).
     """
-    from dask.base import tokenize
+    tokenize = require("dask.base", "xtopo.batch").tokenize  # the [dask] extra, loaded on first use
 
     inputs = {"f": callable_token(func), "dim": dim, "names": list(names), "m": list(prints),
               "p": None if params is None else tokenize(list(params)), "v": __version__}
@@ -100,10 +103,6 @@ class Store:
     """
 
     def __init__(self, directory):
-        from .._checks import make_directory
-        from .._checks import path as checked_path
-        from ..errors import XtopoError
-
         self.directory = os.path.abspath(checked_path(directory, "batch store", kind="directory path"))
         if os.path.exists(self.directory) and not os.path.isdir(self.directory):
             raise XtopoError(f"batch store {self.directory} exists and is not a directory; "

@@ -17,6 +17,7 @@ from typing import Callable, NamedTuple
 import xarray as xr
 
 from ..errors import XtopoError
+from ..io.open import open_topography
 from ..preprocess import apply_steps
 from ._results import chunk_dataset
 from ._store import IO_LOCK, Store, func_name
@@ -50,7 +51,6 @@ def error_message(exc: BaseException) -> str:
 def _load(source, read_options) -> xr.Dataset:
     if isinstance(source, xr.Dataset):
         return source
-    from ..io.open import open_topography
 
     with IO_LOCK:  # see xtopo.batch._store.IO_LOCK
         return open_topography(source, **read_options)

@@ -12,8 +12,9 @@ import numbers
 import numpy as np
 
 from ..conventions import length_factor, make_measurement, normalize_units
-from ..errors import ReaderError, UnitsError
-from ._text import length_unit
+from ..errors import ReaderError, UnitsError, UnsupportedFormatError
+from ._text import length_unit, line_measurement
+from .registry import ChannelInfo
 
 __all__ = ["resolve_units", "generic_measurement", "single_channel", "stated_length_unit", "read_container_array",
            "container_channels"]
@@ -138,8 +139,6 @@ def generic_measurement(path, heights, *, physical_size=None, found_size=None, f
                                     file_units=file_units, height_units=height_units)
     scale = factor * height_scale
     if x is not None:
-        from ._text import line_measurement
-
         return line_measurement(path, x, h.astype(float) * scale, lateral, mask=mask, **attrs)
     size = physical_size if physical_size is not None else found_size
     if size is None:
@@ -182,8 +181,6 @@ def pick_array(path, entries, channel=None):
     UnsupportedFormatError
         No 1D/2D array, or ``channel`` does not exist.
     """
-    from ..errors import UnsupportedFormatError
-
     cands = [(n, s) for n, s in entries if len(s) in (1, 2) and int(np.prod(s)) > 1]
     if not cands:
         raise UnsupportedFormatError(path, "contains no 1D or 2D array of heights")
@@ -209,8 +206,6 @@ def single_channel(path, channel, names=()) -> None:
     UnsupportedFormatError
         For any other channel (``0.0`` or ``False`` too, which equal 0 but are no index).
     """
-    from ..errors import UnsupportedFormatError
-
     index = isinstance(channel, numbers.Integral) and not isinstance(channel, (bool, np.bool_))
     if channel is None or (index and channel == 0) or (isinstance(channel, str) and channel in names):
         return
@@ -233,8 +228,6 @@ def check_array_bytes(path, shape, itemsize: int, available: int | None, what: s
 
 def channel_infos(path, entries, *, physical_size=None, file_units=None, height_units=None, found_units=None):
     """:class:`ChannelInfo` list for the 1D/2D arrays among ``entries`` ``(name, shape)``."""
-    from .registry import ChannelInfo
-
     units = found_units or file_units
     given = None if physical_size is None else np.atleast_1d(np.asarray(physical_size, dtype=float))
     out = []

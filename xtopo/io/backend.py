@@ -9,6 +9,7 @@ from xarray.backends import BackendEntrypoint
 from .._checks import text
 from ..errors import XtopoError
 from .open import open_topography
+from .registry import detect
 
 
 def _names(drop_variables) -> list:
@@ -41,8 +42,6 @@ class XtopoBackendEntrypoint(BackendEntrypoint):
 
     def guess_can_open(self, filename_or_obj):
         try:
-            from .registry import detect
-
             return bool(detect(os.fspath(filename_or_obj)))
         except Exception:
             return False

@@ -189,8 +189,6 @@ def _first_success(path, format, method: str, channel=None, **options):
     not-this-format one) is raised; when every candidate said "not this format", their reasons are
     listed. Non-xtopo exceptions of a reader become :class:`ReaderError`.
     """
-    from ..errors import UnsupportedFormatError
-
     unknown = set(options) - set(READ_OPTIONS)
     if unknown:
         raise XtopoError(f"unknown reader option(s): {sorted(unknown)}")

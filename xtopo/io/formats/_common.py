@@ -25,7 +25,7 @@ import re
 
 import numpy as np
 
-from ...conventions import make_measurement, normalize_units
+from ...conventions import _ureg, make_measurement, normalize_units
 from ...errors import MetadataWarning, ReaderError, UnitsError, UnsupportedFormatError, XtopoError, warn
 from ..registry import ChannelInfo
 
@@ -148,8 +148,6 @@ def unit_factor(from_unit: str, to_unit: str) -> float | None:
     if from_unit == to_unit:
         return 1.0
     try:
-        from ...conventions import _ureg
-
         return float(_ureg().Quantity(1.0, from_unit).to(to_unit).magnitude)
     except Exception:  # pint raises several types for unknown/incompatible units
         return None

@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 
 from ...conventions import length_factor
-from ...errors import ReaderError
+from ...errors import ReaderError, UnsupportedFormatError
 from .._text import (column_precision, length_unit, line_measurement, looks_like_text, parse_quantity, parse_table,
                      read_text)
 from ..registry import Format, register
@@ -53,8 +53,6 @@ def _check_length(path, params, x, xu):
 def read_dektak(path, *, channel=None):
     """Read a Dektak CSV export into a line scan (see the module docstring)."""
     if channel not in (None, 0):
-        from ...errors import UnsupportedFormatError
-
         raise UnsupportedFormatError(path, f"has a single profile; channel {channel!r} does not exist")
     lines = [ln.strip() for ln in read_text(path).splitlines()]
     try:

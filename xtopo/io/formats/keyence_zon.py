@@ -59,7 +59,7 @@ def _member(path, zf, name, optional=False, limit=MAX_MEMBER):
             import zstandard
         except ImportError:
             raise ReaderError(path, "the ZON members are zstd-compressed; reading them needs the zstandard "
-                                    "package (pip install zstandard)") from None
+                                    "package (pip install \"xtopo[io]\")") from None
         try:
             with zstandard.ZstdDecompressor().stream_reader(io.BytesIO(data)) as reader:
                 data = reader.read(limit + 1)

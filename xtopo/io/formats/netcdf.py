@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ..netcdf import read_netcdf
+from ...errors import ReaderError, UnsupportedFormatError
+from ..netcdf import is_contact_result, read_netcdf
 from ._common import pick_channel
 from ..registry import Format, register
 
@@ -15,9 +16,6 @@ def _read(path, *, channel=None):
     pick_channel(path, ["height"], channel)  # the one channel: 0, "height" or None (anything else was ignored)
     ds = read_netcdf(path)
     if "height" not in ds:
-        from ...errors import ReaderError, UnsupportedFormatError
-        from ..netcdf import is_contact_result
-
         if is_contact_result(ds):  # a ReaderError: the advice wins over the other readers' refusals
             raise ReaderError(path, "this file holds a contact result, not a measurement; read it with "
                                     "xtopo.open_contact")
