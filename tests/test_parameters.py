@@ -81,8 +81,13 @@ def _required(func, decl: dict) -> dict:
         if p.default is p.empty and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
             out[name] = good_value(decl[name]) if name in decl else object()
     for rule in func.__xtopo_params__.rules:
-        out[rule.names[0]] = good_value(decl[rule.names[0]])
+        out[rule.names[0]] = _given(decl, rule.names[0])
     return out
+
+
+def _given(decl: dict, name: str):
+    """A value for a member of a OneOf rule (undeclared members take any value that is not None)."""
+    return good_value(decl[name]) if name in decl else object()
 
 
 def test_the_entry_points_declare_their_parameters():
@@ -121,4 +126,4 @@ def test_one_of_rules_refuse_none_and_two(func):
         call = {k: v for k, v in _required(func, decl).items() if k not in rule.names}
         for given in ((), rule.names[:2])[rule.optional:]:
             with pytest.raises(XtopoError, match="one of " + rule.names[0]):
-                func(**call, **{n: good_value(decl[n]) for n in given})
+                func(**call, **{n: _given(decl, n) for n in given})

@@ -90,13 +90,12 @@ def _real(value) -> float | None:
         return None
 
 
-def bin_count(value, name: str, samples: int, minimum: int = 1, *, error: type[XtopoError] = XtopoError) -> int:
-    """``value`` (an integer >= ``minimum``) as a number of bins for ``samples`` values.
+def bin_count(value: int, name: str, samples: int, *, error: type[XtopoError] = XtopoError) -> int:
+    """``value`` (declared an integer, :class:`~xtopo.params.Count`) as a number of bins for ``samples`` values.
 
     More than both ``samples`` and :data:`MAX_SPARSE_BINS` is refused: such bins are nearly all
     empty, and a request like ``10**9`` would allocate gigabytes of edges and counts.
     """
-    value = integer(value, name, minimum, error=error)
     limit = max(MAX_SPARSE_BINS, int(samples))
     if value > limit:
         raise error(f"{name} must be at most {limit} here ({int(samples)} values to bin; more bins "

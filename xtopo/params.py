@@ -289,10 +289,14 @@ class Lengths(Numbers):
 
 
 class LengthUnit(Kind):
-    """A length unit such as ``"m"`` or ``"µm"`` → its UDUNITS ASCII spelling (``"um"``)."""
+    """A length unit such as ``"m"`` or ``"µm"`` → its UDUNITS ASCII spelling (``"um"``); ``optional``: None too."""
 
     expects = "a length unit"
     error = UnitsError
+
+    def __init__(self, *, optional: bool = False, error=None):
+        super().__init__(error=error)
+        self.takes_none = optional
 
     def convert(self, value):
         from .conventions import normalize_units

@@ -8,15 +8,16 @@ scan (``scan``), from which the result is settled (:mod:`xtopo.batch._scans`).
 from __future__ import annotations
 
 import functools
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from .._checks import flag
-from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units, unit_argument
+from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
 from ..errors import ContactError, UnitsError, XtopoError
+from ..params import Count, Flag, LengthUnit, OneOf, Positive, checked
 from ._engine import run_batch
-from ._inputs import checked_read_options, names_and_sources, run_options
+from ._inputs import Progress, Retries, Workers, checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
 
 __all__ = ["contact"]
@@ -34,7 +35,7 @@ def _contact_units(units, sources, read_options) -> str:
     """The one length unit of a contact batch: ``units``, else the first measurement's (a file's: the unit it
     is read in, metres unless ``read_options`` say otherwise); ``"1"`` when the first measurement has none."""
     if units is not None:
-        return unit_argument(units, "units")
+        return units
     first = sources[0]
     if not isinstance(first, xr.Dataset):
         return normalize_units(read_options.get("units") or "m")
@@ -153,11 +154,17 @@ def _snap_grid(ds):
     return ds.assign_coords(snapped)
 
 
-def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None, modulus: float = 1.0,
-            hardness: float | None = None, periodic: bool | None = None, tol: float | None = None,
-            maxiter: int | None = None, maps: bool = False, chunks=None, client=None, scheduler=None,
-            workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
-            retries: int = 1, read_options: dict | None = None, units: str | None = None,
+_SCENE = Positive(error=ContactError)  # the scene's and the solver's parameters, as Scene and solve declare them
+
+
+@checked(OneOf("loads", "mean_pressures", "penetrations"))
+def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
+            modulus: Annotated[float, _SCENE] = 1.0, hardness: Annotated[float | None, _SCENE] = None,
+            periodic: Annotated[bool | None, Flag(error=ContactError)] = None,
+            tol: Annotated[float | None, _SCENE] = None, maxiter: Annotated[int | None, Count(error=ContactError)] = None,
+            maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
+            workers: Workers = None, store=None, progress: Progress = True, fft_threads: Workers = 1,
+            retries: Retries = 1, read_options: dict | None = None, units: Annotated[str | None, LengthUnit()] = None,
             preprocess=None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
@@ -220,19 +227,13 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     """
     given = [(k, v) for k, v in (("load", loads), ("mean_pressure", mean_pressures),
                                  ("penetration", penetrations)) if v is not None]
-    if len(given) != 1:
-        raise XtopoError("give exactly one of loads=, mean_pressures=, penetrations=")
     control, values = given[0]
     _require_contact()
-    from ..contact.scene import scene_parameters
     from ..contact.solve import control_value, solver_parameters
 
-    # parameters shared by every item are checked here, not N times in the workers
-    modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
+    # parameters shared by every item are declared (checked here, not N times in the workers)
     tol, maxiter = solver_parameters(tol, maxiter)
-    maps = flag(maps, "maps")
-    # values: a 1D, non-empty sequence
-    run_options(_contact_item, control, None, workers, fft_threads, retries, progress, values)
+    run_options(_contact_item, control, values)  # values: a 1D, non-empty sequence
     values = [control_value(control, v, hardness) for v in np.atleast_1d(np.asarray(values, dtype=object))]
     scene = {"modulus": modulus}
     if hardness is not None:

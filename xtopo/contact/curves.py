@@ -3,13 +3,16 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._checks import bin_count
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
-from .solve import _control, run_solver, solver_settings, to_dataset
+from ..params import Count, OneOf, Positive, checked
+from .solve import CONTROL, _control, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution", "contact"]
 
@@ -45,8 +48,10 @@ def _per_length(units: str, length: str) -> str:
     return f"{units} {length}-1"
 
 
-def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
-          gap_bins: int = 50, preset: str | None = None) -> xr.Dataset:
+@checked(OneOf("loads", "mean_pressures", "penetrations"), error=ContactError)
+def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol: Annotated[float | None, Positive()] = None,
+          maxiter: Annotated[int | None, Count()] = None, gap_bins: Annotated[int, Count(min=0)] = 50,
+          preset: str | None = None) -> xr.Dataset:
     """Solve ``scene`` for each value of a sequence, each step starting from the previous solution.
 
     Parameters
@@ -65,11 +70,9 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         ``load``, ``mean_pressure`` or ``penetration`` (dimension and coordinate, the values the
         solves reached), plus ``stiffness`` (``dF/dδ``) and ``gap_distribution``.
     """
-    gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), 0, error=ContactError)
+    gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), error=ContactError)
     given = [(n, v) for n, v in (("loads", loads), ("mean_pressures", mean_pressures),
                                  ("penetrations", penetrations)) if v is not None]
-    if len(given) != 1:
-        raise ContactError("give exactly one of loads=, mean_pressures= or penetrations=")
     name, values = given[0]
     values = _sequence(name, values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
@@ -155,7 +158,8 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
                         attrs={"units": units, "long_name": "contact stiffness dF/dδ"})
 
 
-def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
+@checked(error=ContactError)
+def gap_distribution(ds: xr.Dataset, bins: Annotated[int, Count()] = 50) -> xr.DataArray:
     """Probability density of the gap over the non-contacting points, per load step.
 
     The bin edges span ``[0, max gap]`` over all steps; coordinate ``gap_bin`` holds bin centres.
@@ -186,6 +190,7 @@ def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
                         attrs={"units": f"{lu}-1", "long_name": "probability density of the gap outside contact"})
 
 
+@checked(CONTROL, error=ContactError)
 def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
             hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
             tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
@@ -228,10 +233,7 @@ def contact(topography, *, load=None, mean_pressure=None, penetration=None, modu
     scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
                   preset=preset)
     control = {"load": load, "mean_pressure": mean_pressure, "penetration": penetration}
-    given = {k: v for k, v in control.items() if v is not None}
-    if len(given) != 1:
-        raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
-    (key, value), = given.items()
+    (key, value), = ((k, v) for k, v in control.items() if v is not None)
     if np.ndim(value) == 0:
         return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
     plural = {"load": "loads", "mean_pressure": "mean_pressures", "penetration": "penetrations"}[key]

@@ -10,34 +10,22 @@ hardness.  The FFT plans are built on first use and are not pickled.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import scale_exponent
-from .._checks import flag, positive_number
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import (LATERAL_DIMS, height_of, is_nonuniform, is_periodic, normalize_units, provenance_of,
                            shared_length_unit,
                            spacing)
 from ..errors import ContactError, GridError, UnitsError
+from ..params import Flag, Positive, checked
 from ..presets import resolve as resolve_preset
 
 __all__ = ["Scene"]
-
-
-def scene_parameters(modulus, hardness, periodic) -> tuple:
-    """``(modulus, hardness, periodic)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one).
-
-    ``modulus`` (E*) and ``hardness`` (None: elastic) are positive finite numbers; ``periodic`` is
-    None (from the data) or a bool.
-    """
-    modulus = positive_number(modulus, "modulus (E* in your pressure unit)", error=ContactError)
-    if hardness is not None:
-        hardness = positive_number(hardness, "hardness (or None for elastic)", error=ContactError)
-    if periodic is not None:
-        periodic = flag(periodic, "periodic", error=ContactError)
-    return modulus, hardness, periodic
 
 
 def _heights(obj, what: str) -> xr.DataArray:
@@ -98,13 +86,14 @@ class Scene:
     solves give each thread its own scene, or use :func:`xtopo.batch.contact`.
     """
 
-    def __init__(self, topography, *, modulus: float = 1.0, hardness: float | None = None, periodic: bool | None = None,
+    @checked(error=ContactError)
+    def __init__(self, topography, *, modulus: Annotated[float, Positive()] = 1.0,
+                 hardness: Annotated[float | None, Positive()] = None, periodic: Annotated[bool | None, Flag()] = None,
                  counter=None, dtype=None, modulus_units: str | None = None, backend: str = "auto",
                  preset: str | None = None):
         h = _heights(topography, "topography")
         dtype = resolve_preset("contact", preset, dtype=dtype)["dtype"]
         self.preset = preset
-        modulus, hardness, periodic = scene_parameters(modulus, hardness, periodic)
         try:
             floating = np.dtype(dtype) in (np.dtype("float32"), np.dtype("float64"))
         except TypeError:  # not a dtype at all ("foo", a list)

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._apply import rescaled
-from .._checks import integer, positive_number
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
+from ..params import Count, OneOf, Positive, checked
 from ..presets import resolve as resolve_preset
 
 __all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "control_value", "result_units", "run_solver"]
@@ -42,16 +44,11 @@ def solver_settings(scene, tol=None, maxiter=None, preset=None) -> tuple[float, 
 
 
 def solver_parameters(tol, maxiter) -> tuple:
-    """``(tol, maxiter)`` checked (a :class:`~xtopo.errors.ContactError` names a bad one); None passes.
-
-    ``tol`` is in (0, 1), ``maxiter`` an integer ≥ 1.
-    """
-    tol = None if tol is None else positive_number(tol, "tol", error=ContactError)
+    """``(tol, maxiter)``; a ``tol`` of 1 or more is refused (declared: a positive ``tol``, an integer ``maxiter``)."""
     if tol is not None and tol >= 1:
         raise ContactError(f"tol must be below 1, got {tol:g}: it is the largest contact-condition violation as a "
                            "fraction of the peak-to-valley height, and tol ≥ 1 accepts the starting pressures "
                            "without a single iteration")
-    maxiter = None if maxiter is None else integer(maxiter, "maxiter", 1, error=ContactError)
     return tol, maxiter
 
 
@@ -85,9 +82,7 @@ def control_value(name: str, v, hardness: float | None = None, *, label: str | N
 
 
 def _control(scene, load, mean_pressure, penetration):
-    given = [v is not None for v in (load, mean_pressure, penetration)]
-    if sum(given) != 1:
-        raise ContactError("give exactly one of load=, mean_pressure= or penetration=")
+    """The one control given (:data:`CONTROL` is declared by the callers) checked against the scene."""
     for name, v in (("load", load), ("mean_pressure", mean_pressure), ("penetration", penetration)):
         if v is not None:
             control_value(name, v, scene.hardness)  # a mean pressure is compared with the hardness itself
@@ -130,8 +125,14 @@ def _initial(scene, initial):
     return p
 
 
-def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
-          initial=None, preset: str | None = None, callback=None) -> xr.Dataset:
+#: the one control of a solve (issue 25: the "exactly one" rule declared once)
+CONTROL = OneOf("load", "mean_pressure", "penetration", error=ContactError)
+
+
+@checked(CONTROL, error=ContactError)
+def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol: Annotated[float | None, Positive()] = None,
+          maxiter: Annotated[int | None, Count()] = None, initial=None, preset: str | None = None,
+          callback=None) -> xr.Dataset:
     """Solve the contact of ``scene`` at one load, mean pressure or penetration.
 
     Parameters
