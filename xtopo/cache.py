@@ -45,17 +45,18 @@ import json
 import os
 import threading
 import weakref
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 import xxhash
 
-from ._checks import integer, make_directory, xarray_object
-from ._checks import path as checked_path
+from ._checks import make_directory
 from ._tokens import callable_token
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
 from .errors import XtopoError
+from .params import Count, Data, Path, checked
 from .io.netcdf import PROVENANCE_KEYS, atomic_write, prepare_for_netcdf, read_netcdf, sanitize_attrs, to_netcdf
 
 __all__ = ["Cache", "checksum", "default_directory", "freeze"]
@@ -117,7 +118,8 @@ def _array_digest(arr) -> bytes:
     return digest
 
 
-def freeze(ds: xr.Dataset) -> xr.Dataset:
+@checked
+def freeze(ds: Annotated[xr.Dataset, Data("Dataset")]) -> xr.Dataset:
     """A copy of ``ds`` whose numpy-backed variables live in immutable memory.
 
     Their checksums are computed once per array and remembered, so repeated
@@ -125,7 +127,7 @@ def freeze(ds: xr.Dataset) -> xr.Dataset:
     Writing into the arrays raises ``ValueError`` (numpy refuses to make them writeable).
     Dask-backed variables are left as they are.
     """
-    out = xarray_object(ds, "freeze", (xr.Dataset,)).copy(deep=False)
+    out = ds.copy(deep=False)
     for name, var in ds.variables.items():
         if name in ds.indexes or not isinstance(var.data, np.ndarray) or var.dtype.hasobject:
             continue
@@ -134,14 +136,14 @@ def freeze(ds: xr.Dataset) -> xr.Dataset:
     return out
 
 
-def checksum(ds) -> str:
+@checked
+def checksum(ds: Annotated[xr.Dataset | xr.DataArray, Data()]) -> str:
     """Checksum of what an analysis of ``ds`` depends on: data, coordinates and measurement attrs.
 
     SHA-256 over the names, dims, units and the XXH3-128 digests of the arrays.
 
     Computing it loads dask-backed data.
     """
-    xarray_object(ds, "checksum")
     h = hashlib.sha256()
     items = ds.variables.items() if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable)] + [
         (k, v.variable) for k, v in ds.coords.items()]
@@ -302,9 +304,11 @@ class Cache:
     >>> psd = cache(xtopo.analysis.psd.psd, ds, kind="1d")  # read back
     """
 
-    def __init__(self, directory=None, *, memory_bytes: int = MEMORY_BYTES):
-        self.directory = checked_path(directory, "cache directory") if directory is not None else default_directory()
-        self.memory_bytes = integer(memory_bytes, "memory_bytes", minimum=0)
+    @checked
+    def __init__(self, directory: Annotated[str | None, Path("directory path")] = None, *,
+                 memory_bytes: Annotated[int, Count(min=0)] = MEMORY_BYTES):
+        self.directory = directory if directory is not None else default_directory()
+        self.memory_bytes = memory_bytes
         self.hits = 0
         self.misses = 0
 

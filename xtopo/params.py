@@ -33,7 +33,7 @@ import numpy as np
 
 from .errors import UnitsError, XtopoError
 
-__all__ = ["Kind", "Refused", "Flag", "Count", "Positive", "Real", "Interval", "Choice", "Text", "Dict", "Numbers",
+__all__ = ["Kind", "Refused", "Flag", "Count", "Positive", "Real", "Interval", "Choice", "Names", "Text", "Dict", "Numbers",
            "Lengths", "LengthUnit", "Path", "Data", "OneOf", "checked", "preflight", "declarations", "DECLARED"]
 
 #: every function decorated with :func:`checked`, in the order they were defined (the generated test loops over it).
@@ -212,6 +212,25 @@ class Choice(Kind):
 
     def __repr__(self):
         return f"Choice{self.options}"
+
+
+class Names(Kind):
+    """One of ``options`` or a sequence of them → a tuple (e.g. the analyses of a report)."""
+
+    def __init__(self, *options, error=None):
+        super().__init__(error=error)
+        self.options = options
+        self.expects = f"a name or a sequence of names from {options}"
+
+    def convert(self, value):
+        items = (value,) if isinstance(value, str) else value
+        try:
+            items = tuple(items)
+        except TypeError:
+            raise Refused from None
+        if not all(isinstance(v, str) and v in self.options for v in items):
+            raise Refused
+        return items
 
 
 class Text(Kind):

@@ -12,11 +12,12 @@ from __future__ import annotations
 import datetime
 import html
 import os
+from typing import Annotated
 
 import xarray as xr
 
-from ._checks import flag, mapping, option
 from .errors import XtopoError
+from .params import Count, Dict, Flag, Names, Path, checked
 from .stitching import ANALYSES as _REGISTRY
 
 __all__ = ["report", "ANALYSES"]
@@ -46,17 +47,6 @@ p.error { color: #a00; }
 def _stitch(tree: xr.DataTree, name: str) -> xr.Dataset:
     """The twin average ``name`` of :data:`xtopo.stitching.ANALYSES`, computed."""
     return _REGISTRY[name](tree).compute()
-
-
-def _analyses(analyses) -> tuple:
-    """``analyses`` as a tuple of names from :data:`ANALYSES` (one name may be given as a str)."""
-    if isinstance(analyses, str):
-        analyses = (analyses,)
-    try:
-        analyses = tuple(analyses)
-    except TypeError:
-        raise XtopoError(f"analyses must be a sequence of names from {ANALYSES}, got {analyses!r}") from None
-    return tuple(option(a, ANALYSES, "analyses") for a in analyses)
 
 
 def _as_twin(source) -> xr.DataTree:
@@ -188,8 +178,11 @@ def _html_page(title: str, blocks: list) -> str:
             f"{script}\n</body>\n</html>\n")
 
 
-def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
-           maps: bool = True, iso: dict | None = None, progress: bool | None = False) -> str:
+@checked
+def report(source, path: Annotated[str | None, Path("file path")] = None, *, title: str | None = None,
+           analyses: Annotated[tuple, Names(*ANALYSES)] = ANALYSES, max_pixels: Annotated[int, Count(min=2)] = 256,
+           maps: Annotated[bool, Flag()] = True, iso: Annotated[dict | None, Dict()] = None,
+           progress: bool | None = False) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters
@@ -229,8 +222,6 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     from .summary import summary_table
     from .twins import measurements
 
-    analyses = _analyses(analyses)
-    maps = flag(maps, "maps")
     tree = _as_twin(source)
     ms = measurements(tree)
     if not ms:
@@ -248,7 +239,7 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
                  [_cells_html(["measurement", "instrument", "preprocessing", "short reliability cutoff", "cause"],
                               _reliability_rows(ms))])]
     if iso is not None:
-        sections.append(("", [_iso_html(ms, mapping(iso, "iso"))]))
+        sections.append(("", [_iso_html(ms, iso)]))
     if analyses:
         from ._progress import progress_bar
 

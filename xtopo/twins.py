@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterable, Mapping
+from typing import Annotated
 
 import xarray as xr
 
-from ._checks import flag
-from ._checks import path as checked_path
 from .cache import freeze
 from .conventions import CONVENTIONS, safe_name, validate
 from .errors import ValidationError, XtopoError
 from .io.netcdf import READ_ENGINES, read_netcdf, tree_to_netcdf
+from .params import Flag, Path, checked
 
 __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
 
@@ -130,7 +130,9 @@ def measurements(tree: xr.DataTree) -> dict[str, xr.Dataset]:
     return {name: node.to_dataset() for name, node in tree.children.items() if "height" in node.dataset}
 
 
-def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: bool = True) -> str:
+@checked
+def to_netcdf(tree: xr.DataTree, path: Annotated[str, Path("file path")], engine: str | None = None, *,
+              checksums: Annotated[bool, Flag(error=ValidationError)] = True) -> str:
     """Archive a twin as one NetCDF file: a group per measurement, CF/ACDD and provenance on the root.
 
     Other groups of the tree (notes, stored results) are written as they are.
@@ -151,7 +153,6 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     str
     """
     ms = measurements(tree)
-    checksums = flag(checksums, "checksums", error=ValidationError)
     root = tree.to_dataset(inherit=False)
     root.attrs.pop("source_checksums", None)  # listed afresh from the measurements archived now
     # other groups (notes, stored results) are archived as they are
@@ -169,7 +170,8 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     return tree_to_netcdf(xr.DataTree.from_dict({"/": root, **nodes}), path, engine)
 
 
-def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
+@checked
+def open_twin(path: Annotated[str, Path("file path")], engine: str | None = None, *, surface=None) -> xr.DataTree:
     """Restore a twin archived with :func:`to_netcdf`, or read one from a contact.engineering container (ZIP).
 
     Data are loaded into read-only memory, as in :func:`twin`. A contact.engineering download
@@ -189,7 +191,6 @@ def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
     """
     from .io.container import container_twin, is_container
 
-    path = checked_path(path, "path", kind="file path")
     if is_container(path):
         return container_twin(path, surface)
     if surface is not None:

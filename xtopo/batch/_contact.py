@@ -17,7 +17,7 @@ from ..conventions import append_history, convert_length, height_of, length_unit
 from ..errors import ContactError, UnitsError, XtopoError
 from ..params import Count, Flag, LengthUnit, OneOf, Positive, checked
 from ._engine import run_batch
-from ._inputs import Progress, Retries, Workers, checked_read_options, names_and_sources, run_options
+from ._inputs import Progress, Retries, StorePath, Workers, checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
 
 __all__ = ["contact"]
@@ -163,7 +163,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
             periodic: Annotated[bool | None, Flag(error=ContactError)] = None,
             tol: Annotated[float | None, _SCENE] = None, maxiter: Annotated[int | None, Count(error=ContactError)] = None,
             maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
-            workers: Workers = None, store=None, progress: Progress = True, fft_threads: Workers = 1,
+            workers: Workers = None, store: StorePath = None, progress: Progress = True, fft_threads: Workers = 1,
             retries: Retries = 1, read_options: dict | None = None, units: Annotated[str | None, LengthUnit()] = None,
             preprocess=None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).

@@ -16,17 +16,18 @@ import numpy as np
 import xarray as xr
 
 from ..errors import XtopoError
-from ..params import Count, Dict, Flag
+from ..params import Count, Dict, Flag, Path
 from ._results import ERROR, HISTORY, MEASUREMENT, SOURCE
 
 __all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options", "per_measurement",
-           "Workers", "Retries", "Progress", "Attrs"]
+           "Workers", "Retries", "Progress", "Attrs", "StorePath"]
 
 #: the declared run options of a batch (:func:`xtopo.batch.run`, :func:`xtopo.batch.contact`)
 Workers = Annotated[int | None, Count()]
 Retries = Annotated[int, Count(min=0)]
 Progress = Annotated[bool, Flag()]
 Attrs = Annotated[dict | None, Dict()]
+StorePath = Annotated[str | None, Path("directory path")]
 
 
 def names_and_sources(measurements) -> tuple[list[str], list]:

@@ -101,10 +101,9 @@ class Store:
 
     def __init__(self, directory):
         from .._checks import make_directory
-        from .._checks import path as checked_path
         from ..errors import XtopoError
 
-        self.directory = os.path.abspath(checked_path(directory, "batch store", kind="directory path"))
+        self.directory = os.path.abspath(directory)
         if os.path.exists(self.directory) and not os.path.isdir(self.directory):
             raise XtopoError(f"batch store {self.directory} exists and is not a directory; "
                              "give a directory path (it is created when absent)")
