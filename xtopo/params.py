@@ -75,7 +75,7 @@ class Kind:
             raise (exc.error or self.error or error)(message.replace("{name}", name)) from None
 
     def __repr__(self):
-        return f"{type(self).__name__}()"
+        return f"{type(self).__name__}({self.expects!r})"
 
 
 def _shown(value) -> str:
@@ -109,8 +109,6 @@ class Flag(Kind):
         raise Refused
 
 
-
-
 class Count(Kind):
     """An integer (not a bool, not a float) of at least ``min`` (and at most ``max``) → int."""
 
@@ -126,10 +124,6 @@ class Count(Kind):
         return int(value)
 
 
-    def __repr__(self):
-        return f"Count(min={self.min}, max={self.max})"
-
-
 class Positive(Kind):
     """A real number above 0, finite unless ``infinite`` (a 0-d array counts) → float."""
 
@@ -143,8 +137,6 @@ class Positive(Kind):
         if number is None or not number > 0 or not (self.infinite or math.isfinite(number)):
             raise Refused
         return number
-
-
 
 
 class Real(Kind):
@@ -170,8 +162,6 @@ class Real(Kind):
         return number
 
 
-
-
 class Interval(Kind):
     """Two real numbers ``(lo, hi)`` with ``low <= lo < hi <= high`` (``hi`` may be ``high`` = inf) → a tuple."""
 
@@ -190,8 +180,6 @@ class Interval(Kind):
         return lo, hi
 
 
-
-
 class Choice(Kind):
     """One of ``options`` (strings, or None/False where those mean "none")."""
 
@@ -208,10 +196,6 @@ class Choice(Kind):
                     and not isinstance(value, (bool, np.bool_)) and value == option):
                 return option
         raise Refused
-
-
-    def __repr__(self):
-        return f"Choice{self.options}"
 
 
 class Names(Kind):
@@ -244,8 +228,6 @@ class Text(Kind):
         return value
 
 
-
-
 class Dict(Kind):
     """A mapping (not an xarray Dataset) → dict, e.g. legend labels by name."""
 
@@ -257,8 +239,6 @@ class Dict(Kind):
         if not isinstance(value, Mapping) or isinstance(value, (xr.Dataset, xr.DataTree)):
             raise Refused
         return dict(value)
-
-
 
 
 class Numbers(Kind):
@@ -287,8 +267,6 @@ class Numbers(Kind):
         return v
 
 
-
-
 class Lengths(Numbers):
     """A number or a 1D sequence of positive finite numbers (lengths, or wavevectors) → 1D float array.
 
@@ -303,8 +281,6 @@ class Lengths(Numbers):
         if np.any(v == 0):
             raise Refused(f"{{name}} must be positive finite lengths, got {v[v == 0].tolist()}")
         return v
-
-
 
 
 class LengthUnit(Kind):
@@ -326,8 +302,6 @@ class LengthUnit(Kind):
             raise Refused(f"{{name}}={value!r:.60} is not a length unit ({exc})") from None
 
 
-
-
 class Path(Kind):
     """A path (str, bytes or os.PathLike, not empty: that would mean the working directory) → str."""
 
@@ -346,8 +320,6 @@ class Path(Kind):
         return text
 
 
-
-
 class Data(Kind):
     """An xarray object of one of ``types`` (names: ``"Dataset"``, ``"DataArray"``, ``"DataTree"``)."""
 
@@ -364,8 +336,6 @@ class Data(Kind):
         return value
 
 
-
-
 class OneOf:
     """A rule on a whole call: exactly one (``optional``: at most one) of the arguments ``names`` is not None."""
 
@@ -379,12 +349,10 @@ class OneOf:
             extra = f" (got {', '.join(given)})" if given else ""
             raise (self.error or error)(f"give {'at most' if self.optional else 'exactly'} one of {listed}{extra}")
 
-    def __repr__(self):
-        return f"OneOf{self.names}"
-
 
 class _Spec:
-    """The declarations of one function, read from its signature and type hints on first use."""
+    """The declarations of one function, read from its signature and type hints when it is decorated (on its
+    first call where a hint names what is defined later in its module)."""
 
     def __init__(self, func, rules, error):
         self.func, self.rules, self.error = func, rules, error
@@ -392,6 +360,10 @@ class _Spec:
         self.entries = None  # (name, position or None, kind, default is None)
         names = list(self.signature.parameters)
         self.ruled = {n: names.index(n) for rule in rules for n in rule.names}
+        try:
+            self.parse()
+        except NameError:
+            pass
 
     def parse(self):
         hints = typing.get_type_hints(self.func, include_extras=True)
