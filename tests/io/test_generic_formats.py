@@ -556,17 +556,17 @@ def test_line_positions_near_the_float_limit_warn_nothing(tmp_path):
     np.testing.assert_array_equal(ds.height.values, [1.0, 2.0, 3.0])
 
 
-@pytest.mark.parametrize("drop, match", [(5, "drop_variables must be a variable name or a list of names, got int"),
-                                         (object(), "drop_variables must be .* got object"),
-                                         ([["mask"]], "drop_variables item must be a string, got list"),
-                                         (np.array([1, 2]), "drop_variables item must be a string, got int64")])
-def test_xarray_backend_refuses_drop_variables_that_are_no_names(tmp_path, heights, drop, match):
+def test_xarray_backend_refuses_drop_variables_that_are_no_names(tmp_path, heights):
     """xr.open_dataset(engine="xtopo", drop_variables=5) silently ignored it (xarray's own engines raise);
     an array of names raised numpy's 'truth value ambiguous'."""
-    np.save(tmp_path / "a.npy", heights)
-    with pytest.raises(XtopoError, match=match):
-        xr.open_dataset(tmp_path / "a.npy", engine="xtopo", physical_size=(5.0, 7.0), file_units="um",
-                        drop_variables=drop)
+    for drop, match in [(5, "drop_variables must be a variable name or a list of names, got int"),
+                                             (object(), "drop_variables must be .* got object"),
+                                             ([["mask"]], r"drop_variables item must be a string, got \[.mask.\]"),
+                                             (np.array([1, 2]), "drop_variables item must be a string, got np.int64")]:
+        np.save(tmp_path / "a.npy", heights)
+        with pytest.raises(XtopoError, match=match):
+            xr.open_dataset(tmp_path / "a.npy", engine="xtopo", physical_size=(5.0, 7.0), file_units="um",
+                            drop_variables=drop)
 
 
 @pytest.mark.parametrize("drop", ["height", ["height"], np.array(["height", "nothing"]), ()])
