@@ -502,7 +502,7 @@ def test_an_empty_store_path_is_refused(tmp_path, monkeypatch, store):
     """store='' wrote the chunk files, manifest.json (and, on the command line, result.nc) into the working
     directory."""
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(XtopoError, match="batch store must be a directory path, got an empty string"):
+    with pytest.raises(XtopoError, match="store must be a directory path, got an empty string"):
         batch.run(fft_work, _surfaces(1), LOADS, scheduler="sync", store=store, progress=False)
     assert os.listdir(tmp_path) == []
 
@@ -679,7 +679,7 @@ def test_run_options_are_checked_before_any_task():
         ({"dim": "measurement"}, "dim must be a name.*got 'measurement'"),
         ({"params": [[0.1, 0.2], [0.3, 0.4]]}, r"load values must be a number or a 1D sequence, got shape \(2, 2\)"),
         ({"read_options": ["units"]}, "read_options must be a dict"),
-        ({"store": 3}, "batch store must be a directory path.*int"),
+        ({"store": 3}, "store must be a directory path.*int"),
         ({"store": "/proc/no-such-dir/store"}, "cannot create the batch store /proc/no-such-dir/store"),
     ]:
         kwargs = {"params": LOADS, "scheduler": "sync", **kwargs}
