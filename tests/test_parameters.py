@@ -54,7 +54,7 @@ def bad_values(kind) -> list:
     return {params.Flag: ["yes", 2, 0.5], params.Choice: ["no-such-option", 3.5, True], params.Text: [3, ["a"]],
             params.Dict: [3, ["a"], "a"], params.LengthUnit: ["s", 5], params.Path: [3, ""],
             params.Data: [np.zeros(3), "data"], Cutoff: ["0.8 s", "-1 mm", "short", 0.0, True],
-            Form: ["cubic", 9, 1.0, True], Shape: [0, 4.5, "8", (2, 3, 4), (), (4, 0), True, 10**30]}[t]
+            params.Names: ["nope", ["psd", "nope"], 3], Form: ["cubic", 9, 1.0, True], Shape: [0, 4.5, "8", (2, 3, 4), (), (4, 0), True, 10**30]}[t]
 
 
 def good_value(kind):
@@ -68,6 +68,7 @@ def good_value(kind):
         da = xr.DataArray(np.zeros(4), dims="x", coords={"x": np.arange(4.0)}, name="height")
         return {"DataArray": da, "Dataset": da.to_dataset(), "DataTree": xr.DataTree(da.to_dataset())}[kind.types[0]]
     return {params.Count: getattr(kind, "min", 1) + 2, params.Choice: getattr(kind, "options", ("",))[0],
+            params.Names: getattr(kind, "options", ())[:1],
             params.Flag: True, params.Positive: 0.5, params.Text: "a", params.Dict: {}, params.LengthUnit: "um",
             params.Path: os.path.join(os.sep, "nonexistent-xtopo-path"), Cutoff: "0.8 mm", Form: "line",
             Shape: 4}[t]
@@ -81,8 +82,13 @@ def _required(func, decl: dict) -> dict:
         if p.default is p.empty and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
             out[name] = good_value(decl[name]) if name in decl else object()
     for rule in func.__xtopo_params__.rules:
-        out[rule.names[0]] = good_value(decl[rule.names[0]])
+        out[rule.names[0]] = _given(decl, rule.names[0])
     return out
+
+
+def _given(decl: dict, name: str):
+    """A value for a member of a OneOf rule (undeclared members take any value that is not None)."""
+    return good_value(decl[name]) if name in decl else object()
 
 
 def test_the_entry_points_declare_their_parameters():
@@ -121,4 +127,4 @@ def test_one_of_rules_refuse_none_and_two(func):
         call = {k: v for k, v in _required(func, decl).items() if k not in rule.names}
         for given in ((), rule.names[:2])[rule.optional:]:
             with pytest.raises(XtopoError, match="one of " + rule.names[0]):
-                func(**call, **{n: good_value(decl[n]) for n in given})
+                func(**call, **{n: _given(decl, n) for n in given})

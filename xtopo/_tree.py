@@ -8,13 +8,14 @@ measurements and the tree itself.
 from __future__ import annotations
 
 import os
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from ._checks import xarray_object
 from .conventions import CONVENTIONS, safe_name
 from .errors import ValidationError, XtopoError
+from .params import Data, checked
 
 __all__ = ["make_twin", "measurements", "freeze", "unique_name", "name_of"]
 
@@ -29,7 +30,8 @@ def _immutable(arr: np.ndarray) -> bool:
     return isinstance(base, bytes)
 
 
-def freeze(ds: xr.Dataset) -> xr.Dataset:
+@checked
+def freeze(ds: Annotated[xr.Dataset, Data("Dataset")]) -> xr.Dataset:
     """A copy of ``ds`` whose numpy-backed variables live in immutable memory.
 
     Their checksums are computed once per array and remembered, so repeated
@@ -37,7 +39,7 @@ def freeze(ds: xr.Dataset) -> xr.Dataset:
     Writing into the arrays raises ``ValueError`` (numpy refuses to make them writeable).
     Dask-backed variables are left as they are.
     """
-    out = xarray_object(ds, "freeze", (xr.Dataset,)).copy(deep=False)
+    out = ds.copy(deep=False)
     for name, var in ds.variables.items():
         if name in ds.indexes or not isinstance(var.data, np.ndarray) or var.dtype.hasobject:
             continue

@@ -45,13 +45,13 @@ import json
 import os
 import threading
 import weakref
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 import xxhash
 
-from ._checks import integer, make_directory, xarray_object
-from ._checks import path as checked_path
+from ._checks import make_directory
 from ._kernels._cache_dir import default_directory
 from ._optional import require
 from ._tokens import callable_token
@@ -59,6 +59,7 @@ from ._tree import _immutable, freeze
 from ._version import __version__
 from .conventions import MEASUREMENT_ATTRS
 from .errors import XtopoError
+from .params import Count, Data, Path, checked
 from .io.netcdf import PROVENANCE_KEYS, atomic_write, prepare_for_netcdf, read_netcdf, sanitize_attrs, to_netcdf
 
 __all__ = ["Cache", "checksum", "default_directory", "freeze"]
@@ -100,14 +101,14 @@ def _array_digest(arr) -> bytes:
     return digest
 
 
-def checksum(ds) -> str:
+@checked
+def checksum(ds: Annotated[xr.Dataset | xr.DataArray, Data()]) -> str:
     """Checksum of what an analysis of ``ds`` depends on: data, coordinates and measurement attrs.
 
     SHA-256 over the names, dims, units and the XXH3-128 digests of the arrays.
 
     Computing it loads dask-backed data.
     """
-    xarray_object(ds, "checksum")
     h = hashlib.sha256()
     items = ds.variables.items() if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable)] + [
         (k, v.variable) for k, v in ds.coords.items()]
@@ -268,9 +269,11 @@ class Cache:
     >>> psd = cache(xtopo.analysis.psd.psd, ds, kind="1d")  # read back
     """
 
-    def __init__(self, directory=None, *, memory_bytes: int = MEMORY_BYTES):
-        self.directory = checked_path(directory, "cache directory") if directory is not None else default_directory()
-        self.memory_bytes = integer(memory_bytes, "memory_bytes", minimum=0)
+    @checked
+    def __init__(self, directory: Annotated[str | None, Path("directory path")] = None, *,
+                 memory_bytes: Annotated[int, Count(min=0)] = MEMORY_BYTES):
+        self.directory = directory if directory is not None else default_directory()
+        self.memory_bytes = memory_bytes
         self.hits = 0
         self.misses = 0
 

@@ -34,7 +34,7 @@ from .params import Flag, LengthUnit, Positive, Real, checked
 __all__ = [
     "HEIGHT", "MASK", "X", "Y", "LATERAL_DIMS", "CONVENTIONS",
     "LENGTH_ATTRS", "MEASUREMENT_ATTRS",
-    "normalize_units", "unit_argument", "length_factor", "convert_length",
+    "normalize_units", "length_factor", "convert_length",
     "spacing", "physical_size", "is_uniform", "is_periodic", "length_attr", "is_nonuniform",
     "lateral_dims", "height_of", "make_measurement", "validate", "append_history", "length_units_of",
     "shared_length_unit",
@@ -100,20 +100,6 @@ def normalize_units(units) -> str:
     u = _UNIT_ALIASES.get(u, u).replace("µ", "u").replace("μ", "u")
     _length_in_m(u)
     return u
-
-
-def unit_argument(units, name: str) -> str:
-    """The length unit ``units`` given as the argument ``name``, normalised (:func:`normalize_units`).
-
-    Raises
-    ------
-    UnitsError
-        If ``units`` is not a length unit; the message names the argument as typed (``units='s'``).
-    """
-    try:
-        return normalize_units(units)
-    except UnitsError as exc:
-        raise UnitsError(f"{name}={units!r:.60} is not a length unit ({exc})") from None
 
 
 def length_factor(from_units: str, to_units: str) -> float:

@@ -33,7 +33,7 @@ import numpy as np
 
 from .errors import UnitsError, XtopoError
 
-__all__ = ["Kind", "Refused", "Flag", "Count", "Positive", "Real", "Interval", "Choice", "Text", "Dict", "Numbers",
+__all__ = ["Kind", "Refused", "Flag", "Count", "Positive", "Real", "Interval", "Choice", "Names", "Text", "Dict", "Numbers",
            "Lengths", "LengthUnit", "Path", "Data", "OneOf", "checked", "preflight", "declarations", "DECLARED"]
 
 #: every function decorated with :func:`checked`, in the order they were defined (the generated test loops over it).
@@ -75,7 +75,7 @@ class Kind:
             raise (exc.error or self.error or error)(message.replace("{name}", name)) from None
 
     def __repr__(self):
-        return f"{type(self).__name__}()"
+        return f"{type(self).__name__}({self.expects!r})"
 
 
 def _shown(value) -> str:
@@ -109,8 +109,6 @@ class Flag(Kind):
         raise Refused
 
 
-
-
 class Count(Kind):
     """An integer (not a bool, not a float) of at least ``min`` (and at most ``max``) → int."""
 
@@ -126,10 +124,6 @@ class Count(Kind):
         return int(value)
 
 
-    def __repr__(self):
-        return f"Count(min={self.min}, max={self.max})"
-
-
 class Positive(Kind):
     """A real number above 0, finite unless ``infinite`` (a 0-d array counts) → float."""
 
@@ -143,8 +137,6 @@ class Positive(Kind):
         if number is None or not number > 0 or not (self.infinite or math.isfinite(number)):
             raise Refused
         return number
-
-
 
 
 class Real(Kind):
@@ -170,8 +162,6 @@ class Real(Kind):
         return number
 
 
-
-
 class Interval(Kind):
     """Two real numbers ``(lo, hi)`` with ``low <= lo < hi <= high`` (``hi`` may be ``high`` = inf) → a tuple."""
 
@@ -188,8 +178,6 @@ class Interval(Kind):
         if lo is None or hi is None or not (self.low <= lo < hi <= self.high) or math.isnan(hi):
             raise Refused
         return lo, hi
-
-
 
 
 class Choice(Kind):
@@ -210,8 +198,23 @@ class Choice(Kind):
         raise Refused
 
 
-    def __repr__(self):
-        return f"Choice{self.options}"
+class Names(Kind):
+    """One of ``options`` or a sequence of them → a tuple (e.g. the analyses of a report)."""
+
+    def __init__(self, *options, error=None):
+        super().__init__(error=error)
+        self.options = options
+        self.expects = f"a name or a sequence of names from {options}"
+
+    def convert(self, value):
+        items = (value,) if isinstance(value, str) else value
+        try:
+            items = tuple(items)
+        except TypeError:
+            raise Refused from None
+        if not all(isinstance(v, str) and v in self.options for v in items):
+            raise Refused
+        return items
 
 
 class Text(Kind):
@@ -225,8 +228,6 @@ class Text(Kind):
         return value
 
 
-
-
 class Dict(Kind):
     """A mapping (not an xarray Dataset) → dict, e.g. legend labels by name."""
 
@@ -238,8 +239,6 @@ class Dict(Kind):
         if not isinstance(value, Mapping) or isinstance(value, (xr.Dataset, xr.DataTree)):
             raise Refused
         return dict(value)
-
-
 
 
 class Numbers(Kind):
@@ -268,8 +267,6 @@ class Numbers(Kind):
         return v
 
 
-
-
 class Lengths(Numbers):
     """A number or a 1D sequence of positive finite numbers (lengths, or wavevectors) → 1D float array.
 
@@ -286,13 +283,15 @@ class Lengths(Numbers):
         return v
 
 
-
-
 class LengthUnit(Kind):
-    """A length unit such as ``"m"`` or ``"µm"`` → its UDUNITS ASCII spelling (``"um"``)."""
+    """A length unit such as ``"m"`` or ``"µm"`` → its UDUNITS ASCII spelling (``"um"``); ``optional``: None too."""
 
     expects = "a length unit"
     error = UnitsError
+
+    def __init__(self, *, optional: bool = False, error=None):
+        super().__init__(error=error)
+        self.takes_none = optional
 
     def convert(self, value):
         from .conventions import normalize_units
@@ -301,8 +300,6 @@ class LengthUnit(Kind):
             return normalize_units(value)
         except UnitsError as exc:
             raise Refused(f"{{name}}={value!r:.60} is not a length unit ({exc})") from None
-
-
 
 
 class Path(Kind):
@@ -323,8 +320,6 @@ class Path(Kind):
         return text
 
 
-
-
 class Data(Kind):
     """An xarray object of one of ``types`` (names: ``"Dataset"``, ``"DataArray"``, ``"DataTree"``)."""
 
@@ -341,8 +336,6 @@ class Data(Kind):
         return value
 
 
-
-
 class OneOf:
     """A rule on a whole call: exactly one (``optional``: at most one) of the arguments ``names`` is not None."""
 
@@ -356,12 +349,10 @@ class OneOf:
             extra = f" (got {', '.join(given)})" if given else ""
             raise (self.error or error)(f"give {'at most' if self.optional else 'exactly'} one of {listed}{extra}")
 
-    def __repr__(self):
-        return f"OneOf{self.names}"
-
 
 class _Spec:
-    """The declarations of one function, read from its signature and type hints on first use."""
+    """The declarations of one function, read from its signature and type hints when it is decorated (on its
+    first call where a hint names what is defined later in its module)."""
 
     def __init__(self, func, rules, error):
         self.func, self.rules, self.error = func, rules, error
@@ -369,6 +360,10 @@ class _Spec:
         self.entries = None  # (name, position or None, kind, default is None)
         names = list(self.signature.parameters)
         self.ruled = {n: names.index(n) for rule in rules for n in rule.names}
+        try:
+            self.parse()
+        except NameError:
+            pass
 
     def parse(self):
         hints = typing.get_type_hints(self.func, include_extras=True)

@@ -30,11 +30,10 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
-from ._checks import positive_number
 from ._optional import require
 from .conventions import LATERAL_DIMS, X, Y, height_of, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
-from .params import Count, Data, Dict, Text, checked
+from .params import Count, Data, Dict, Positive, Text, checked
 from .stitching import ANALYSES, PER_DECADE
 from .twins import measurements
 
@@ -338,7 +337,7 @@ def _cutoff_of(da, cutoff):
             return None
         value = float(np.asarray(getattr(cutoff, "values", cutoff)))
         return value if np.isfinite(value) and value > 0 else None
-    return positive_number(getattr(cutoff, "values", cutoff), "cutoff (a length in the curve's length unit)")
+    return Positive().check(getattr(cutoff, "values", cutoff), "cutoff (a length in the curve's length unit)")
 
 
 def _positive(x, y):

@@ -12,11 +12,11 @@ from __future__ import annotations
 import datetime
 import html
 import os
+from typing import Annotated
 
 import xarray as xr
 
 from . import plot as _plot
-from ._checks import flag, mapping, option
 from ._optional import require
 from ._progress import progress_bar
 from ._version import __version__
@@ -25,6 +25,7 @@ from .analysis.reliability import reliability_cutoff
 from .conventions import MASK, length_factor
 from .errors import XtopoError
 from .io.netcdf import atomic_write
+from .params import Count, Dict, Flag, Names, Path, checked
 from .plot import group_colours
 from .preprocess import STEPS
 from .stitching import _complete
@@ -59,17 +60,6 @@ p.error { color: #a00; }
 def _stitch(tree: xr.DataTree, name: str) -> xr.Dataset:
     """The twin average ``name`` of :data:`xtopo.stitching.ANALYSES`, computed."""
     return _REGISTRY[name](tree).compute()
-
-
-def _analyses(analyses) -> tuple:
-    """``analyses`` as a tuple of names from :data:`ANALYSES` (one name may be given as a str)."""
-    if isinstance(analyses, str):
-        analyses = (analyses,)
-    try:
-        analyses = tuple(analyses)
-    except TypeError:
-        raise XtopoError(f"analyses must be a sequence of names from {ANALYSES}, got {analyses!r}") from None
-    return tuple(option(a, ANALYSES, "analyses") for a in analyses)
 
 
 def _as_twin(source) -> xr.DataTree:
@@ -183,8 +173,11 @@ def _html_page(title: str, blocks: list) -> str:
             f"{script}\n</body>\n</html>\n")
 
 
-def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, max_pixels: int = 256,
-           maps: bool = True, iso: dict | None = None, progress: bool | None = False) -> str:
+@checked
+def report(source, path: Annotated[str | None, Path("file path")] = None, *, title: str | None = None,
+           analyses: Annotated[tuple, Names(*ANALYSES)] = ANALYSES, max_pixels: Annotated[int, Count(min=2)] = 256,
+           maps: Annotated[bool, Flag()] = True, iso: Annotated[dict | None, Dict()] = None,
+           progress: bool | None = False) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters
@@ -219,8 +212,6 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
     hv = require("holoviews", "the report")  # the [plot] extra, loaded on first use (startup time)
     gridplot = require("bokeh.layouts", "the report").gridplot
 
-    analyses = _analyses(analyses)
-    maps = flag(maps, "maps")
     tree = _as_twin(source)
     ms = measurements(tree)
     if not ms:
@@ -238,7 +229,7 @@ def report(source, path=None, *, title: str | None = None, analyses=ANALYSES, ma
                  [_cells_html(["measurement", "instrument", "preprocessing", "short reliability cutoff", "cause"],
                               _reliability_rows(ms))])]
     if iso is not None:
-        sections.append(("", [_iso_html(ms, mapping(iso, "iso"))]))
+        sections.append(("", [_iso_html(ms, iso)]))
     if analyses:
         figures, errors = [], []
         for name in progress_bar(analyses, desc="twin averages", unit="analysis", enabled=progress):

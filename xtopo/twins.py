@@ -11,11 +11,10 @@ from __future__ import annotations
 import importlib.util
 import os
 from collections.abc import Iterable, Mapping
+from typing import Annotated
 
 import xarray as xr
 
-from ._checks import flag
-from ._checks import path as checked_path
 from ._tree import freeze, make_twin, measurements, name_of, unique_name
 from .conventions import safe_name, validate
 from .errors import ReaderError, ValidationError
@@ -23,6 +22,7 @@ from .io.container import container_twin, is_container
 from .io.netcdf import READ_ENGINES, read_netcdf, tree_to_netcdf
 from .io.open import open_topography
 from .io.registry import detect
+from .params import Flag, Path, checked
 
 __all__ = ["twin", "open_twin", "to_netcdf", "measurements"]
 
@@ -87,7 +87,9 @@ def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
     return make_twin(nodes, name=name, **attrs)
 
 
-def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: bool = True) -> str:
+@checked
+def to_netcdf(tree: xr.DataTree, path: Annotated[str, Path("file path")], engine: str | None = None, *,
+              checksums: Annotated[bool, Flag(error=ValidationError)] = True) -> str:
     """Archive a twin as one NetCDF file: a group per measurement, CF/ACDD and provenance on the root.
 
     Other groups of the tree (notes, stored results) are written as they are.
@@ -108,7 +110,6 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     str
     """
     ms = measurements(tree)
-    checksums = flag(checksums, "checksums", error=ValidationError)
     root = tree.to_dataset(inherit=False)
     root.attrs.pop("source_checksums", None)  # listed afresh from the measurements archived now
     # other groups (notes, stored results) are archived as they are
@@ -126,7 +127,8 @@ def to_netcdf(tree: xr.DataTree, path, engine: str | None = None, *, checksums: 
     return tree_to_netcdf(xr.DataTree.from_dict({"/": root, **nodes}), path, engine)
 
 
-def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
+@checked
+def open_twin(path: Annotated[str, Path("file path")], engine: str | None = None, *, surface=None) -> xr.DataTree:
     """Restore a twin archived with :func:`to_netcdf`, or read one from a contact.engineering container (ZIP).
 
     Data are loaded into read-only memory, as in :func:`twin`. A contact.engineering download
@@ -144,7 +146,6 @@ def open_twin(path, engine: str | None = None, *, surface=None) -> xr.DataTree:
     surface : str or int, optional
         For a container: the surface's name or index.
     """
-    path = checked_path(path, "path", kind="file path")
     if is_container(path):
         return container_twin(path, surface)
     if surface is not None:

@@ -12,14 +12,16 @@ from __future__ import annotations
 
 import json
 import os
+from typing import Annotated
 
 import xarray as xr
 
-from .._checks import path as checked_path
 from ..errors import XtopoError
 from ..preprocess import checked_steps
 from ._dispatch import execute, fft_env
-from ._inputs import checked_read_options, chunk_sizes, names_and_sources, per_measurement, run_options
+from ..params import Path, checked
+from ._inputs import Attrs, Progress, Retries, StorePath, Workers, checked_read_options, chunk_sizes, names_and_sources, \
+    per_measurement, run_options
 from ._results import combine, failed_items, failure_block
 from ._scans import settle_scans
 from ._store import MANIFEST, Store, chunk_key, fingerprint, func_name
@@ -31,9 +33,11 @@ __all__ = ["run", "run_batch", "open_store"]
 _FINISH = {"settle_scans": settle_scans}
 
 
-def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: dict | None = None, chunks=None,
-        client=None, scheduler: str | None = None, workers: int | None = None, store=None, progress: bool = True,
-        fft_threads: int | None = 1, retries: int = 1, read_options: dict | None = None,
+@checked
+def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: Attrs = None, chunks=None,
+        client=None, scheduler: str | None = None, workers: Workers = None, store: StorePath = None,
+        progress: Progress = True,
+        fft_threads: Workers = 1, retries: Retries = 1, read_options: dict | None = None,
         preprocess=None) -> xr.Dataset:
     """Run ``func`` on every measurement (× every parameter value) as chunked Dask tasks.
 
@@ -171,7 +175,7 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
     Other parameters and the result are those of :func:`run`.
     """
     names, sources = names_and_sources(measurements)
-    params = run_options(func, dim, dim_attrs, workers, fft_threads, retries, progress, params)
+    params = run_options(func, dim, params)
     read_options = per_measurement(checked_read_options(read_options, len(names)), len(names))
     steps = checked_steps(preprocess)
     store_obj = Store(store) if store is not None else None
@@ -214,7 +218,8 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
     return ds
 
 
-def open_store(directory) -> xr.Dataset:
+@checked
+def open_store(directory: Annotated[str, Path("directory path")]) -> xr.Dataset:
     """The results of a (possibly unfinished) batch from its store, without computing anything.
 
     Parameters
@@ -228,7 +233,7 @@ def open_store(directory) -> xr.Dataset:
         The result the run gave (without its run attributes: ``n_failed``, ``chunks_computed``,
         ...). Chunks not (yet) in the store show up with error ``'not computed'`` and NaN results.
     """
-    where = os.path.abspath(checked_path(directory, "open_store() directory", kind="directory path"))
+    where = os.path.abspath(directory)
     if not os.path.isdir(where):
         raise XtopoError(f"no batch store at {where}: not a directory (a batch run's store= creates it)")
     store = Store(where)

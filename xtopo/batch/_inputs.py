@@ -10,16 +10,26 @@ from __future__ import annotations
 
 import inspect
 import os
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from .._checks import flag, integer, mapping
 from ..errors import XtopoError
-from ..io.open import check_options, open_topography
+from ..io.open import open_topography
+from ..io.registry import detect
+from ..params import Count, Dict, Flag, Path, preflight
 from ._results import ERROR, HISTORY, MEASUREMENT, SOURCE
 
-__all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options", "per_measurement"]
+__all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options", "per_measurement",
+           "Workers", "Retries", "Progress", "Attrs", "StorePath"]
+
+#: the declared run options of a batch (:func:`xtopo.batch.run`, :func:`xtopo.batch.contact`)
+Workers = Annotated[int | None, Count()]
+Retries = Annotated[int, Count(min=0)]
+Progress = Annotated[bool, Flag()]
+Attrs = Annotated[dict | None, Dict()]
+StorePath = Annotated[str | None, Path("directory path")]
 
 
 def names_and_sources(measurements) -> tuple[list[str], list]:
@@ -62,20 +72,14 @@ def names_and_sources(measurements) -> tuple[list[str], list]:
     return names, sources
 
 
-def run_options(func, dim, dim_attrs, workers, fft_threads, retries, progress, params) -> list | None:
-    """The run options checked; returns ``params`` (the parameter values along ``dim``) as a list, or None."""
+def run_options(func, dim, params) -> list | None:
+    """``func`` and ``dim`` checked (the other run options are declared); returns ``params`` (the parameter values
+    along ``dim``) as a list, or None."""
     if not callable(func):
         raise XtopoError(f"func must be a function to run on each measurement, got {type(func).__name__}")
-    mapping(dim_attrs, "dim_attrs")
     reserved = (MEASUREMENT, ERROR, HISTORY, SOURCE)
     if not isinstance(dim, str) or not dim or dim in reserved:
         raise XtopoError(f"dim must be a name (str) other than {', '.join(map(repr, reserved))}, got {dim!r}")
-    if workers is not None:
-        integer(workers, "workers")
-    if fft_threads is not None:
-        integer(fft_threads, "fft_threads")
-    integer(retries, "retries", minimum=0)
-    flag(progress, "progress")
     if params is None:
         return None
     try:
@@ -94,7 +98,7 @@ def chunk_sizes(chunks, dim, n_meas: int, n_par: int) -> list[int]:
     if chunks is None:
         chunks = {}
     elif isinstance(chunks, (int, np.integer)) and not isinstance(chunks, (bool, np.bool_)):
-        chunks = {MEASUREMENT: integer(chunks, "chunks")}
+        chunks = {MEASUREMENT: Count().check(chunks, "chunks")}
     elif not isinstance(chunks, dict):
         raise XtopoError(f"chunks must be an int (measurements per chunk) or a dict like "
                          f"{{'{MEASUREMENT}': 1, '{dim}': 4}}, got {chunks!r}")
@@ -105,7 +109,7 @@ def chunk_sizes(chunks, dim, n_meas: int, n_par: int) -> list[int]:
     for d, n, default in ((MEASUREMENT, n_meas, 1), (dim, n_par, None)):
         c = chunks.get(d, default)
         everything = c is None or (isinstance(c, (int, np.integer)) and c == -1)   # True == -1 is False
-        sizes.append(n if everything else integer(c, f"chunk size along {d!r} (or -1/None for all)"))
+        sizes.append(n if everything else Count().check(c, f"chunk size along {d!r} (or -1/None for all)"))
     return sizes
 
 
@@ -145,5 +149,7 @@ def checked_read_options(read_options, n: int | None = None) -> dict:
             raise XtopoError(f"read_options[{key!r}] holds {len(values)} values for {n} measurements: give one "
                              "value for all, or one per measurement")
     for opts in per_measurement(read_options, 1 if n is None else n):
-        check_options("read_options", opts)
+        preflight(open_topography, opts, "read_options")
+        if opts.get("format") is not None:
+            detect("read_options", opts["format"])
     return dict(read_options)

@@ -19,7 +19,6 @@ import threading
 import xarray as xr
 
 from .._checks import make_directory
-from .._checks import path as checked_path
 from .._optional import require
 from .._tokens import callable_token
 from .._version import __version__
@@ -103,7 +102,7 @@ class Store:
     """
 
     def __init__(self, directory):
-        self.directory = os.path.abspath(checked_path(directory, "batch store", kind="directory path"))
+        self.directory = os.path.abspath(directory)
         if os.path.exists(self.directory) and not os.path.isdir(self.directory):
             raise XtopoError(f"batch store {self.directory} exists and is not a directory; "
                              "give a directory path (it is created when absent)")

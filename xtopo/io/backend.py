@@ -6,8 +6,8 @@ import os
 
 from xarray.backends import BackendEntrypoint
 
-from .._checks import text
 from ..errors import XtopoError
+from ..params import Text
 from .open import open_topography
 from .registry import detect
 
@@ -21,7 +21,7 @@ def _names(drop_variables) -> list:
     except TypeError:
         raise XtopoError(f"drop_variables must be a variable name or a list of names, "
                          f"got {type(drop_variables).__name__}") from None
-    return [text(name, "drop_variables item", optional=False) for name in names]
+    return [Text().check(name, "drop_variables item") for name in names]
 
 
 class XtopoBackendEntrypoint(BackendEntrypoint):

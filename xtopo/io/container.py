@@ -49,16 +49,17 @@ import tempfile
 import textwrap
 import zipfile
 from collections.abc import Mapping
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from .._checks import path as checked_path
 from .._tree import make_twin, measurements, unique_name
 from .._version import __version__
 from ..conventions import (append_history, height_of, is_nonuniform, is_periodic, lateral_dims, length_factor,
                            normalize_units, physical_size, safe_name)
 from ..errors import ReaderError, UnitsError, ValidationError, XtopoError, warn
+from ..params import Path, checked
 from ..preprocess import detrend, fill_missing
 from .formats.st_netcdf import to_surfacetopography_netcdf
 from .netcdf import atomic_write
@@ -465,14 +466,17 @@ def _budget(archive: _Archive, surfaces) -> None:
 
 
 def _open(path):
-    path = checked_path(path, "path", kind="file path")
     if not os.path.isfile(path):
         raise ReaderError(path, "no such file")
     sha = sha256(path)
     return _Archive(path), sha
 
 
-def open_container(path) -> dict[str, xr.DataTree]:
+_FILE = Path("file path")
+
+
+@checked
+def open_container(path: Annotated[str, _FILE]) -> dict[str, xr.DataTree]:
     """Read every surface of a contact.engineering container (ZIP) as a twin.
 
     Parameters
@@ -502,7 +506,8 @@ def open_container(path) -> dict[str, xr.DataTree]:
     return out
 
 
-def container_twin(path, surface=None) -> xr.DataTree:
+@checked
+def container_twin(path: Annotated[str, _FILE], surface=None) -> xr.DataTree:
     """The twin of one surface of a contact.engineering container (see :func:`xtopo.open_twin`).
 
     Parameters
@@ -598,7 +603,8 @@ def _surfaces(twins) -> list[tuple[str, xr.DataTree]]:
     return [(str(n), t) for n, t in items]
 
 
-def to_container(twins, path) -> str:
+@checked
+def to_container(twins, path: Annotated[str, _FILE]) -> str:
     """Write twins as a contact.engineering container (ZIP) that SurfaceTopography and contact.engineering read.
 
     Each measurement is stored as a squeezed NetCDF in SurfaceTopography's layout (its heights as
@@ -621,7 +627,6 @@ def to_container(twins, path) -> str:
     str
         The path written.
     """
-    path = checked_path(path, "path", kind="file path")
     items = _surfaces(twins)
     surfaces = []
     with tempfile.TemporaryDirectory(prefix="xtopo-container-") as tmp:

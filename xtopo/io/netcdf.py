@@ -11,16 +11,18 @@ import datetime as _dt
 import json
 import os
 import tempfile
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from .._checks import flag, option
-from .._checks import path as checked_path
 from .._version import __version__
 from ..conventions import CONVENTIONS, provenance_of
 from ..errors import ReaderError, ValidationError, WriteError, XtopoError
+from ..params import Choice, Flag, Path, checked
 from ._netcdf3 import check_netcdf3_header
+
+_FILE = Path("file path")
 
 __all__ = ["to_netcdf", "tree_to_netcdf", "read_netcdf", "read_engine", "READ_ENGINES", "open_contact",
            "is_contact_result", "atomic_write", "prepare_for_netcdf", "sanitize_attrs", "provenance_attrs",
@@ -106,7 +108,7 @@ def check_engine(engine: str | None) -> str:
     """The engine to use (default ``netcdf4`` if installed); raise for unknown ones."""
     if engine is None:
         return _default_engine()
-    return option(engine, ENGINES, "engine")
+    return Choice(*ENGINES).check(engine, "engine")
 
 
 def _default_engine() -> str:
@@ -140,7 +142,6 @@ def atomic_write(path, write) -> str:
         When the file cannot be created or written (an ``OSError`` from ``write`` included);
         other exceptions of ``write`` propagate unchanged.
     """
-    path = checked_path(path, "path", kind="file path")
     directory = os.path.dirname(os.path.abspath(path))
     try:
         fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=directory)
@@ -163,7 +164,9 @@ def atomic_write(path, write) -> str:
     return path
 
 
-def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) -> str:
+@checked
+def to_netcdf(ds, path: Annotated[str, _FILE], engine: str | None = None, *,
+              compress: Annotated[bool, Flag()] = False) -> str:
     """Write ``ds`` to ``path`` atomically, with CF/ACDD and provenance attributes.
 
     Parameters
@@ -197,7 +200,6 @@ def to_netcdf(ds, path, engine: str | None = None, *, compress: bool = False) ->
     if not isinstance(ds, xr.Dataset):
         raise XtopoError(f"to_netcdf expects an xarray Dataset, got {type(ds).__name__}")
     engine = check_engine(engine)
-    compress = flag(compress, "compress")
     out = prepare_for_netcdf(ds)
     encoding = {}
     if compress:
@@ -215,7 +217,8 @@ def _write(obj, tmp, path, **kwargs):
         raise ValidationError(f"cannot write {os.fspath(path)}: {exc}") from exc
 
 
-def tree_to_netcdf(tree: xr.DataTree, path, engine: str | None = None) -> str:
+@checked
+def tree_to_netcdf(tree: xr.DataTree, path: Annotated[str, _FILE], engine: str | None = None) -> str:
     """Write every node of a DataTree as a NetCDF group (atomically); provenance on the root only.
 
     Each group holds the coordinates it inherits too (``measurement`` names), so that a group opened
@@ -262,14 +265,14 @@ def read_engine(path) -> str:
     return READ_ENGINES["hdf5"]
 
 
-def read_netcdf(path, *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
+@checked
+def read_netcdf(path: Annotated[str, _FILE], *, engine: str | None = None, lazy: bool = False) -> xr.Dataset:
     """Open an xtopo NetCDF file; loaded into memory unless ``lazy``.
 
     Without ``engine``, NetCDF-4/HDF5 files are read with h5netcdf and NetCDF-3 files with scipy after
     a check of their header (:data:`READ_ENGINES`): no file can crash the interpreter or make the reader
     allocate more than the file holds.
     """
-    path = checked_path(path, "path", kind="file path")  # an int would be opened (and closed) as a descriptor
     try:
         if engine is None:  # naming the engine skips xarray's guessing over every backend (ours included)
             engine = read_engine(path)

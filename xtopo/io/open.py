@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import hashlib
 import os
+from typing import Annotated
 
 import numpy as np
 
-from .._checks import flag, lengths, per_axis, positive_number
-from ..conventions import append_history, convert_length, lateral_dims, unit_argument, validate
+from .._checks import per_axis
+from ..conventions import append_history, convert_length, lateral_dims, validate
 from ..conventions import physical_size as _physical_size
-from ..errors import GridError, ReaderError, UnsupportedFormatError, XtopoError
+from ..errors import ReaderError, UnsupportedFormatError, XtopoError
+from ..params import Flag, Lengths, LengthUnit, Positive, checked
 from .registry import READ_OPTIONS, ChannelInfo, detect
 
-__all__ = ["open_topography", "channels", "sha256", "check_options"]
+__all__ = ["open_topography", "channels", "sha256"]
+
+#: the declared kinds of the reading options (checked before a file is read; batch pre-flights them)
+_SIZE, _UNIT = Lengths(empty=False), LengthUnit(optional=True)
 
 
 def sha256(path) -> str:
@@ -25,9 +30,12 @@ def sha256(path) -> str:
     return h.hexdigest()
 
 
-def open_topography(path, *, channel=None, units: str | None = "m", periodic: bool | None = None,
-                    tip_radius: float | None = None, resolution: float | None = None, format: str | None = None,
-                    physical_size=None, file_units: str | None = None, height_units: str | None = None):
+@checked
+def open_topography(path, *, channel=None, units: Annotated[str | None, _UNIT] = "m",
+                    periodic: Annotated[bool | None, Flag()] = None, tip_radius: Annotated[float | None, Positive()] = None,
+                    resolution: Annotated[float | None, Positive()] = None, format: str | None = None,
+                    physical_size: Annotated[np.ndarray | None, _SIZE] = None,
+                    file_units: Annotated[str | None, _UNIT] = None, height_units: Annotated[str | None, _UNIT] = None):
     """Read a measurement file into an xtopo measurement Dataset.
 
     Parameters
@@ -68,9 +76,8 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         No reader recognises the content.
     """
     path = _path(path)
-    to, periodic, lengths = _arguments(path, units, periodic, tip_radius=tip_radius, resolution=resolution)
-    options = {"physical_size": _size_option(path, physical_size),
-               **_unit_options(path, file_units=file_units, height_units=height_units)}
+    to, lengths = units, {k: v for k, v in (("tip_radius", tip_radius), ("resolution", resolution)) if v is not None}
+    options = {"physical_size": physical_size, "file_units": file_units, "height_units": height_units}
     fmt, ds = _first_success(path, format, "read", channel=channel, **options)
     if physical_size is not None and "physical_size" not in fmt.options:
         ds = _override_size(ds, physical_size, path)
@@ -102,57 +109,6 @@ def open_topography(path, *, channel=None, units: str | None = "m", periodic: bo
         return validate(ds)
     except XtopoError as exc:
         raise ReaderError(path, f"the {fmt.name} reader produced an invalid measurement: {exc}") from exc
-
-
-def _size_option(path, physical_size):
-    """``physical_size`` checked before the file is read: positive finite lengths (how many the data
-    need, the reader or :func:`_override_size` checks).
-
-    Formats that store their size ignored it in :func:`channels` whatever it was ("abc", -1).
-    """
-    if physical_size is not None and lengths(physical_size, f"{path}: physical_size", "the length unit").size == 0:
-        raise GridError(f"{path}: physical_size must be one or two lengths, got {physical_size!r}")
-    return physical_size
-
-
-def _unit_options(path, **units) -> dict:
-    """The ``file_units``/``height_units`` options checked before the file is read: each ``None`` or a
-    length unit (an empty ``height_units`` was taken as not given). Returned as given: a format that
-    states its unit refuses them, whatever they are."""
-    for key, val in units.items():
-        if val is not None:
-            unit_argument(val, f"{path}: {key}")
-    return units
-
-
-def _arguments(path, units, periodic, **lengths):
-    """The options of :func:`open_topography` checked before the file is read (errors name the file).
-
-    Returns ``(units, periodic, lengths)``: the normalised result unit (None: the file's), the
-    periodicity as a bool (None: the file's) and the given ``tip_radius``/``resolution`` as floats.
-    """
-    if units is not None:
-        units = unit_argument(units, f"{path}: units")
-    if periodic is not None:
-        periodic = flag(periodic, f"{path}: periodic")
-    given = {key: positive_number(val, f"{path}: {key} (a length in the result's units)")
-             for key, val in lengths.items() if val is not None}
-    return units, periodic, given
-
-
-def check_options(where: str, options: dict) -> None:
-    """The values of :func:`open_topography`'s keyword ``options`` checked without reading a file.
-
-    For options given once for many files (a batch's ``read_options``): a bad value fails before
-    any file is read; ``where`` names the options in the error.
-    """
-    _arguments(where, options.get("units", "m"), options.get("periodic"), tip_radius=options.get("tip_radius"),
-               resolution=options.get("resolution"))
-    _size_option(where, options.get("physical_size"))
-    _unit_options(where, file_units=options.get("file_units"), height_units=options.get("height_units"))
-    fmt = options.get("format")
-    if fmt is not None:
-        detect(where, fmt)
 
 
 def _path(path) -> str:
@@ -244,8 +200,10 @@ def _describe(ds) -> ChannelInfo:
                        shape=tuple(ds.sizes[d] for d in dims), size=size, units=u, height_units=u)
 
 
-def channels(path, *, format: str | None = None, physical_size=None, file_units: str | None = None,
-             height_units: str | None = None) -> list[ChannelInfo]:
+@checked
+def channels(path, *, format: str | None = None, physical_size: Annotated[np.ndarray | None, _SIZE] = None,
+             file_units: Annotated[str | None, _UNIT] = None,
+             height_units: Annotated[str | None, _UNIT] = None) -> list[ChannelInfo]:
     """The channels of a measurement file, as :class:`~xtopo.io.registry.ChannelInfo` (one per channel).
 
     Formats with a single channel return one entry. Options as in :func:`open_topography`.
@@ -256,6 +214,6 @@ def channels(path, *, format: str | None = None, physical_size=None, file_units:
         As :func:`open_topography`.
     """
     path = _path(path)
-    _, out = _first_success(path, format, "channels", physical_size=_size_option(path, physical_size),
-                            **_unit_options(path, file_units=file_units, height_units=height_units))
+    _, out = _first_success(path, format, "channels", physical_size=physical_size, file_units=file_units,
+                            height_units=height_units)
     return list(out)

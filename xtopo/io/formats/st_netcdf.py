@@ -28,16 +28,17 @@ import datetime
 import json
 import math
 from collections.abc import Mapping
+from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
-from ..._checks import path as checked_path
 from ...conventions import (height_of, is_nonuniform, is_periodic, lateral_dims, normalize_units, periodic_flag,
                             physical_size, shared_length_unit)
 from ...errors import ReaderError, UnitsError, UnsupportedFormatError, ValidationError
 from .._generic import check_array_bytes, generic_measurement, single_channel
 from ..netcdf import atomic_write, read_engine
+from ...params import Path, checked
 from ..registry import Format, register
 
 __all__ = ["read_st_netcdf", "to_surfacetopography_netcdf"]
@@ -179,7 +180,8 @@ def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, h
     return generic_measurement(path, h.T, found_size=found, **common)
 
 
-def to_surfacetopography_netcdf(ds, path, *, info: dict | None = None) -> str:
+@checked
+def to_surfacetopography_netcdf(ds, path: Annotated[str, Path("file path")], *, info: dict | None = None) -> str:
     """Write a measurement in the SurfaceTopography/contact.engineering NetCDF layout.
 
     Parameters
@@ -197,7 +199,6 @@ def to_surfacetopography_netcdf(ds, path, *, info: dict | None = None) -> str:
     str
         The path written.
     """
-    path = checked_path(path, "path", kind="file path")
     if info is not None and not isinstance(info, Mapping):
         raise ValidationError(f"info must be a dict (written as the file's JSON 'info'), got {type(info).__name__}")
     h = height_of(ds)
