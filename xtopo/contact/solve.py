@@ -6,8 +6,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import rescaled
-from .._checks import integer, positive_number
-from ..params import OneOf
+from ..params import Count, OneOf, Positive
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
 from ..presets import resolve as resolve_preset
@@ -49,12 +48,12 @@ def solver_parameters(tol, maxiter) -> tuple:
 
     ``tol`` is in (0, 1), ``maxiter`` an integer ≥ 1.
     """
-    tol = None if tol is None else positive_number(tol, "tol", error=ContactError)
+    tol = None if tol is None else Positive(error=ContactError).check(tol, "tol")
     if tol is not None and tol >= 1:
         raise ContactError(f"tol must be below 1, got {tol:g}: it is the largest contact-condition violation as a "
                            "fraction of the peak-to-valley height, and tol ≥ 1 accepts the starting pressures "
                            "without a single iteration")
-    maxiter = None if maxiter is None else integer(maxiter, "maxiter", 1, error=ContactError)
+    maxiter = None if maxiter is None else Count(error=ContactError).check(maxiter, "maxiter")
     return tol, maxiter
 
 
