@@ -18,7 +18,6 @@ attribute ``grid="nonuniform"``.
 
 from __future__ import annotations
 
-import functools
 import numbers
 import re
 import unicodedata
@@ -28,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from ._checks import per_axis, real_array
+from ._units import length_factor, normalize_units  # noqa: F401 - part of conventions' API
 from .errors import GridError, UnitsError, ValidationError
 from .params import Flag, LengthUnit, Positive, Real, checked
 
@@ -55,60 +55,6 @@ LENGTH_ATTRS = ("tip_radius", "resolution")
 MEASUREMENT_ATTRS = ("periodic", "tip_radius", "resolution", "grid", "instrument")
 
 _LONG_NAMES = {X: "position x", Y: "position y", HEIGHT: "height"}
-
-_UNIT_ALIASES = {
-    "µm": "um", "μm": "um", "micron": "um", "microns": "um", "micrometer": "um",
-    "micrometre": "um", "nanometer": "nm", "nanometre": "nm", "millimeter": "mm",
-    "millimetre": "mm", "meter": "m", "metre": "m", "meters": "m", "Å": "angstrom",
-    "Angstrom": "angstrom", "pm": "pm", "picometer": "pm",
-    "km": "km", "cm": "cm", "centimeter": "cm",
-}
-
-
-@functools.lru_cache(maxsize=1)
-def _ureg():
-    import pint
-
-    return pint.UnitRegistry()
-
-
-@functools.lru_cache(maxsize=256)
-def _length_in_m(units: str) -> float:
-    ureg = _ureg()
-    try:
-        q = ureg.Quantity(1.0, units)
-    except Exception as exc:  # pint raises several unrelated types
-        raise UnitsError(f"cannot parse the unit {units!r}: {exc}") from None
-    if q.dimensionality != ureg.meter.dimensionality:
-        raise UnitsError(f"{units!r} is not a length unit")
-    return float(q.to("m").magnitude)
-
-
-def normalize_units(units) -> str:
-    """Return the UDUNITS ASCII spelling of a length unit (``"µm"`` → ``"um"``).
-
-    Raises
-    ------
-    UnitsError
-        If ``units`` is not a length unit.
-    """
-    if units is None:
-        raise UnitsError("no length unit given")
-    if not isinstance(units, str):  # str() made 5, True, b'um' or an array a unit pint failed to parse
-        raise UnitsError(f"a length unit must be a string such as 'm' or 'um', not {type(units).__name__}")
-    u = units.strip()
-    u = _UNIT_ALIASES.get(u, u).replace("µ", "u").replace("μ", "u")
-    _length_in_m(u)
-    return u
-
-
-def length_factor(from_units: str, to_units: str) -> float:
-    """Factor that converts a length in ``from_units`` to ``to_units``."""
-    f, t = normalize_units(from_units), normalize_units(to_units)
-    if f == t:
-        return 1.0
-    return _length_in_m(f) / _length_in_m(t)
-
 
 def with_units(da: xr.DataArray, units: str, long_name: str, **attrs) -> xr.DataArray:
     """Return ``da`` with ``units`` and ``long_name`` (and further ``attrs``) set."""

@@ -31,6 +31,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ._units import normalize_units
 from .errors import UnitsError, XtopoError
 
 __all__ = ["Kind", "Refused", "Flag", "Count", "Positive", "Real", "Interval", "Choice", "Names", "Text", "Dict", "Numbers",
@@ -294,8 +295,6 @@ class LengthUnit(Kind):
         self.takes_none = optional
 
     def convert(self, value):
-        from .conventions import normalize_units
-
         try:
             return normalize_units(value)
         except UnitsError as exc:

@@ -13,11 +13,13 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
-from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units, unit_argument
+from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
 from ..errors import ContactError, UnitsError, XtopoError
-from ..params import Flag, checked
+from ..contact.models import scene_models
+from ..contact.solve import ONE_SEQUENCE, control_value, given, solver_parameters
+from ..params import Count, Flag, LengthUnit, Positive, checked
 from ._engine import run_batch
-from ._inputs import checked_read_options, names_and_sources, run_options
+from ._inputs import Progress, Retries, StorePath, Workers, checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
 
 __all__ = ["contact"]
@@ -35,7 +37,7 @@ def _contact_units(units, sources, read_options) -> str:
     """The one length unit of a contact batch: ``units``, else the first measurement's (a file's: the unit it
     is read in, metres unless ``read_options`` say otherwise); ``"1"`` when the first measurement has none."""
     if units is not None:
-        return unit_argument(units, "units")
+        return units
     first = sources[0]
     if not isinstance(first, xr.Dataset):
         return normalize_units(read_options.get("units") or "m")
@@ -154,12 +156,17 @@ def _snap_grid(ds):
     return ds.assign_coords(snapped)
 
 
-@checked(error=ContactError)
-def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None, modulus: float = 1.0,
-            hardness: float | None = None, periodic: Annotated[bool | None, Flag()] = None, tol: float | None = None,
-            maxiter: int | None = None, maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
-            workers=None, store=None, progress: bool = True, fft_threads: int | None = 1,
-            retries: int = 1, read_options: dict | None = None, units: str | None = None,
+_SCENE = Positive(error=ContactError)  # the scene's and the solver's parameters, as Scene and solve declare them
+
+
+@checked(ONE_SEQUENCE)
+def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
+            modulus: Annotated[float, _SCENE] = 1.0, hardness: Annotated[float | None, _SCENE] = None,
+            periodic: Annotated[bool | None, Flag(error=ContactError)] = None,
+            tol: Annotated[float | None, _SCENE] = None, maxiter: Annotated[int | None, Count(error=ContactError)] = None,
+            maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
+            workers: Workers = None, store: StorePath = None, progress: Progress = True, fft_threads: Workers = 1,
+            retries: Retries = 1, read_options: dict | None = None, units: Annotated[str | None, LengthUnit()] = None,
             preprocess=None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
@@ -220,18 +227,13 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         '' where it failed). Where some item failed, ``iterations`` and ``converged`` are
         floats (1.0/0.0 for True/False, NaN for the failed items), as :func:`run` says.
     """
-    _require_contact()
-    from ..contact.models import scene_models
-    from ..contact.solve import ONE_SEQUENCE, control_value, given, solver_parameters
-
     control, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
     control = control[:-1]
-    # parameters shared by every item are checked here, not N times in the workers
+    _require_contact()
     models = scene_models(modulus, hardness)
-    modulus, hardness = models[0].modulus, None if hardness is None else models[1].hardness
+    # parameters shared by every item are declared (checked here, not N times in the workers)
     tol, maxiter = solver_parameters(tol, maxiter)
-    # values: a 1D, non-empty sequence
-    run_options(_contact_item, control, None, workers, fft_threads, retries, progress, values)
+    run_options(_contact_item, control, values)  # values: a 1D, non-empty sequence
     values = [control_value(control, v, models) for v in np.atleast_1d(np.asarray(values, dtype=object))]
     scene = {k: v for k, v in (("modulus", modulus), ("hardness", hardness), ("periodic", periodic)) if v is not None}
     solve = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}

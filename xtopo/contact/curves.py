@@ -3,12 +3,15 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
 from .._checks import bin_count
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
+from ..params import Count, checked
 from .solve import ONE_SEQUENCE, _control, given, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution"]
@@ -45,8 +48,9 @@ def _per_length(units: str, length: str) -> str:
     return f"{units} {length}-1"
 
 
+@checked(error=ContactError)
 def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
-          gap_bins: int = 50, preset: str | None = None) -> xr.Dataset:
+          gap_bins: Annotated[int, Count(min=0)] = 50, preset: str | None = None) -> xr.Dataset:
     """Solve ``scene`` for each value of a sequence, each step starting from the previous solution.
 
     Parameters
@@ -65,7 +69,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         ``load``, ``mean_pressure`` or ``penetration`` (dimension and coordinate, the values the
         solves reached), plus ``stiffness`` (``dF/dδ``) and ``gap_distribution``.
     """
-    gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), 0, error=ContactError)
+    gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), error=ContactError)
     name, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
     values = _sequence(name, values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
@@ -151,7 +155,8 @@ def stiffness(ds: xr.Dataset, dim: str = "load", atol: float = 0.0) -> xr.DataAr
                         attrs={"units": units, "long_name": "contact stiffness dF/dδ"})
 
 
-def gap_distribution(ds: xr.Dataset, bins: int = 50) -> xr.DataArray:
+@checked(error=ContactError)
+def gap_distribution(ds: xr.Dataset, bins: Annotated[int, Count()] = 50) -> xr.DataArray:
     """Probability density of the gap over the non-contacting points, per load step.
 
     The bin edges span ``[0, max gap]`` over all steps; coordinate ``gap_bin`` holds bin centres.

@@ -25,7 +25,8 @@ import re
 
 import numpy as np
 
-from ...conventions import _ureg, make_measurement, normalize_units
+from ..._units import _ureg
+from ...conventions import make_measurement, normalize_units
 from ...errors import MetadataWarning, ReaderError, UnitsError, UnsupportedFormatError, XtopoError, warn
 from ..registry import ChannelInfo
 
