@@ -58,7 +58,7 @@ def test_analyze_a_contact_engineering_download(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "2 measurements" in printed and "afm" in printed and "stylus" in printed
     tree = xr.open_datatree(out)
-    assert set(tree.children) == {"psd", "acf", "vbm", "sdrp"} and list(tree["psd"]["measurement"].values) == [
+    assert set(tree.children) == set(ANALYSES) and list(tree["psd"]["measurement"].values) == [
         "afm", "stylus"]
     expected = xtopo.open_twin(one).topo.psd()
     np.testing.assert_allclose(tree["psd"]["average"].values, expected.average.values, rtol=1e-12)
