@@ -49,14 +49,14 @@ def one_task(*objs):
     Data and non-index coordinates that are dask arrays are replaced by arrays taken from
     that task's output; numpy-backed objects (and None) come back unchanged.
     """
-    import dask
+    parts = [_dask_parts(o) if isinstance(o, xr.DataArray) else [] for o in objs]
+    arrays = [v.data for p in parts for _, v in p]
+    if not arrays:  # in memory (also where the [dask] extra is not installed)
+        return objs
+    import dask  # deferred: the core install has no dask, and then no lazy data reach here
     import dask.array as da
     from dask.base import tokenize
 
-    parts = [_dask_parts(o) if isinstance(o, xr.DataArray) else [] for o in objs]
-    arrays = [v.data for p in parts for _, v in p]
-    if not arrays:
-        return objs
     name = "xtopo-one-task-" + tokenize(*[a.name for a in arrays])
     task = dask.delayed(_compute_here, pure=True)(_Opaque(arrays), dask_key_name=name)
     it = iter(range(len(arrays)))
