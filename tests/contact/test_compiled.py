@@ -42,9 +42,8 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     shift = 1.5e-4
     where, gaps = np.empty(n, np.intp), np.empty(n)
     clear = np.full(inc.size, 7.0, np.float32)   # the direction's buffer: cleared on the active grid
-    none = np.empty(0, np.float32)
 
-    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear)
+    k, low, where, gaps = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear)
 
     free = c_low != np.inf
     if fresh:
@@ -59,11 +58,14 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     assert low == pytest.approx(expect_gaps.min(), rel=1e-12)
     clear = clear.reshape(rows, nx + pad)
     assert not clear[:, :nx].any() and (clear[:, nx:] == 7).all()   # the padding is left alone
-    # a shorter output pair receives the first overlaps and the count of all (the caller grows it)
+    # a shorter output pair is grown as it fills (one scan: the cleared buffer may be the increment's own)
     short, short_gaps = np.empty(7, np.int32), np.empty(7)
-    assert compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, short, short_gaps, none) == (k, low)
-    np.testing.assert_array_equal(short, expect[:7])
-    np.testing.assert_allclose(short_gaps, expect_gaps[:7], rtol=1e-12, atol=0)
+    inc_again = inc.copy()
+    k2, low2, grown, grown_gaps = compiled.scan_overlaps(c, c_low, inc_again, nx, pad, fresh, shift, short, short_gaps,
+                                                         inc_again)
+    assert (k2, low2) == (k, low) and grown.size >= k
+    np.testing.assert_array_equal(grown[:k], expect)
+    np.testing.assert_allclose(grown_gaps[:k], expect_gaps, rtol=1e-12, atol=0)
 
 
 @pytest.mark.parametrize("shape,row", LAYOUTS)

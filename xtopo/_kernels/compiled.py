@@ -147,22 +147,22 @@ def _block_hits(c, c_low, inc, fresh, level, level_low):
 
 @njit(nogil=True, cache=True)
 def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear):
-    """Free points that overlap: ``u - w - δ_ref < shift`` (a negative gap); returns their count and the lowest gap.
+    """Free points that overlap: ``u - w - δ_ref < shift`` (a negative gap).
 
     Points with ``c_low = +inf`` (the contact and plastic sets) are skipped. After a refresh
     (``fresh``) the test is on the working-precision ``c``, otherwise on ``c_low + inc`` in
-    the precision of ``c_low`` (``shift`` rounded to it). The first ``count`` entries of
-    ``where`` receive the indices, of ``gaps`` their gaps ``c + inc - shift`` (working
-    precision). Row segments of :data:`_BLOCK` points without overlaps are passed on a
-    vectorised count. ``where``/``gaps`` may be shorter than the grid (overlaps are few): only
-    the first ``len(where)`` are written, and a count above it asks the caller for a longer
-    pair and another scan.
+    the precision of ``c_low`` (``shift`` rounded to it). Returns ``(count, lowest gap, where,
+    gaps)``: the first ``count`` entries of ``where`` hold the indices, of ``gaps`` their gaps
+    ``c + inc - shift`` (working precision). The arrays passed in may be shorter than the grid
+    (overlaps are few); when they fill up, the scan goes on in arrays of twice the length
+    (returned in their place). Row segments of :data:`_BLOCK` points without overlaps are
+    passed on a vectorised count.
 
     ``clear`` (a buffer of ``inc``'s layout, or empty) is set to zero on the active grid as the scan
     passes: the search direction's buffer, which shares its memory with ``inc`` (each block is
     cleared after it is read), so that the direction need not be zero-filled in a pass of its own.
+    The scan therefore runs once: a second one would find ``inc`` cleared.
     """
-    cap = where.size
     rounded = np.empty(1, c_low.dtype)
     rounded[0] = shift
     level_low = rounded[0]
@@ -190,14 +190,26 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear):
                         if not cl + v < level_low:
                             continue
                         g = (cs[j] + v) - shift
-                    if k < cap:
-                        where[k] = a0 + lo + j
-                        gaps[k] = g
+                    if k == where.size:
+                        where, gaps = _grown(where, gaps, c.size)
+                    where[k] = a0 + lo + j
+                    gaps[k] = g
                     low = min(low, g)
                     k += 1
             if clear.size:
                 clear[b0 + lo:b0 + hi] = 0
-    return k, low
+    return k, low, where, gaps
+
+
+@njit(nogil=True, cache=True)
+def _grown(where, gaps, limit):
+    """``where`` and ``gaps`` copied into arrays of twice their length (at least 16, at most ``limit``)."""
+    n = min(max(16, 2 * where.size), limit)
+    w = np.empty(n, where.dtype)
+    g = np.empty(n, gaps.dtype)
+    w[:where.size] = where
+    g[:gaps.size] = gaps
+    return w, g
 
 
 @njit(**_FAST)

@@ -123,7 +123,7 @@ class _ContactSet:
         self.s[:n] = compiled.slots(idx, *layout)
         self.p = np.empty(room, p.dtype)
         self.p[:n] = p
-        self.t = np.zeros(room, p.dtype)        # the first direction is the gradient (β = 0)
+        self.t = np.zeros(room, p.dtype)
         self.g = np.empty(room, p.dtype)
         self.c = np.empty(room, p.dtype)
         self.r = np.empty(room, p.dtype)
@@ -271,19 +271,24 @@ class _Displacements:
         The scan clears the direction's buffer on the way (:meth:`set_direction` writes the direction
         only on the set): every evaluation runs it before a direction is set.
         """
-        while True:
-            k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
-                                            shift, self.where, self.where_gaps, self.direction.input_flat)
-            if k <= self.where.size:   # views: the next scan overwrites them, after the step has used them
-                return self.where[:k], self.where_gaps[:k], low
-            self.where = np.empty(min(self.c.size, 2 * k), np.int32)
-            self.where_gaps = np.empty(self.where.size, self.c.dtype)
+        k, low, self.where, self.where_gaps = compiled.scan_overlaps(
+            self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh, shift, self.where, self.where_gaps,
+            self.direction.input_flat)
+        # views: the next scan overwrites them, after the step has used them
+        return self.where[:k], self.where_gaps[:k], low
 
-    def set_direction(self, cg, beta, zero_sum):
-        """Make ``cg.t`` the conjugate direction (:func:`compiled.set_direction`), write it into the
-        direction operator (zero elsewhere: :meth:`overlaps` cleared it) and return ``(slope, energy)``:
-        ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
-        slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.s_, self.direction.input_flat)
+    def set_direction(self, cg, beta, zero_sum, first):
+        """Make ``cg.t`` the conjugate direction (:func:`compiled.set_direction`; ``first``: the gradient),
+        write it into the direction operator (zero elsewhere: :meth:`overlaps` cleared it) and return
+        ``(slope, energy)``: ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not
+        downhill)."""
+        if first:
+            # the first direction is the gradient: the gaps' array becomes the direction's, its zero-sum
+            # projection taken in place (the slope Σ t t); later the gaps are those of each evaluation
+            cg.t, cg.g = cg.g, cg.t
+            slope = compiled.set_direction(cg.t_, cg.t_, beta, zero_sum, cg.s_, self.direction.input_flat)
+        else:
+            slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.s_, self.direction.input_flat)
         if not slope > 0:
             return slope, 0.0
         self.counts["fft"] += 1
@@ -491,7 +496,7 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         tau = 0.0
         if nI:
             beta = G / G_old if G_old > 0 else 0.0
-            slope, denom = disp.set_direction(cg, dtype.type(beta), load_control)
+            slope, denom = disp.set_direction(cg, dtype.type(beta), load_control, it == 1)
             G_old = G
             if denom > 0 and slope > 0:
                 tau = slope / denom
