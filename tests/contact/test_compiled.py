@@ -265,3 +265,23 @@ def test_reference_gaps_from_a_strided_buffer(dtype):
     expect = (u.reshape(-1) - w) - dtype(0.25)
     np.testing.assert_array_equal(c, expect)           # the same rounding as numpy's two steps
     np.testing.assert_array_equal(c_low, expect.astype(np.float32))
+
+
+def test_rebase_moves_the_reference():
+    rng = np.random.default_rng(11)
+    n = 200
+    p_ref, c, c_low = np.zeros(n), rng.standard_normal(n), rng.standard_normal(n).astype(np.float32)
+    old = np.array([3, 7, 50], np.int32)
+    p_ref[old] = 9.0
+    idx = np.array([7, 20, 150], np.int32)
+    p = np.array([1.0, 2.0, 3.0])
+    c_set, r_set = np.empty(3), np.empty(3)
+    low0 = c_low.copy()
+    compiled.rebase(idx, p, old, p_ref, c, c_low, c_set, r_set)
+    expect = np.zeros(n)
+    expect[idx] = p
+    np.testing.assert_array_equal(p_ref, expect)          # cleared on the old support, set on the new
+    assert np.isinf(c_low[idx]).all()
+    np.testing.assert_array_equal(np.delete(c_low, idx), np.delete(low0, idx))
+    np.testing.assert_array_equal(c_set, c[idx])
+    np.testing.assert_array_equal(r_set, p)

@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["slots", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps", "scan_overlaps", "set_direction",
-           "energy", "scale_spectrum", "reference_gaps", "split_sets", "step_project", "join", "write_increment",
-           "write_values"]
+__all__ = ["slots", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps", "scan_overlaps",
+           "set_direction", "energy", "scale_spectrum", "reference_gaps", "rebase", "split_sets", "step_project",
+           "join", "write_increment", "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -309,6 +309,25 @@ def reference_gaps(u, w, delta, c, c_low):
             v = (ur[j] - w[base + j]) - delta
             c[base + j] = v
             c_low[base + j] = v
+
+
+@njit(nogil=True, cache=True)
+def rebase(idx, p, old, p_ref, c, c_low, c_set, r_set):
+    """Make the pressures ``p`` at flat indices ``idx`` the reference, after :func:`reference_gaps`.
+
+    ``p_ref`` is cleared on the previous reference's support ``old`` and set to ``p`` on ``idx``;
+    the points leave the overlap test (``c_low = +inf``) and the set's per-point reference gaps
+    ``c_set`` and pressures ``r_set`` are read (``c[idx]``, ``p``).
+    """
+    for j in range(old.size):
+        p_ref[_at(old[j])] = 0
+    for j in range(idx.size):
+        i = _at(idx[j])
+        v = p[j]
+        p_ref[i] = v
+        c_low[i] = np.inf
+        c_set[j] = c[i]
+        r_set[j] = v
 
 
 @njit(nogil=True, cache=True)

@@ -33,26 +33,38 @@ Cost per iteration (:class:`_Displacements`): three float32 transforms — the f
 transform of ``t`` whose spectrum gives the denominator ``Σ t (G*t)`` by Parseval (no
 inverse), and the forward and inverse transforms of the pressure increment ``p - p_ref``
 since the last exact reference ``u_ref = G * p_ref`` (working precision). A float32
-transform costs 0.25–0.4 of a float64 forward+inverse pair, so the transforms of an
-iteration cost about one float64 pair; the reference is refreshed (one working-precision
+transform costs 0.27–0.33 of a float64 forward+inverse pair, so the transforms of an
+iteration cost about 0.9 of a float64 pair; the reference is refreshed (one working-precision
 convolution) each time the residual has fallen by three decades and before convergence is
 declared, so the residual that stops the iteration is always that of exact
-displacements, and the returned ``u`` is exact. Everything else works on the index arrays
-of the contact and plastic sets (a fraction of the grid) but for one pass over the grid
-(the float32 overlap test, which skips row segments without overlaps on a vectorised
-count). These passes are compiled (:mod:`xtopo._kernels.compiled`, numba): one pass each
-where numpy needed a chain of gathers, temporaries and reductions. The increment's input
-buffer is written only where the pressures changed; the direction is written whole (a zero
-fill and the CG set) into the shared spectrum buffer, which its forward transform consumes
-in place.
+displacements, and the returned ``u`` is exact. Everything else works on the CG set
+(:class:`_ContactSet`: compact per-point arrays, a fraction of the grid) but for one pass over
+the grid (the float32 overlap test, which skips row segments without overlaps on a vectorised
+count, and clears the direction's buffer as it goes). These passes are compiled
+(:mod:`xtopo._kernels.compiled`, numba): one pass each where numpy needed a chain of gathers,
+temporaries and reductions; the set keeps each point's buffer position and reference gap and
+pressure, so they read compact arrays and write the buffers without an integer division per
+point. The increment's input buffer is written only where the pressures changed; the
+direction is written on the set into the shared spectrum buffer (cleared by the scan), which
+its forward transform consumes in place. Per iteration (``benchmarks/bench_iteration.py``,
+CPU time, loaded machine) periodic 512²–2048² cost 1.15–1.5 float64 pairs, 1.3–2.1 before the
+set was kept compact.
+
+Three transforms, not two: a conjugate-gradient recurrence ``u ← u - τ G*t`` needs only the
+pair of ``t`` (its forward gives the energy, its inverse the response), but the projection
+and the points that join change ``p`` by a sparse correction ``e`` off the direction, and
+``G*e`` costs a forward transform of its own (or ``|e|`` real-space kernel columns, and
+``|e|`` reaches thousands in the first iterations); keeping the increment's spectrum instead
+would add a grid-sized complex buffer (8 B per point periodic, 16 free).
 
 Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 63 B per grid point
 for setup and solve): the scene's heights ``w`` (8 B), the folded Green's functions (2 + 1 B),
 one in-place float64 transform buffer that the float32 operators share for their spectra and
 outputs (8 B), the increment's float32 input (4 B), ``c``/``c_low``/``p_ref`` (8 + 4 + 8 B),
-int32 index sets and compact overlap lists; the result takes over ``p_ref`` (the pressures)
-and ``c`` (the gaps) instead of copying them. In a float32 scene the increments are in the
-working precision already: the reference is computed at the start and refreshed only at the end.
+the CG set (44 B per point of it, with a quarter more room) and compact overlap lists; the result
+takes over ``p_ref`` (the pressures) and ``c`` (the gaps) instead of copying them. In a float32 scene the
+increments are in the working precision already: the reference is computed at the start and refreshed only
+at the end.
 
 Convergence: ``residual ≤ tol`` where
 
@@ -210,15 +222,12 @@ class _Displacements:
         self.counts["fft"] += 2
         u = self.conv.inverse(self.conv.forward())
         compiled.reference_gaps(u.reshape(-1, u.shape[-1]), self.w, self.c.dtype.type(delta), self.c, self.c_low)
-        self.hide(idx)
-        self.hide(pl)
-        self.p_ref[self.support] = 0
-        self.p_ref[idx] = pI
+        compiled.rebase(idx, pI, self.support, self.p_ref, self.c, self.c_low, cg.c_, cg.r_)
+        self.support = idx
         if pl.size:
+            self.hide(pl)
             self.p_ref[pl] = H
-        self.support = np.concatenate([idx, pl]) if pl.size else idx.copy()
-        cg.c_[...] = self.c[idx]
-        cg.r_[...] = pI
+            self.support = np.concatenate([idx, pl])
         self.delta_ref = float(delta)
         self.low.input_flat.fill(0)
         self.fresh = True
@@ -255,7 +264,8 @@ class _Displacements:
         self.fresh = False
 
     def contact_gaps(self, cg, load_control, delta):
-        """The gaps of the set ``cg`` into ``cg.g`` (:func:`compiled.contact_gaps`): ``(δ, shift, max |g|, Σ g²)``."""
+        """The gaps of the set ``cg`` into ``cg.g`` (:func:`compiled.contact_gaps`): ``(δ, shift, max |g|,
+        Σ g²)``."""
         return compiled.contact_gaps(cg.c_, self._increment(), cg.s_, self.fresh, cg.g_, load_control, delta,
                                      self.delta_ref)
 
