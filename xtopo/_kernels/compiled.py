@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["slots", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps", "scan_overlaps",
-           "set_direction", "energy", "scale_spectrum", "reference_gaps", "rebase", "split_sets", "step_project",
-           "join", "write_increment", "write_values"]
+__all__ = ["slots", "slots_into", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps",
+           "scan_overlaps", "set_direction", "energy", "scale_spectrum", "reference_gaps", "rebase", "split_sets",
+           "step_project", "join", "write_increment", "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -46,6 +46,12 @@ def _slot(i, nx, pad):
 def slots(where, nx, pad):
     """Positions in a transform buffer of flat active-grid indices ``where`` (a new array)."""
     out = np.empty(where.size, np.intp)
+    return slots_into(where, nx, pad, out)
+
+
+@njit(nogil=True, cache=True)
+def slots_into(where, nx, pad, out):
+    """:func:`slots` written into ``out`` (which may be ``where`` itself); returns ``out``."""
     for j in range(where.size):
         out[j] = _slot(where[j], nx, pad)
     return out
@@ -95,11 +101,11 @@ def center(d, shift):
 
 
 @njit(**_FAST)
-def _gather_compact(c, inc, slots, fresh, out):
-    """``out = c (+ inc[slots])`` with ``c`` given per point; returns the sum."""
+def _gather_compact(c, inc, slots, fresh, out, grid, nx, pad):
+    """``out = c (+ inc[slots])`` with ``c`` given per point (``grid``: on the grid); returns the sum."""
     s = 0.0
     for j in range(slots.size):
-        d = c[j]
+        d = c[_flat(slots[j], nx, pad)] if grid else c[j]
         if not fresh:
             d += inc[_at(slots[j])]
         out[j] = d
@@ -108,17 +114,18 @@ def _gather_compact(c, inc, slots, fresh, out):
 
 
 @njit(nogil=True, cache=True)
-def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref):
+def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref, grid, nx, pad):
     """The gaps of the contact set, centred: :func:`gather_gaps` and :func:`center` in one call.
 
-    ``c`` is ``u_ref - w - δ_ref`` at the set's points (compact: one value per point), ``slots``
+    ``c`` is ``u_ref - w - δ_ref`` at the set's points (compact: one value per point; with ``grid``
+    the grid's array, read at the flat indices of ``slots``), ``slots``
     their positions in the float32 increment buffer ``inc`` (ignored when ``fresh``). Under
     ``load_control`` the penetration becomes ``δ = δ_ref + mean(out)`` (the mean over the set);
     the gaps are then shifted by ``δ - δ_ref`` (rounded to ``out``'s precision). Returns
     ``(δ, shift, max |g|, Σ g²)``. The scalar arithmetic is exact IEEE (only the loops may be
     reordered).
     """
-    total = _gather_compact(c, inc, slots, fresh, out)
+    total = _gather_compact(c, inc, slots, fresh, out, grid, nx, pad)
     n = slots.size
     if load_control and n:
         delta = delta_ref + total / n
@@ -312,12 +319,12 @@ def reference_gaps(u, w, delta, c, c_low):
 
 
 @njit(nogil=True, cache=True)
-def rebase(idx, p, old, p_ref, c, c_low, c_set, r_set):
+def rebase(idx, p, old, p_ref, c, c_low, c_set, r_set, compact):
     """Make the pressures ``p`` at flat indices ``idx`` the reference, after :func:`reference_gaps`.
 
     ``p_ref`` is cleared on the previous reference's support ``old`` and set to ``p`` on ``idx``;
-    the points leave the overlap test (``c_low = +inf``) and the set's per-point reference gaps
-    ``c_set`` and pressures ``r_set`` are read (``c[idx]``, ``p``).
+    the points leave the overlap test (``c_low = +inf``) and, with ``compact``, the set's per-point
+    reference gaps ``c_set`` and pressures ``r_set`` are read (``c[idx]``, ``p``).
     """
     for j in range(old.size):
         p_ref[_at(old[j])] = 0
@@ -326,8 +333,9 @@ def rebase(idx, p, old, p_ref, c, c_low, c_set, r_set):
         v = p[j]
         p_ref[i] = v
         c_low[i] = np.inf
-        c_set[j] = c[i]
-        r_set[j] = v
+        if compact:
+            c_set[j] = c[i]
+            r_set[j] = v
 
 
 @njit(nogil=True, cache=True)
@@ -370,17 +378,18 @@ def flat_indices(slots, nx, pad):
 
 
 @njit(nogil=True, cache=True)
-def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, nx, pad):
+def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, nx, pad, grid):
     """``p ← p - τ t`` and the projection onto ``0 < p < H`` of the first ``n`` points, compacting the set in place.
 
     The set is given by the points' positions ``slots`` in the increment buffer ``buf``. The
     points that stay are moved to the front of ``slots``, ``p``, ``t``, ``c`` and ``r`` (order
-    kept; ``c`` and ``r`` are the points' reference gaps and pressures). A point that leaves gets
-    its new pressure (0, or ``H`` at the cap) minus its reference pressure written into ``buf``,
-    and a freed one (``p ≤ 0``) its reference gap ``c`` back in ``c_low`` (the overlap test, on the
-    active grid). Returns ``(count, gone, capped)``: how many stay, the flat (int32) indices of
-    those that left and flags of the latter that left at the cap (``p ≥ H``; empty unless
-    ``capped_flag``).
+    kept; ``c`` and ``r`` are the points' reference gaps and pressures). A point that leaves
+    gets its new pressure (0, or ``H`` at the cap) minus its reference pressure written into
+    ``buf``, and a freed one (``p ≤ 0``) its reference gap ``c`` back in ``c_low`` (the overlap
+    test, on the active grid). With ``grid``, ``c`` and ``r`` are the grid's arrays (read at the
+    points' flat indices, not moved). Returns ``(count, gone, capped)``: how many stay, the flat
+    (int32) indices of those that left and flags of the latter that left at the cap (``p ≥ H``;
+    empty unless ``capped_flag``).
     """
     m = 0
     for j in range(n):
@@ -399,54 +408,59 @@ def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, n
             slots[a] = slots[j]
             p[a] = v
             t[a] = t[j]
-            c[a] = c[j]
-            r[a] = r[j]
+            if not grid:
+                c[a] = c[j]
+                r[a] = r[j]
             a += 1
         else:
             k = slots[j]
             i = _flat(k, nx, pad)
+            jj = i if grid else j
             gone[b] = i
             full = capped_flag and v >= hardness
             if capped_flag:
                 capped[b] = full
             if full:
-                buf[_at(k)] = hardness - r[j]
+                buf[_at(k)] = hardness - r[jj]
             else:
-                buf[_at(k)] = 0 - r[j]
-                c_low[_at(i)] = c[j]
+                buf[_at(k)] = 0 - r[jj]
+                c_low[_at(i)] = c[jj]
             b += 1
     return m, gone, capped
 
 
 @njit(nogil=True, cache=True)
-def join(slots, p, t, c, r, n, where, values, c_full, p_ref, c_low, nx, pad):
+def join(slots, p, t, c, r, n, where, values, c_full, p_ref, c_low, nx, pad, grid):
     """Append the points ``where`` (flat indices) with pressures ``values`` after the first ``n`` of the set.
 
     Their buffer positions go to ``slots``, their direction starts at 0, their reference gap and
-    pressure are read from the grids ``c_full`` and ``p_ref``, and they leave the overlap test
-    (``c_low = +inf``). The arrays must have room for them. Returns the new count.
+    pressure are read from the grids ``c_full`` and ``p_ref`` (unless ``grid``: the set reads them
+    there), and they leave the overlap test (``c_low = +inf``). The arrays must have room for them.
+    Returns the new count.
     """
     for j in range(where.size):
         i = where[j]
         slots[n + j] = _slot(i, nx, pad)
         p[n + j] = values[j]
         t[n + j] = 0
-        c[n + j] = c_full[_at(i)]
-        r[n + j] = p_ref[_at(i)]
+        if not grid:
+            c[n + j] = c_full[_at(i)]
+            r[n + j] = p_ref[_at(i)]
         c_low[_at(i)] = np.inf
     return n + where.size
 
 
 @njit(**_FAST)
-def write_increment(p, slots, r, scale, buf):
+def write_increment(p, slots, r, scale, buf, grid, nx, pad):
     """``p *= scale`` (unless ``scale`` is 1), then ``buf[slots] = p - r`` (the increment over the
-    reference pressures ``r``, one per point)."""
+    reference pressures ``r``, one per point; with ``grid`` the grid's, at the flat indices)."""
     for j in range(slots.size):
         v = p[j]
         if scale != 1:
             v = v * scale
             p[j] = v
-        buf[_at(slots[j])] = v - r[j]
+        k = slots[j]
+        buf[_at(k)] = v - (r[_flat(k, nx, pad)] if grid else r[j])
 
 
 @njit(nogil=True, cache=True)

@@ -61,7 +61,7 @@ Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 63 B
 for setup and solve): the scene's heights ``w`` (8 B), the folded Green's functions (2 + 1 B),
 one in-place float64 transform buffer that the float32 operators share for their spectra and
 outputs (8 B), the increment's float32 input (4 B), ``c``/``c_low``/``p_ref`` (8 + 4 + 8 B),
-the CG set (44 B per point of it, with a quarter more room) and compact overlap lists; the result
+the CG set (44 B per point of it, with an eighth more room) and compact overlap lists; the result
 takes over ``p_ref`` (the pressures) and ``c`` (the gaps) instead of copying them. In a float32 scene the
 increments are in the working precision already: the reference is computed at the start and refreshed only
 at the end.
@@ -92,6 +92,9 @@ COUNTERS = ("iterations", "convolutions", "transforms", "exact_convolutions")
 #: A float32 increment is trusted while the residual stays above this fraction of its value at the last
 #: exact (working-precision) evaluation.
 _REFRESH = 1e-3
+#: The CG set keeps its points' reference gaps and pressures in arrays of its own (:class:`_ContactSet`)
+#: once it holds at most this fraction of the grid (before, its passes read the grid's arrays).
+_COMPACT = 0.125
 #: Inner tolerance of the solves of a capped load-controlled solve while the penetration search is far from
 #: the root (:func:`_plastic_load_control`).
 _COARSE = 1e-3
@@ -118,39 +121,71 @@ def _dot(a, b) -> float:
 class _ContactSet:
     """The CG set ``I = {0 < p < H}``, compact: the first :attr:`n` entries of arrays with room to grow.
 
-    Per point: its position ``s`` in the transform buffers (:func:`compiled.slots`; the flat index
+    Per point (44 B in float64, with an eighth more room): its position ``s`` in the transform buffers (:func:`compiled.slots`; the flat index
     follows by :meth:`flat`), the pressure ``p``, the search direction ``t``, the gaps of the current
     evaluation ``g``, and the reference gap ``c`` and pressure ``r`` (``c = u_ref - w - δ_ref`` and
     ``p_ref`` at the point, constant between refreshes). Keeping ``c`` and ``r`` with the point lets
     the iteration's passes read compact arrays instead of gathering from grid-sized ones; the set is
     compacted in place (:func:`compiled.step_project`) and joined points are appended
     (:func:`compiled.join`), so no array of the set is allocated per iteration.
+
+    Memory: a cold start puts the whole grid in the set (uniform pressures), so the set starts lean —
+    the indices ``idx`` become the slots in place and the pressures ``p`` are adopted, the first
+    direction takes the gaps' array (``t`` is None until then), and while the set holds more than
+    :data:`_COMPACT` of the grid (:attr:`grid`) its passes read ``c`` and ``r`` from the grid's
+    ``u_ref - w - δ_ref`` and ``p_ref`` at the points' flat indices; below it they get arrays of their
+    own. After each step :meth:`fit` shrinks arrays more than half again as long as the set needs.
     """
 
-    def __init__(self, idx, p, layout, buffer_size):
+    _ARRAYS = ("s", "p", "t", "g", "c", "r")
+
+    def __init__(self, idx, p, layout, buffer_size, grid_c, grid_r):
         self.n = n = idx.size
         self.layout = layout
-        room = max(64, n + n // 4)
-        self.s = np.empty(room, np.int32 if buffer_size < 2**31 else np.int64)
-        self.s[:n] = compiled.slots(idx, *layout)
-        self.p = np.empty(room, p.dtype)
-        self.p[:n] = p
-        self.t = np.zeros(room, p.dtype)
-        self.g = np.empty(room, p.dtype)
-        self.c = np.empty(room, p.dtype)
-        self.r = np.empty(room, p.dtype)
+        out = idx if buffer_size < 2**31 else np.empty(n, np.int64)   # int32 slots in place where they fit
+        self.s = compiled.slots_into(idx, *layout, out)
+        self.p = p
+        self.t = self.g = None   # made when first needed (the gaps' array at the first evaluation)
+        self.grid = True
+        self._grid_arrays = (grid_c, grid_r)
+        self.c, self.r = grid_c, grid_r
+
+    def _compact(self):
+        """Give ``c`` and ``r`` arrays of their own once the set holds at most :data:`_COMPACT` of the grid."""
+        grid_c, grid_r = self._grid_arrays
+        if not self.grid or self.n > _COMPACT * grid_c.size:
+            return
+        idx = self.flat()
+        room = self.s.size
+        self.c, self.r = np.empty(room, self.p.dtype), np.empty(room, self.p.dtype)
+        self.c[:self.n] = grid_c[idx]
+        self.r[:self.n] = grid_r[idx]
+        self.grid = False
+
+    def _resize(self, size, small):
+        """Arrays shorter than ``size`` (or missing), or, with ``small``, longer than 1.5 ``size``, are made
+        ``size`` long (their first :attr:`n` entries kept)."""
+        for name in self._ARRAYS:
+            old = getattr(self, name)
+            if self.grid and name in "cr" or (old is not None and size <= old.size
+                                              and not (small and 2 * old.size > 3 * size)):
+                continue
+            new = np.empty(size, self.s.dtype if name == "s" else self.p.dtype)
+            if old is not None:
+                new[:self.n] = old[:self.n]
+            setattr(self, name, new)
 
     def reserve(self, k):
         """Room for ``k`` more points (the arrays are grown by a quarter more than needed)."""
         need = self.n + k
-        if need <= self.s.size:
-            return
-        room = need + need // 4
-        for name in ("s", "p", "t", "g", "c", "r"):
-            old = getattr(self, name)
-            new = np.empty(room, old.dtype)
-            new[:self.n] = old[:self.n]
-            setattr(self, name, new)
+        if any(a is None or a.size < need for a in (getattr(self, name) for name in self._ARRAYS)):
+            self._resize(need + need // 8, False)
+
+    def fit(self):
+        """After a step: the missing arrays made and those much longer than the set shrunk (the set's memory
+        follows it down from a cold start's whole grid)."""
+        self._resize(max(64, self.n + self.n // 8), True)
+        self._compact()
 
     def flat(self):
         """The flat indices of the set's points (a new int32 array)."""
@@ -158,7 +193,7 @@ class _ContactSet:
 
 
 # ``cg.s_``, ``cg.p_``, …: the first ``cg.n`` entries of ``cg.s``, ``cg.p``, …
-for _name in ("s", "p", "t", "g", "c", "r"):
+for _name in _ContactSet._ARRAYS:
     setattr(_ContactSet, _name + "_", property(lambda self, _name=_name: getattr(self, _name)[:self.n]))
 del _name
 
@@ -222,7 +257,7 @@ class _Displacements:
         self.counts["fft"] += 2
         u = self.conv.inverse(self.conv.forward())
         compiled.reference_gaps(u.reshape(-1, u.shape[-1]), self.w, self.c.dtype.type(delta), self.c, self.c_low)
-        compiled.rebase(idx, pI, self.support, self.p_ref, self.c, self.c_low, cg.c_, cg.r_)
+        compiled.rebase(idx, pI, self.support, self.p_ref, self.c, self.c_low, cg.c_, cg.r_, not cg.grid)
         self.support = idx
         if pl.size:
             self.hide(pl)
@@ -257,7 +292,8 @@ class _Displacements:
         for where, value in changed:
             if where.size:
                 compiled.write_values(where, float(value), self.p_ref, nx, pad, flat)
-        compiled.write_increment(cg.p_, cg.s_, cg.r_, cg.p.dtype.type(scale), flat)
+        compiled.write_increment(cg.p_, cg.s_, cg.r if cg.grid else cg.r_, cg.p.dtype.type(scale), flat, cg.grid,
+                                 nx, pad)
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         self.low.inverse(self.low.forward())
@@ -266,8 +302,10 @@ class _Displacements:
     def contact_gaps(self, cg, load_control, delta):
         """The gaps of the set ``cg`` into ``cg.g`` (:func:`compiled.contact_gaps`): ``(δ, shift, max |g|,
         Σ g²)``."""
-        return compiled.contact_gaps(cg.c_, self._increment(), cg.s_, self.fresh, cg.g_, load_control, delta,
-                                     self.delta_ref)
+        if cg.g is None:
+            cg.g = np.empty(cg.s.size, cg.p.dtype)
+        return compiled.contact_gaps(cg.c if cg.grid else cg.c_, self._increment(), cg.s_, self.fresh, cg.g_,
+                                     load_control, delta, self.delta_ref, cg.grid, self.nx, self.pad)
 
     def at(self, where):
         """``u - w - δ_ref`` at flat indices (working precision) and their sum."""
@@ -294,8 +332,9 @@ class _Displacements:
         downhill)."""
         if first:
             # the first direction is the gradient: the gaps' array becomes the direction's, its zero-sum
-            # projection taken in place (the slope Σ t t); later the gaps are those of each evaluation
-            cg.t, cg.g = cg.g, cg.t
+            # projection taken in place (the slope Σ t t); the gaps get an array of their own after the
+            # step (:meth:`_ContactSet.fit`), once most of a cold start's points have left
+            cg.t, cg.g = cg.g, None
             slope = compiled.set_direction(cg.t_, cg.t_, beta, zero_sum, cg.s_, self.direction.input_flat)
         else:
             slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.s_, self.direction.input_flat)
@@ -308,17 +347,20 @@ class _Displacements:
         """``p ← p - τ t`` on the set and its projection (:func:`compiled.step_project`): the points that
         left get their pressure written into the increment's input and the freed ones rejoin the overlap
         test. Returns ``(gone, capped)``."""
-        m, gone, capped = compiled.step_project(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau,
-                                                H if H is not None else np.inf, H is not None, self.c_low,
-                                                self.low.input_flat, self.nx, self.pad)
+        if cg.t is None:   # no direction was set (an empty set)
+            cg.t = np.zeros(cg.s.size, cg.p.dtype)
+        m, gone, capped = compiled.step_project(
+            cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau, H if H is not None else np.inf, H is not None, self.c_low,
+            self.low.input_flat, self.nx, self.pad, cg.grid)
         cg.n = m
+        cg.fit()
         return gone, capped
 
     def join(self, cg, where, values):
         """Append the points ``where`` at pressures ``values`` to the set (:func:`compiled.join`)."""
         cg.reserve(where.size)
         cg.n = compiled.join(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, where, values, self.c, self.p_ref, self.c_low,
-                             self.nx, self.pad)
+                             self.nx, self.pad, cg.grid)
 
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
@@ -448,9 +490,11 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
     p0 = p0.reshape(-1)
     idx, pl = compiled.split_sets(p0, np.inf if H is None else H)
+    pI = p0[idx]
+    del p0
     disp = _Displacements(conv, w, counts)
-    cg = _ContactSet(idx, p0[idx], (disp.nx, disp.pad), disp.low.input_flat.size)
-    del p0, idx
+    cg = _ContactSet(idx, pI, (disp.nx, disp.pad), disp.low.input_flat.size, disp.c, disp.p_ref)
+    del idx, pI   # the set holds them
 
     # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
     # the step of joining points when no CG step exists (e.g. fully plastic)
