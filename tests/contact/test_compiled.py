@@ -119,7 +119,8 @@ def test_writes_land_in_the_active_part(shape, row):
     p0 = p.copy()
     compiled.write_increment(p, compiled.slots(idx, nx, pad), p_ref[idx], 2.0, buf, False, nx, pad)   # r per point
     buf_grid = np.zeros_like(buf)
-    compiled.write_increment(p0.copy(), compiled.slots(idx, nx, pad), p_ref, 2.0, buf_grid, True, nx, pad)  # on the grid
+    # the reference pressures read on the grid at the flat indices
+    compiled.write_increment(p0.copy(), compiled.slots(idx, nx, pad), p_ref, 2.0, buf_grid, True, nx, pad)
     np.testing.assert_array_equal(buf_grid, buf)
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
     rest = np.setdiff1d(np.arange(n), idx)

@@ -57,11 +57,12 @@ and the points that join change ``p`` by a sparse correction ``e`` off the direc
 ``|e|`` reaches thousands in the first iterations); keeping the increment's spectrum instead
 would add a grid-sized complex buffer (8 B per point periodic, 16 free).
 
-Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 63 B per grid point
+Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 60 B per grid point
 for setup and solve): the scene's heights ``w`` (8 B), the folded Green's functions (2 + 1 B),
 one in-place float64 transform buffer that the float32 operators share for their spectra and
 outputs (8 B), the increment's float32 input (4 B), ``c``/``c_low``/``p_ref`` (8 + 4 + 8 B),
-the CG set (44 B per point of it, with an eighth more room) and compact overlap lists; the result
+the CG set (28 B per point of it while it holds more than an eighth of the grid, 44 B below; an
+eighth more room) and compact overlap lists; the result
 takes over ``p_ref`` (the pressures) and ``c`` (the gaps) instead of copying them. In a float32 scene the
 increments are in the working precision already: the reference is computed at the start and refreshed only
 at the end.
@@ -121,13 +122,14 @@ def _dot(a, b) -> float:
 class _ContactSet:
     """The CG set ``I = {0 < p < H}``, compact: the first :attr:`n` entries of arrays with room to grow.
 
-    Per point (44 B in float64, with an eighth more room): its position ``s`` in the transform buffers (:func:`compiled.slots`; the flat index
-    follows by :meth:`flat`), the pressure ``p``, the search direction ``t``, the gaps of the current
-    evaluation ``g``, and the reference gap ``c`` and pressure ``r`` (``c = u_ref - w - δ_ref`` and
-    ``p_ref`` at the point, constant between refreshes). Keeping ``c`` and ``r`` with the point lets
-    the iteration's passes read compact arrays instead of gathering from grid-sized ones; the set is
-    compacted in place (:func:`compiled.step_project`) and joined points are appended
-    (:func:`compiled.join`), so no array of the set is allocated per iteration.
+    Per point (44 B in float64, with an eighth more room): its position ``s`` in the transform
+    buffers (:func:`compiled.slots`; the flat index follows by :meth:`flat`), the pressure ``p``, the
+    search direction ``t``, the gaps of the current evaluation ``g``, and the reference gap ``c`` and
+    pressure ``r`` (``c = u_ref - w - δ_ref`` and ``p_ref`` at the point, constant between refreshes).
+    Keeping ``c`` and ``r`` with the point lets the iteration's passes read compact arrays instead of
+    gathering from grid-sized ones; the set is compacted in place (:func:`compiled.step_project`) and
+    joined points are appended (:func:`compiled.join`), so no array of the set is allocated per
+    iteration.
 
     Memory: a cold start puts the whole grid in the set (uniform pressures), so the set starts lean —
     the indices ``idx`` become the slots in place and the pressures ``p`` are adopted, the first
