@@ -137,6 +137,7 @@ def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref, grid
 
 
 _BLOCK = 256  # the overlap scan's block: overlaps are few, so most blocks are passed on a count alone
+_SUB = 32     # and the sub-blocks a block with overlaps is counted in again (overlaps are scattered)
 
 
 @njit(**_FAST)
@@ -183,8 +184,16 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear):
             cs = c[a0 + lo:a0 + hi]
             cls = c_low[a0 + lo:a0 + hi]
             incs = inc[:0] if fresh else inc[b0 + lo:b0 + hi]
-            if _block_hits(cs, cls, incs, fresh, shift, level_low):
-                for j in range(hi - lo):
+            if not _block_hits(cs, cls, incs, fresh, shift, level_low):
+                if clear.size:
+                    clear[b0 + lo:b0 + hi] = 0
+                continue
+            for s0 in range(0, hi - lo, _SUB):   # the overlaps are scattered: count sub-blocks, then look
+                s1 = min(s0 + _SUB, hi - lo)
+                if not _block_hits(cs[s0:s1], cls[s0:s1], incs[s0:s1] if not fresh else incs, fresh, shift,
+                                   level_low):
+                    continue
+                for j in range(s0, s1):
                     cl = cls[j]
                     if cl == np.inf:
                         continue
