@@ -47,8 +47,8 @@ pressure, so they read compact arrays and write the buffers without an integer d
 point. The increment's input buffer is written only where the pressures changed; the
 direction is written on the set into the shared spectrum buffer (cleared by the scan), which
 its forward transform consumes in place. Per iteration (``benchmarks/bench_iteration.py``,
-CPU time, loaded machine) periodic 512²–2048² cost 1.15–1.5 float64 pairs, 1.3–2.1 before the
-set was kept compact.
+CPU time, loaded machine) periodic 1024²–2048² cost 1.07–1.29 float64 pairs and 512² 1.55–1.67,
+float32 and float64 scenes (1.40–1.49 and 1.74–1.98 before the set was kept compact).
 
 Three transforms, not two: a conjugate-gradient recurrence ``u ← u - τ G*t`` needs only the
 pair of ``t`` (its forward gives the energy, its inverse the response), but the projection
