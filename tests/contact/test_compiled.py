@@ -42,9 +42,8 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     shift = 1.5e-4
     where, gaps = np.empty(n, np.intp), np.empty(n)
     clear = np.full(inc.size, 7.0, np.float32)   # the direction's buffer: cleared on the active grid
-    none = np.empty(0, np.float32)
 
-    k, low = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear)
+    k, low, where, gaps = compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear)
 
     free = c_low != np.inf
     if fresh:
@@ -59,11 +58,14 @@ def test_scan_overlaps_matches_numpy(shape, row, fresh):
     assert low == pytest.approx(expect_gaps.min(), rel=1e-12)
     clear = clear.reshape(rows, nx + pad)
     assert not clear[:, :nx].any() and (clear[:, nx:] == 7).all()   # the padding is left alone
-    # a shorter output pair receives the first overlaps and the count of all (the caller grows it)
+    # a shorter output pair is grown as it fills (one scan: the cleared buffer may be the increment's own)
     short, short_gaps = np.empty(7, np.int32), np.empty(7)
-    assert compiled.scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, short, short_gaps, none) == (k, low)
-    np.testing.assert_array_equal(short, expect[:7])
-    np.testing.assert_allclose(short_gaps, expect_gaps[:7], rtol=1e-12, atol=0)
+    inc_again = inc.copy()
+    k2, low2, grown, grown_gaps = compiled.scan_overlaps(c, c_low, inc_again, nx, pad, fresh, shift, short, short_gaps,
+                                                         inc_again)
+    assert (k2, low2) == (k, low) and grown.size >= k
+    np.testing.assert_array_equal(grown[:k], expect)
+    np.testing.assert_allclose(grown_gaps[:k], expect_gaps, rtol=1e-12, atol=0)
 
 
 @pytest.mark.parametrize("shape,row", LAYOUTS)
@@ -89,7 +91,13 @@ def test_contact_gaps_gather_and_center(shape, row, fresh, load_control):
     c = rng.standard_normal(idx.size)
     out = np.empty(idx.size)
     slots = compiled.slots(idx, nx, pad).astype(np.int32)
-    delta, shift, big, ss = compiled.contact_gaps(c, inc, slots, fresh, out, load_control, 0.7, 0.5)
+    delta, shift, big, ss = compiled.contact_gaps(c, inc, slots, fresh, out, load_control, 0.7, 0.5, False, nx, pad)
+    grid_c = np.full(n, np.nan)
+    grid_c[idx] = c                                   # the same gaps read from a grid-sized array
+    out_grid = np.empty(idx.size)
+    assert compiled.contact_gaps(grid_c, inc, slots, fresh, out_grid, load_control, 0.7, 0.5, True, nx,
+                                 pad) == (delta, shift, big, ss)
+    np.testing.assert_array_equal(out_grid, out)
     d = c if fresh else c + inc_active[idx]
     expect_delta = 0.5 + d.sum() / d.size if load_control else 0.7
     assert delta == pytest.approx(expect_delta, rel=1e-12)
@@ -109,7 +117,11 @@ def test_writes_land_in_the_active_part(shape, row):
     idx = rng.permutation(n)[: n // 3]
     p = rng.random(idx.size)
     p0 = p.copy()
-    compiled.write_increment(p, compiled.slots(idx, nx, pad), p_ref[idx], 2.0, buf)   # reference pressures per point
+    compiled.write_increment(p, compiled.slots(idx, nx, pad), p_ref[idx], 2.0, buf, False, nx, pad)   # r per point
+    buf_grid = np.zeros_like(buf)
+    # the reference pressures read on the grid at the flat indices
+    compiled.write_increment(p0.copy(), compiled.slots(idx, nx, pad), p_ref, 2.0, buf_grid, True, nx, pad)
+    np.testing.assert_array_equal(buf_grid, buf)
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
     rest = np.setdiff1d(np.arange(n), idx)
     others, scattered, filled = rest[:50], rest[50:60], rest[60:70]
@@ -135,8 +147,9 @@ def test_split_sets(hardness):
     np.testing.assert_array_equal(pl, np.flatnonzero(p >= H))
 
 
+@pytest.mark.parametrize("grid", [False, True])
 @pytest.mark.parametrize("hardness", [None, 0.8])
-def test_step_project_compacts_in_order(hardness):
+def test_step_project_compacts_in_order(hardness, grid):
     rng = np.random.default_rng(6)
     nx, pad = 100, 28
     idx = rng.permutation(5000)[:1000].astype(np.int32)
@@ -153,13 +166,22 @@ def test_step_project_compacts_in_order(hardness):
     buf = np.full(5000 // nx * (nx + pad), 9.0, np.float32)
     slots = compiled.slots(idx, nx, pad)
     s0 = slots.copy()
-    m, gone, capped = compiled.step_project(slots, p, t, c, r, 1000, tau, H, hardness is not None, c_low, buf, nx, pad)
+    if grid:   # the reference gaps and pressures on the grid, read at the flat indices
+        c_grid, r_grid = np.full(5000, np.nan), np.full(5000, np.nan)
+        c_grid[idx], r_grid[idx] = c, r
+        c, r = c_grid, r_grid
+    m, gone, capped = compiled.step_project(slots, p, t, c, r, 1000, tau, H, hardness is not None, c_low, buf, nx,
+                                            pad, grid)
     assert m == keep.sum() and 0 < m < 1000
     np.testing.assert_array_equal(slots[:m], s0[keep])
     np.testing.assert_allclose(p[:m], new[keep])
     np.testing.assert_array_equal(t[:m], t0[keep])
-    np.testing.assert_array_equal(c[:m], c0[keep])
-    np.testing.assert_array_equal(r[:m], r0[keep])
+    if grid:   # left where they are
+        np.testing.assert_array_equal(c[i0], c0)
+        np.testing.assert_array_equal(r[i0], r0)
+    else:      # moved with their points
+        np.testing.assert_array_equal(c[:m], c0[keep])
+        np.testing.assert_array_equal(r[:m], r0[keep])
     np.testing.assert_array_equal(gone, i0[~keep])
     expect_capped = new[~keep] >= hardness if hardness is not None else np.zeros(0, bool)
     np.testing.assert_array_equal(capped, expect_capped)
@@ -181,7 +203,7 @@ def test_join_appends_with_reference_values():
     before = [a[:n].copy() for a in (slots, p, t, c, r)]
     c_full, p_ref, c_low = rng.random(400), rng.random(400), rng.random(400)
     where = np.array([5, 77, 301], np.int32)
-    m = compiled.join(slots, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), c_full, p_ref, c_low, nx, pad)
+    m = compiled.join(slots, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), c_full, p_ref, c_low, nx, pad, False)
     assert m == n + 3
     for a, b in zip((slots, p, t, c, r), before):
         np.testing.assert_array_equal(a[:n], b)                  # the set so far is left alone
@@ -263,3 +285,37 @@ def test_reference_gaps_from_a_strided_buffer(dtype):
     expect = (u.reshape(-1) - w) - dtype(0.25)
     np.testing.assert_array_equal(c, expect)           # the same rounding as numpy's two steps
     np.testing.assert_array_equal(c_low, expect.astype(np.float32))
+
+
+def test_rebase_moves_the_reference():
+    rng = np.random.default_rng(11)
+    n = 200
+    p_ref, c, c_low = np.zeros(n), rng.standard_normal(n), rng.standard_normal(n).astype(np.float32)
+    old = np.array([3, 7, 50], np.int32)
+    p_ref[old] = 9.0
+    idx = np.array([7, 20, 150], np.int32)
+    p = np.array([1.0, 2.0, 3.0])
+    c_set, r_set = np.empty(3), np.empty(3)
+    low0 = c_low.copy()
+    compiled.rebase(idx, p, old, p_ref, c, c_low, c_set, r_set, True)
+    expect = np.zeros(n)
+    expect[idx] = p
+    np.testing.assert_array_equal(p_ref, expect)          # cleared on the old support, set on the new
+    assert np.isinf(c_low[idx]).all()
+    np.testing.assert_array_equal(np.delete(c_low, idx), np.delete(low0, idx))
+    np.testing.assert_array_equal(c_set, c[idx])
+    np.testing.assert_array_equal(r_set, p)
+
+
+@pytest.mark.parametrize("row,pad", [(514, 2), (1026, 514), (8194, 4098), (300001, 1), (600000, 300000)])
+def test_flat_indices_invert_slots_exactly(row, pad):
+    """The float reciprocal that finds a buffer position's row is exact at row starts and ends, up to 2³¹."""
+    nx = row - pad
+    rows = np.unique(np.r_[0, 1, 2, np.random.default_rng(12).integers(0, (2**31 - 1) // row, 200),
+                           (2**31 - 1) // row - 1])
+    cols = np.r_[0, 1, nx // 2, nx - 2, nx - 1]
+    slots = (rows[:, None] * row + cols[None, :]).reshape(-1)
+    slots = slots[slots < 2**31]
+    flat = (slots // row) * nx + slots % row
+    np.testing.assert_array_equal(compiled.flat_indices(slots, nx, pad), flat)
+    np.testing.assert_array_equal(compiled.slots(flat, nx, pad), slots)

@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["slots", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps", "scan_overlaps", "set_direction",
-           "energy", "scale_spectrum", "reference_gaps", "split_sets", "step_project", "join", "write_increment",
-           "write_values"]
+__all__ = ["slots", "slots_into", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps",
+           "scan_overlaps", "set_direction", "energy", "scale_spectrum", "reference_gaps", "rebase", "split_sets",
+           "step_project", "join", "write_increment", "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -46,6 +46,12 @@ def _slot(i, nx, pad):
 def slots(where, nx, pad):
     """Positions in a transform buffer of flat active-grid indices ``where`` (a new array)."""
     out = np.empty(where.size, np.intp)
+    return slots_into(where, nx, pad, out)
+
+
+@njit(nogil=True, cache=True)
+def slots_into(where, nx, pad, out):
+    """:func:`slots` written into ``out`` (which may be ``where`` itself); returns ``out``."""
     for j in range(where.size):
         out[j] = _slot(where[j], nx, pad)
     return out
@@ -95,11 +101,11 @@ def center(d, shift):
 
 
 @njit(**_FAST)
-def _gather_compact(c, inc, slots, fresh, out):
-    """``out = c (+ inc[slots])`` with ``c`` given per point; returns the sum."""
+def _gather_compact(c, inc, slots, fresh, out, grid, nx, pad):
+    """``out = c (+ inc[slots])`` with ``c`` given per point (``grid``: on the grid); returns the sum."""
     s = 0.0
     for j in range(slots.size):
-        d = c[j]
+        d = c[_flat(slots[j], nx, pad)] if grid else c[j]
         if not fresh:
             d += inc[_at(slots[j])]
         out[j] = d
@@ -108,17 +114,18 @@ def _gather_compact(c, inc, slots, fresh, out):
 
 
 @njit(nogil=True, cache=True)
-def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref):
+def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref, grid, nx, pad):
     """The gaps of the contact set, centred: :func:`gather_gaps` and :func:`center` in one call.
 
-    ``c`` is ``u_ref - w - δ_ref`` at the set's points (compact: one value per point), ``slots``
+    ``c`` is ``u_ref - w - δ_ref`` at the set's points (compact: one value per point; with ``grid``
+    the grid's array, read at the flat indices of ``slots``), ``slots``
     their positions in the float32 increment buffer ``inc`` (ignored when ``fresh``). Under
     ``load_control`` the penetration becomes ``δ = δ_ref + mean(out)`` (the mean over the set);
     the gaps are then shifted by ``δ - δ_ref`` (rounded to ``out``'s precision). Returns
     ``(δ, shift, max |g|, Σ g²)``. The scalar arithmetic is exact IEEE (only the loops may be
     reordered).
     """
-    total = _gather_compact(c, inc, slots, fresh, out)
+    total = _gather_compact(c, inc, slots, fresh, out, grid, nx, pad)
     n = slots.size
     if load_control and n:
         delta = delta_ref + total / n
@@ -130,6 +137,7 @@ def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref):
 
 
 _BLOCK = 256  # the overlap scan's block: overlaps are few, so most blocks are passed on a count alone
+_SUB = 32     # and the sub-blocks a block with overlaps is counted in again (overlaps are scattered)
 
 
 @njit(**_FAST)
@@ -147,22 +155,22 @@ def _block_hits(c, c_low, inc, fresh, level, level_low):
 
 @njit(nogil=True, cache=True)
 def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear):
-    """Free points that overlap: ``u - w - δ_ref < shift`` (a negative gap); returns their count and the lowest gap.
+    """Free points that overlap: ``u - w - δ_ref < shift`` (a negative gap).
 
     Points with ``c_low = +inf`` (the contact and plastic sets) are skipped. After a refresh
     (``fresh``) the test is on the working-precision ``c``, otherwise on ``c_low + inc`` in
-    the precision of ``c_low`` (``shift`` rounded to it). The first ``count`` entries of
-    ``where`` receive the indices, of ``gaps`` their gaps ``c + inc - shift`` (working
-    precision). Row segments of :data:`_BLOCK` points without overlaps are passed on a
-    vectorised count. ``where``/``gaps`` may be shorter than the grid (overlaps are few): only
-    the first ``len(where)`` are written, and a count above it asks the caller for a longer
-    pair and another scan.
+    the precision of ``c_low`` (``shift`` rounded to it). Returns ``(count, lowest gap, where,
+    gaps)``: the first ``count`` entries of ``where`` hold the indices, of ``gaps`` their gaps
+    ``c + inc - shift`` (working precision). The arrays passed in may be shorter than the grid
+    (overlaps are few); when they fill up, the scan goes on in arrays of twice the length
+    (returned in their place). Row segments of :data:`_BLOCK` points without overlaps are
+    passed on a vectorised count.
 
     ``clear`` (a buffer of ``inc``'s layout, or empty) is set to zero on the active grid as the scan
     passes: the search direction's buffer, which shares its memory with ``inc`` (each block is
     cleared after it is read), so that the direction need not be zero-filled in a pass of its own.
+    The scan therefore runs once: a second one would find ``inc`` cleared.
     """
-    cap = where.size
     rounded = np.empty(1, c_low.dtype)
     rounded[0] = shift
     level_low = rounded[0]
@@ -176,8 +184,16 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear):
             cs = c[a0 + lo:a0 + hi]
             cls = c_low[a0 + lo:a0 + hi]
             incs = inc[:0] if fresh else inc[b0 + lo:b0 + hi]
-            if _block_hits(cs, cls, incs, fresh, shift, level_low):
-                for j in range(hi - lo):
+            if not _block_hits(cs, cls, incs, fresh, shift, level_low):
+                if clear.size:
+                    clear[b0 + lo:b0 + hi] = 0
+                continue
+            for s0 in range(0, hi - lo, _SUB):   # the overlaps are scattered: count sub-blocks, then look
+                s1 = min(s0 + _SUB, hi - lo)
+                if not _block_hits(cs[s0:s1], cls[s0:s1], incs[s0:s1] if not fresh else incs, fresh, shift,
+                                   level_low):
+                    continue
+                for j in range(s0, s1):
                     cl = cls[j]
                     if cl == np.inf:
                         continue
@@ -190,14 +206,26 @@ def scan_overlaps(c, c_low, inc, nx, pad, fresh, shift, where, gaps, clear):
                         if not cl + v < level_low:
                             continue
                         g = (cs[j] + v) - shift
-                    if k < cap:
-                        where[k] = a0 + lo + j
-                        gaps[k] = g
+                    if k == where.size:
+                        where, gaps = _grown(where, gaps, c.size)
+                    where[k] = a0 + lo + j
+                    gaps[k] = g
                     low = min(low, g)
                     k += 1
             if clear.size:
                 clear[b0 + lo:b0 + hi] = 0
-    return k, low
+    return k, low, where, gaps
+
+
+@njit(nogil=True, cache=True)
+def _grown(where, gaps, limit):
+    """``where`` and ``gaps`` copied into arrays of twice their length (at least 16, at most ``limit``)."""
+    n = min(max(16, 2 * where.size), limit)
+    w = np.empty(n, where.dtype)
+    g = np.empty(n, gaps.dtype)
+    w[:where.size] = where
+    g[:gaps.size] = gaps
+    return w, g
 
 
 @njit(**_FAST)
@@ -300,6 +328,26 @@ def reference_gaps(u, w, delta, c, c_low):
 
 
 @njit(nogil=True, cache=True)
+def rebase(idx, p, old, p_ref, c, c_low, c_set, r_set, compact):
+    """Make the pressures ``p`` at flat indices ``idx`` the reference, after :func:`reference_gaps`.
+
+    ``p_ref`` is cleared on the previous reference's support ``old`` and set to ``p`` on ``idx``;
+    the points leave the overlap test (``c_low = +inf``) and, with ``compact``, the set's per-point
+    reference gaps ``c_set`` and pressures ``r_set`` are read (``c[idx]``, ``p``).
+    """
+    for j in range(old.size):
+        p_ref[_at(old[j])] = 0
+    for j in range(idx.size):
+        i = _at(idx[j])
+        v = p[j]
+        p_ref[i] = v
+        c_low[i] = np.inf
+        if compact:
+            c_set[j] = c[i]
+            r_set[j] = v
+
+
+@njit(nogil=True, cache=True)
 def split_sets(p, hardness):
     """Flat int32 indices of the CG set ``0 < p < H`` and of the plastic set ``p ≥ H`` (``H = inf``: none)."""
     n_cg = 0
@@ -325,8 +373,19 @@ def split_sets(p, hardness):
 
 @njit(inline="always")
 def _flat(k, nx, pad):
-    """Flat active-grid index of buffer position ``k`` (the inverse of :func:`_slot`)."""
-    return k - (k // (nx + pad)) * pad if pad else k
+    """Flat active-grid index of buffer position ``k`` (the inverse of :func:`_slot`).
+
+    The row ``k // (nx + pad)`` by a float multiplication (4x faster than the integer division, which
+    kept the set's passes slow while the set is large): ``(k + ½)/row`` lies at least ``½/row`` from
+    an integer and is off by at most ``2⁻⁵² (k + ½)/row < 2⁻²¹`` for ``k < 2³¹``, so it truncates to
+    the row exactly for rows shorter than 2¹⁹ (longer ones divide).
+    """
+    if not pad:
+        return k
+    row = nx + pad
+    if row >= 524288:
+        return k - (k // row) * pad
+    return k - np.int64((k + 0.5) * (1.0 / row)) * pad
 
 
 @njit(nogil=True, cache=True)
@@ -339,17 +398,18 @@ def flat_indices(slots, nx, pad):
 
 
 @njit(nogil=True, cache=True)
-def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, nx, pad):
+def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, nx, pad, grid):
     """``p ← p - τ t`` and the projection onto ``0 < p < H`` of the first ``n`` points, compacting the set in place.
 
     The set is given by the points' positions ``slots`` in the increment buffer ``buf``. The
     points that stay are moved to the front of ``slots``, ``p``, ``t``, ``c`` and ``r`` (order
-    kept; ``c`` and ``r`` are the points' reference gaps and pressures). A point that leaves gets
-    its new pressure (0, or ``H`` at the cap) minus its reference pressure written into ``buf``,
-    and a freed one (``p ≤ 0``) its reference gap ``c`` back in ``c_low`` (the overlap test, on the
-    active grid). Returns ``(count, gone, capped)``: how many stay, the flat (int32) indices of
-    those that left and flags of the latter that left at the cap (``p ≥ H``; empty unless
-    ``capped_flag``).
+    kept; ``c`` and ``r`` are the points' reference gaps and pressures). A point that leaves
+    gets its new pressure (0, or ``H`` at the cap) minus its reference pressure written into
+    ``buf``, and a freed one (``p ≤ 0``) its reference gap ``c`` back in ``c_low`` (the overlap
+    test, on the active grid). With ``grid``, ``c`` and ``r`` are the grid's arrays (read at the
+    points' flat indices, not moved). Returns ``(count, gone, capped)``: how many stay, the flat
+    (int32) indices of those that left and flags of the latter that left at the cap (``p ≥ H``;
+    empty unless ``capped_flag``).
     """
     m = 0
     for j in range(n):
@@ -368,54 +428,59 @@ def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, n
             slots[a] = slots[j]
             p[a] = v
             t[a] = t[j]
-            c[a] = c[j]
-            r[a] = r[j]
+            if not grid:
+                c[a] = c[j]
+                r[a] = r[j]
             a += 1
         else:
             k = slots[j]
             i = _flat(k, nx, pad)
+            jj = i if grid else j
             gone[b] = i
             full = capped_flag and v >= hardness
             if capped_flag:
                 capped[b] = full
             if full:
-                buf[_at(k)] = hardness - r[j]
+                buf[_at(k)] = hardness - r[jj]
             else:
-                buf[_at(k)] = 0 - r[j]
-                c_low[_at(i)] = c[j]
+                buf[_at(k)] = 0 - r[jj]
+                c_low[_at(i)] = c[jj]
             b += 1
     return m, gone, capped
 
 
 @njit(nogil=True, cache=True)
-def join(slots, p, t, c, r, n, where, values, c_full, p_ref, c_low, nx, pad):
+def join(slots, p, t, c, r, n, where, values, c_full, p_ref, c_low, nx, pad, grid):
     """Append the points ``where`` (flat indices) with pressures ``values`` after the first ``n`` of the set.
 
     Their buffer positions go to ``slots``, their direction starts at 0, their reference gap and
-    pressure are read from the grids ``c_full`` and ``p_ref``, and they leave the overlap test
-    (``c_low = +inf``). The arrays must have room for them. Returns the new count.
+    pressure are read from the grids ``c_full`` and ``p_ref`` (unless ``grid``: the set reads them
+    there), and they leave the overlap test (``c_low = +inf``). The arrays must have room for them.
+    Returns the new count.
     """
     for j in range(where.size):
         i = where[j]
         slots[n + j] = _slot(i, nx, pad)
         p[n + j] = values[j]
         t[n + j] = 0
-        c[n + j] = c_full[_at(i)]
-        r[n + j] = p_ref[_at(i)]
+        if not grid:
+            c[n + j] = c_full[_at(i)]
+            r[n + j] = p_ref[_at(i)]
         c_low[_at(i)] = np.inf
     return n + where.size
 
 
 @njit(**_FAST)
-def write_increment(p, slots, r, scale, buf):
+def write_increment(p, slots, r, scale, buf, grid, nx, pad):
     """``p *= scale`` (unless ``scale`` is 1), then ``buf[slots] = p - r`` (the increment over the
-    reference pressures ``r``, one per point)."""
+    reference pressures ``r``, one per point; with ``grid`` the grid's, at the flat indices)."""
     for j in range(slots.size):
         v = p[j]
         if scale != 1:
             v = v * scale
             p[j] = v
-        buf[_at(slots[j])] = v - r[j]
+        k = slots[j]
+        buf[_at(k)] = v - (r[_flat(k, nx, pad)] if grid else r[j])
 
 
 @njit(nogil=True, cache=True)

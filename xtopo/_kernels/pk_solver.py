@@ -33,26 +33,39 @@ Cost per iteration (:class:`_Displacements`): three float32 transforms — the f
 transform of ``t`` whose spectrum gives the denominator ``Σ t (G*t)`` by Parseval (no
 inverse), and the forward and inverse transforms of the pressure increment ``p - p_ref``
 since the last exact reference ``u_ref = G * p_ref`` (working precision). A float32
-transform costs 0.25–0.4 of a float64 forward+inverse pair, so the transforms of an
-iteration cost about one float64 pair; the reference is refreshed (one working-precision
+transform costs 0.27–0.33 of a float64 forward+inverse pair, so the transforms of an
+iteration cost about 0.9 of a float64 pair; the reference is refreshed (one working-precision
 convolution) each time the residual has fallen by three decades and before convergence is
 declared, so the residual that stops the iteration is always that of exact
-displacements, and the returned ``u`` is exact. Everything else works on the index arrays
-of the contact and plastic sets (a fraction of the grid) but for one pass over the grid
-(the float32 overlap test, which skips row segments without overlaps on a vectorised
-count). These passes are compiled (:mod:`xtopo._kernels.compiled`, numba): one pass each
-where numpy needed a chain of gathers, temporaries and reductions. The increment's input
-buffer is written only where the pressures changed; the direction is written whole (a zero
-fill and the CG set) into the shared spectrum buffer, which its forward transform consumes
-in place.
+displacements, and the returned ``u`` is exact. Everything else works on the CG set
+(:class:`_ContactSet`: compact per-point arrays, a fraction of the grid) but for one pass over
+the grid (the float32 overlap test, which skips row segments without overlaps on a vectorised
+count, and clears the direction's buffer as it goes). These passes are compiled
+(:mod:`xtopo._kernels.compiled`, numba): one pass each where numpy needed a chain of gathers,
+temporaries and reductions; the set keeps each point's buffer position and reference gap and
+pressure, so they read compact arrays and write the buffers without an integer division per
+point. The increment's input buffer is written only where the pressures changed; the
+direction is written on the set into the shared spectrum buffer (cleared by the scan), which
+its forward transform consumes in place. Per iteration (``benchmarks/bench_iteration.py``,
+CPU time, loaded machine) periodic 1024²–2048² cost 1.07–1.29 float64 pairs and 512² 1.55–1.67,
+float32 and float64 scenes (1.40–1.49 and 1.74–1.98 before the set was kept compact).
 
-Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 63 B per grid point
+Three transforms, not two: a conjugate-gradient recurrence ``u ← u - τ G*t`` needs only the
+pair of ``t`` (its forward gives the energy, its inverse the response), but the projection
+and the points that join change ``p`` by a sparse correction ``e`` off the direction, and
+``G*e`` costs a forward transform of its own (or ``|e|`` real-space kernel columns, and
+``|e|`` reaches thousands in the first iterations); keeping the increment's spectrum instead
+would add a grid-sized complex buffer (8 B per point periodic, 16 free).
+
+Memory (periodic 1024², float64; ``benchmarks/bench_contact.py --memory``: 60 B per grid point
 for setup and solve): the scene's heights ``w`` (8 B), the folded Green's functions (2 + 1 B),
 one in-place float64 transform buffer that the float32 operators share for their spectra and
 outputs (8 B), the increment's float32 input (4 B), ``c``/``c_low``/``p_ref`` (8 + 4 + 8 B),
-int32 index sets and compact overlap lists; the result takes over ``p_ref`` (the pressures)
-and ``c`` (the gaps) instead of copying them. In a float32 scene the increments are in the
-working precision already: the reference is computed at the start and refreshed only at the end.
+the CG set (28 B per point of it while it holds more than an eighth of the grid, 44 B below; an
+eighth more room) and compact overlap lists; the result
+takes over ``p_ref`` (the pressures) and ``c`` (the gaps) instead of copying them. In a float32 scene the
+increments are in the working precision already: the reference is computed at the start and refreshed only
+at the end.
 
 Convergence: ``residual ≤ tol`` where
 
@@ -80,6 +93,9 @@ COUNTERS = ("iterations", "convolutions", "transforms", "exact_convolutions")
 #: A float32 increment is trusted while the residual stays above this fraction of its value at the last
 #: exact (working-precision) evaluation.
 _REFRESH = 1e-3
+#: The CG set keeps its points' reference gaps and pressures in arrays of its own (:class:`_ContactSet`)
+#: once it holds at most this fraction of the grid (before, its passes read the grid's arrays).
+_COMPACT = 0.25
 #: Inner tolerance of the solves of a capped load-controlled solve while the penetration search is far from
 #: the root (:func:`_plastic_load_control`).
 _COARSE = 1e-3
@@ -106,39 +122,72 @@ def _dot(a, b) -> float:
 class _ContactSet:
     """The CG set ``I = {0 < p < H}``, compact: the first :attr:`n` entries of arrays with room to grow.
 
-    Per point: its position ``s`` in the transform buffers (:func:`compiled.slots`; the flat index
-    follows by :meth:`flat`), the pressure ``p``, the search direction ``t``, the gaps of the current
-    evaluation ``g``, and the reference gap ``c`` and pressure ``r`` (``c = u_ref - w - δ_ref`` and
-    ``p_ref`` at the point, constant between refreshes). Keeping ``c`` and ``r`` with the point lets
-    the iteration's passes read compact arrays instead of gathering from grid-sized ones; the set is
-    compacted in place (:func:`compiled.step_project`) and joined points are appended
-    (:func:`compiled.join`), so no array of the set is allocated per iteration.
+    Per point (44 B in float64, with an eighth more room): its position ``s`` in the transform
+    buffers (:func:`compiled.slots`; the flat index follows by :meth:`flat`), the pressure ``p``, the
+    search direction ``t``, the gaps of the current evaluation ``g``, and the reference gap ``c`` and
+    pressure ``r`` (``c = u_ref - w - δ_ref`` and ``p_ref`` at the point, constant between refreshes).
+    Keeping ``c`` and ``r`` with the point lets the iteration's passes read compact arrays instead of
+    gathering from grid-sized ones; the set is compacted in place (:func:`compiled.step_project`) and
+    joined points are appended (:func:`compiled.join`), so no array of the set is allocated per
+    iteration.
+
+    Memory: a cold start puts the whole grid in the set (uniform pressures), so the set starts lean —
+    the indices ``idx`` become the slots in place and the pressures ``p`` are adopted, the first
+    direction takes the gaps' array (``t`` is None until then), and while the set holds more than
+    :data:`_COMPACT` of the grid (:attr:`grid`) its passes read ``c`` and ``r`` from the grid's
+    ``u_ref - w - δ_ref`` and ``p_ref`` at the points' flat indices; below it they get arrays of their
+    own. After each step :meth:`fit` shrinks arrays more than half again as long as the set needs.
     """
 
-    def __init__(self, idx, p, layout, buffer_size):
+    _ARRAYS = ("s", "p", "t", "g", "c", "r")
+
+    def __init__(self, idx, p, layout, buffer_size, grid_c, grid_r):
         self.n = n = idx.size
         self.layout = layout
-        room = max(64, n + n // 4)
-        self.s = np.empty(room, np.int32 if buffer_size < 2**31 else np.int64)
-        self.s[:n] = compiled.slots(idx, *layout)
-        self.p = np.empty(room, p.dtype)
-        self.p[:n] = p
-        self.t = np.zeros(room, p.dtype)        # the first direction is the gradient (β = 0)
-        self.g = np.empty(room, p.dtype)
-        self.c = np.empty(room, p.dtype)
-        self.r = np.empty(room, p.dtype)
+        out = idx if buffer_size < 2**31 else np.empty(n, np.int64)   # int32 slots in place where they fit
+        self.s = compiled.slots_into(idx, *layout, out)
+        self.p = p
+        self.t = self.g = None   # made when first needed (the gaps' array at the first evaluation)
+        self.grid = True
+        self._grid_arrays = (grid_c, grid_r)
+        self.c, self.r = grid_c, grid_r
+
+    def _compact(self):
+        """Give ``c`` and ``r`` arrays of their own once the set holds at most :data:`_COMPACT` of the grid."""
+        grid_c, grid_r = self._grid_arrays
+        if not self.grid or self.n > _COMPACT * grid_c.size:
+            return
+        idx = self.flat()
+        room = self.s.size
+        self.c, self.r = np.empty(room, self.p.dtype), np.empty(room, self.p.dtype)
+        self.c[:self.n] = grid_c[idx]
+        self.r[:self.n] = grid_r[idx]
+        self.grid = False
+
+    def _resize(self, size, small):
+        """Arrays shorter than ``size`` (or missing), or, with ``small``, longer than 1.5 ``size``, are made
+        ``size`` long (their first :attr:`n` entries kept)."""
+        for name in self._ARRAYS:
+            old = getattr(self, name)
+            if self.grid and name in "cr" or (old is not None and size <= old.size
+                                              and not (small and 2 * old.size > 3 * size)):
+                continue
+            new = np.empty(size, self.s.dtype if name == "s" else self.p.dtype)
+            if old is not None:
+                new[:self.n] = old[:self.n]
+            setattr(self, name, new)
 
     def reserve(self, k):
         """Room for ``k`` more points (the arrays are grown by a quarter more than needed)."""
         need = self.n + k
-        if need <= self.s.size:
-            return
-        room = need + need // 4
-        for name in ("s", "p", "t", "g", "c", "r"):
-            old = getattr(self, name)
-            new = np.empty(room, old.dtype)
-            new[:self.n] = old[:self.n]
-            setattr(self, name, new)
+        if any(a is None or a.size < need for a in (getattr(self, name) for name in self._ARRAYS)):
+            self._resize(need + need // 8, False)
+
+    def fit(self):
+        """After a step: the missing arrays made and those much longer than the set shrunk (the set's memory
+        follows it down from a cold start's whole grid)."""
+        self._resize(max(64, self.n + self.n // 8), True)
+        self._compact()
 
     def flat(self):
         """The flat indices of the set's points (a new int32 array)."""
@@ -146,7 +195,7 @@ class _ContactSet:
 
 
 # ``cg.s_``, ``cg.p_``, …: the first ``cg.n`` entries of ``cg.s``, ``cg.p``, …
-for _name in ("s", "p", "t", "g", "c", "r"):
+for _name in _ContactSet._ARRAYS:
     setattr(_ContactSet, _name + "_", property(lambda self, _name=_name: getattr(self, _name)[:self.n]))
 del _name
 
@@ -210,15 +259,12 @@ class _Displacements:
         self.counts["fft"] += 2
         u = self.conv.inverse(self.conv.forward())
         compiled.reference_gaps(u.reshape(-1, u.shape[-1]), self.w, self.c.dtype.type(delta), self.c, self.c_low)
-        self.hide(idx)
-        self.hide(pl)
-        self.p_ref[self.support] = 0
-        self.p_ref[idx] = pI
+        compiled.rebase(idx, pI, self.support, self.p_ref, self.c, self.c_low, cg.c_, cg.r_, not cg.grid)
+        self.support = idx
         if pl.size:
+            self.hide(pl)
             self.p_ref[pl] = H
-        self.support = np.concatenate([idx, pl]) if pl.size else idx.copy()
-        cg.c_[...] = self.c[idx]
-        cg.r_[...] = pI
+            self.support = np.concatenate([idx, pl])
         self.delta_ref = float(delta)
         self.low.input_flat.fill(0)
         self.fresh = True
@@ -248,16 +294,20 @@ class _Displacements:
         for where, value in changed:
             if where.size:
                 compiled.write_values(where, float(value), self.p_ref, nx, pad, flat)
-        compiled.write_increment(cg.p_, cg.s_, cg.r_, cg.p.dtype.type(scale), flat)
+        compiled.write_increment(cg.p_, cg.s_, cg.r if cg.grid else cg.r_, cg.p.dtype.type(scale), flat, cg.grid,
+                                 nx, pad)
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         self.low.inverse(self.low.forward())
         self.fresh = False
 
     def contact_gaps(self, cg, load_control, delta):
-        """The gaps of the set ``cg`` into ``cg.g`` (:func:`compiled.contact_gaps`): ``(δ, shift, max |g|, Σ g²)``."""
-        return compiled.contact_gaps(cg.c_, self._increment(), cg.s_, self.fresh, cg.g_, load_control, delta,
-                                     self.delta_ref)
+        """The gaps of the set ``cg`` into ``cg.g`` (:func:`compiled.contact_gaps`): ``(δ, shift, max |g|,
+        Σ g²)``."""
+        if cg.g is None:
+            cg.g = np.empty(cg.s.size, cg.p.dtype)
+        return compiled.contact_gaps(cg.c if cg.grid else cg.c_, self._increment(), cg.s_, self.fresh, cg.g_,
+                                     load_control, delta, self.delta_ref, cg.grid, self.nx, self.pad)
 
     def at(self, where):
         """``u - w - δ_ref`` at flat indices (working precision) and their sum."""
@@ -271,19 +321,25 @@ class _Displacements:
         The scan clears the direction's buffer on the way (:meth:`set_direction` writes the direction
         only on the set): every evaluation runs it before a direction is set.
         """
-        while True:
-            k, low = compiled.scan_overlaps(self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh,
-                                            shift, self.where, self.where_gaps, self.direction.input_flat)
-            if k <= self.where.size:   # views: the next scan overwrites them, after the step has used them
-                return self.where[:k], self.where_gaps[:k], low
-            self.where = np.empty(min(self.c.size, 2 * k), np.int32)
-            self.where_gaps = np.empty(self.where.size, self.c.dtype)
+        k, low, self.where, self.where_gaps = compiled.scan_overlaps(
+            self.c, self.c_low, self._increment(), self.nx, self.pad, self.fresh, shift, self.where, self.where_gaps,
+            self.direction.input_flat)
+        # views: the next scan overwrites them, after the step has used them
+        return self.where[:k], self.where_gaps[:k], low
 
-    def set_direction(self, cg, beta, zero_sum):
-        """Make ``cg.t`` the conjugate direction (:func:`compiled.set_direction`), write it into the
-        direction operator (zero elsewhere: :meth:`overlaps` cleared it) and return ``(slope, energy)``:
-        ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not downhill)."""
-        slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.s_, self.direction.input_flat)
+    def set_direction(self, cg, beta, zero_sum, first):
+        """Make ``cg.t`` the conjugate direction (:func:`compiled.set_direction`; ``first``: the gradient),
+        write it into the direction operator (zero elsewhere: :meth:`overlaps` cleared it) and return
+        ``(slope, energy)``: ``Σ g t`` and ``Σ t (G*t)`` (one float32 forward transform, skipped when not
+        downhill)."""
+        if first:
+            # the first direction is the gradient: the gaps' array becomes the direction's, its zero-sum
+            # projection taken in place (the slope Σ t t); the gaps get an array of their own after the
+            # step (:meth:`_ContactSet.fit`), once most of a cold start's points have left
+            cg.t, cg.g = cg.g, None
+            slope = compiled.set_direction(cg.t_, cg.t_, beta, zero_sum, cg.s_, self.direction.input_flat)
+        else:
+            slope = compiled.set_direction(cg.t_, cg.g_, beta, zero_sum, cg.s_, self.direction.input_flat)
         if not slope > 0:
             return slope, 0.0
         self.counts["fft"] += 1
@@ -293,17 +349,20 @@ class _Displacements:
         """``p ← p - τ t`` on the set and its projection (:func:`compiled.step_project`): the points that
         left get their pressure written into the increment's input and the freed ones rejoin the overlap
         test. Returns ``(gone, capped)``."""
-        m, gone, capped = compiled.step_project(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau,
-                                                H if H is not None else np.inf, H is not None, self.c_low,
-                                                self.low.input_flat, self.nx, self.pad)
+        if cg.t is None:   # no direction was set (an empty set)
+            cg.t = np.zeros(cg.s.size, cg.p.dtype)
+        m, gone, capped = compiled.step_project(
+            cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau, H if H is not None else np.inf, H is not None, self.c_low,
+            self.low.input_flat, self.nx, self.pad, cg.grid)
         cg.n = m
+        cg.fit()
         return gone, capped
 
     def join(self, cg, where, values):
         """Append the points ``where`` at pressures ``values`` to the set (:func:`compiled.join`)."""
         cg.reserve(where.size)
         cg.n = compiled.join(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, where, values, self.c, self.p_ref, self.c_low,
-                             self.nx, self.pad)
+                             self.nx, self.pad, cg.grid)
 
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
@@ -444,9 +503,11 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
     p0 = p0.reshape(-1)
     idx, pl = compiled.split_sets(p0, np.inf if H is None else H)
+    pI = p0[idx]
+    del p0
     disp = _Displacements(conv, w, counts)
-    cg = _ContactSet(idx, p0[idx], (disp.nx, disp.pad), disp.low.input_flat.size)
-    del p0, idx
+    cg = _ContactSet(idx, pI, (disp.nx, disp.pad), disp.low.input_flat.size, disp.c, disp.p_ref)
+    del idx, pI   # the set holds them
 
     # damped Jacobi step (a pixel's self-stiffness G(0) = Σ_k G̃_k / M over-counts a patch):
     # the step of joining points when no CG step exists (e.g. fully plastic)
@@ -502,7 +563,7 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         tau = 0.0
         if nI:
             beta = G / G_old if G_old > 0 else 0.0
-            slope, denom = disp.set_direction(cg, dtype.type(beta), load_control)
+            slope, denom = disp.set_direction(cg, dtype.type(beta), load_control, it == 1)
             G_old = G
             if denom > 0 and slope > 0:
                 tau = slope / denom
