@@ -217,7 +217,8 @@ def _small_twin(seed=0):
     area = area.assign(height=area.height.copy(data=h)).assign_attrs(tip_radius=2e-8, tip_radius_units="m",
                                                                      instrument="AFM", description="an AFM map")
     line = xtopo.datasets.fractal_surface(300, 3e-3, hurst=0.7, rms_height=1e-6, periodic=False, seed=seed + 1)
-    line = line.assign_attrs(resolution=1e-5, resolution_units="m", acquisition_time="2024-05-06T07:08:09")
+    line = line.assign_attrs(resolution=1e-5, resolution_units="m", acquisition_time="2024-05-06T07:08:09",
+                         measurement_kind="profiles")
     x = np.cumsum(np.random.default_rng(seed).uniform(1e-9, 3e-9, 50))
     tem = xtopo.make_measurement(np.sin(x / 2e-8) * 1e-9, x=x, units="m")
     return xtopo.twin({"afm": area, "stylus": line, "tem": tem}, name="sample A", description="round trip")
@@ -246,7 +247,7 @@ def test_to_container_round_trip_through_surfacetopography(tmp_path):
         a, b = tree[name].to_dataset(), back[name].to_dataset()
         np.testing.assert_array_equal(a.height.values, b.height.values)
         np.testing.assert_array_equal(a.x.values, b.x.values)
-        for key in ("tip_radius", "resolution", "periodic", "grid"):
+        for key in ("tip_radius", "resolution", "periodic", "grid", "measurement_kind"):
             assert a.attrs.get(key) == b.attrs.get(key), (name, key)
     assert back["stylus"].attrs["acquisition_time"] == "2024-05-06T07:08:09"
     assert back["afm"].attrs["description"] == "an AFM map"

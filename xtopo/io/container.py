@@ -295,6 +295,8 @@ def _measurement_attrs(meta: dict, ds) -> dict:
     out = {"title": _text(meta.get("name"))}
     if _text(meta.get("description")):
         out["description"] = meta["description"]
+    if _text(meta.get("measurement_kind")):
+        out["measurement_kind"] = meta["measurement_kind"]
     if meta.get("tags"):
         out["tags"] = json.dumps(meta["tags"])
     if _text(meta.get("measurement_date")) and not ds.attrs.get("acquisition_time"):
@@ -564,6 +566,8 @@ def _topography_meta(name: str, ds: xr.Dataset, member: str) -> dict:
                  "has_undefined_data": bool(np.any(~np.isfinite(h.values)))})
     if isinstance(ds.attrs.get("description"), str):
         meta["description"] = ds.attrs["description"]
+    if isinstance(ds.attrs.get("measurement_kind"), str):  # xtopo's own key (parallel profiles, ...): ST ignores it
+        meta["measurement_kind"] = ds.attrs["measurement_kind"]
     if ds.attrs.get("creator_name"):
         meta["created_by"] = {"name": str(ds.attrs["creator_name"]),
                               **({"orcid": str(ds.attrs["creator_orcid"])} if ds.attrs.get("creator_orcid") else {})}
