@@ -27,18 +27,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import material_ratio_rows as _rows
 from ._lazy import LazyJit
 
 njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
-__all__ = ["Distribution", "distribution", "FUNCTIONAL", "functional", "EQUIVALENCE_WIDTH", "CURVE_SAMPLES"]
+__all__ = ["Distribution", "distribution", "FUNCTIONAL", "functional", "CURVE_SAMPLES"]
 
 _JIT = dict(nogil=True, cache=True)
 
-#: width of the central region of the material ratio curve, % (ISO 13565-2 §4.3, ISO 25178-2 B.1)
-EQUIVALENCE_WIDTH = 40.0
-#: samples of the material ratio curve (0 to 100 % in steps of 0.01 %) on which the
-#: central region is located and the equivalent straight line fitted
+#: samples of the material ratio curve (0 to 100 % in steps of 0.01 %) on which the central region is
+#: located and the equivalent straight line fitted (:func:`~xtopo._kernels.material_ratio_rows.equivalent_line`)
 CURVE_SAMPLES = 10001
 _MIN_CLASSES = 4096
 #: classes per point below the cap: a class rarely holds more than a few points
@@ -188,26 +187,6 @@ def distribution(values) -> Distribution:
 FUNCTIONAL = ("Sk", "Spk", "Svk", "Smr1", "Smr2")
 
 
-def equivalent_line(curve: np.ndarray):
-    """Intercept (height at 0 %) and slope (per %) of the equivalent straight line of a material ratio curve.
-
-    ``curve``: heights at :data:`CURVE_SAMPLES` material ratios equally spaced from 0 to 100 %.
-    ISO 13565-2 §4.3 / ISO 25178-2 B.1: the central region is the 40 % wide window whose secant
-    has the least gradient (the first such window on ties); the line is the least-squares fit,
-    in height, of the curve inside that window.
-    """
-    k = CURVE_SAMPLES - 1
-    w = int(round(EQUIVALENCE_WIDTH / 100 * k))
-    secant = curve[w:] - curve[:-w]
-    i = int(np.argmax(secant))  # the heights fall with the ratio: the largest difference is the least gradient
-    mr = np.arange(i, i + w + 1) * (100.0 / k)
-    seg = curve[i:i + w + 1]
-    xm = mr.mean()
-    dx = mr - xm
-    slope = float(np.dot(dx, seg - seg.mean()) / np.dot(dx, dx))
-    return float(seg.mean() - slope * xm), slope
-
-
 def functional(dist: Distribution) -> np.ndarray:
     """Sk, Spk, Svk, Smr1, Smr2 (heights in the values' unit, ratios in %) of ISO 13565-2 / 25178-2.
 
@@ -219,8 +198,7 @@ def functional(dist: Distribution) -> np.ndarray:
     if dist.n == 0:
         return np.full(len(FUNCTIONAL), np.nan)
     curve = dist.height(np.linspace(0.0, 1.0, CURVE_SAMPLES))
-    a, b = equivalent_line(curve)
-    upper, lower = a, a + 100.0 * b
+    upper, lower = (float(v[0]) for v in _rows.equivalent_line(curve[None], np.array([CURVE_SAMPLES])))
     mr1 = float(dist.ratio(upper)) * 100
     mr2 = float(dist.ratio(lower)) * 100
     a1 = float(dist.excess(upper)) * 100   # peak area, % × length

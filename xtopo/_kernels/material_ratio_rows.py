@@ -24,7 +24,8 @@ import warnings
 
 import numpy as np
 
-__all__ = ["FUNCTIONAL", "descending", "material_ratio_at", "functional_parameters", "functional_of_sorted", "WINDOW"]
+__all__ = ["FUNCTIONAL", "descending", "material_ratio_at", "functional_parameters", "functional_of_sorted",
+           "equivalent_line", "WINDOW"]
 
 #: width (in % material ratio) of the central region of the equivalent straight line
 WINDOW = 40.0
@@ -95,7 +96,12 @@ def functional_of_sorted(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     return out.reshape(shape + (len(FUNCTIONAL),))
 
 
-def _functional(d, n):
+def equivalent_line(d: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Heights at 0 % and at 100 % of the equivalent straight line of sorted rows ``(d, n)`` (2D, ``n >= 3``).
+
+    The areal set (:mod:`xtopo._kernels.material_ratio`) fits the same line to its curve sampled at
+    equal material ratio steps, as one row.
+    """
     rows, size = d.shape
     span = n - 1.0  # positions 0 .. n-1 ↔ 0 .. 100 %
     w = WINDOW / 100 * span  # window width in positions
@@ -121,7 +127,14 @@ def _functional(d, n):
     with np.errstate(invalid="ignore", divide="ignore"):
         slope = (m * sth - st * sh) / (m * stt - st**2)
         intercept = (sh - slope * st) / m
-    upper, lower = intercept, intercept + slope * span
+    return intercept, intercept + slope * span
+
+
+def _functional(d, n):
+    rows, size = d.shape
+    span = n - 1.0
+    t = np.arange(size, dtype=float)[None, :]
+    upper, lower = equivalent_line(d, n)
     mr1 = material_ratio_at(d, n, upper)
     mr2 = material_ratio_at(d, n, lower)
     dmr = 100.0 / span
