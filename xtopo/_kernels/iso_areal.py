@@ -29,6 +29,7 @@ njit = LazyJit(globals())
 from . import fft as _fft
 from . import features as _features
 from . import material_ratio as _mr
+from . import profile_iso as _profile
 from .spectra import BACKEND as _BACKEND
 from .windows import radial_hann
 
@@ -54,10 +55,8 @@ STD_STEP = 0.5
 DIRECTIONS = 720
 
 
-@njit(**_JIT)
-def _d7(a, b, c, d, e, f, centre):
-    """Seven-point slope × 60Δ from the samples at offsets -3, -2, -1, 1, 2, 3 (NaN if any, or the centre, is NaN)."""
-    return (-a + 9.0 * b - 45.0 * c + 45.0 * d - 9.0 * e + f) + 0.0 * centre
+#: the profiles' stencil, compiled (``+ 0 × centre`` where it is used: a NaN centre skips the slope)
+seven_point = njit(**_JIT)(_profile.seven_point)
 
 
 # reductions may be reordered (vectorised); NaN keeps its meaning (the skip tests use it)
@@ -71,14 +70,14 @@ def _rows_x(z, sx, nxs, periodic):
     for r in range(ny):
         row = z[r]
         for c in range(3, nx - 3):
-            g = _d7(row[c - 3], row[c - 2], row[c - 1], row[c + 1], row[c + 2], row[c + 3], row[c])
+            g = seven_point(row[c - 3], row[c - 2], row[c - 1], row[c + 1], row[c + 2], row[c + 3]) + 0.0 * row[c]
             if g == g:
                 sx += g * g
                 nxs += 1
         if periodic:
             for c in list(range(0, min(3, nx))) + list(range(max(nx - 3, 3), nx)):
-                g = _d7(row[(c - 3) % nx], row[(c - 2) % nx], row[(c - 1) % nx], row[(c + 1) % nx],
-                        row[(c + 2) % nx], row[(c + 3) % nx], row[c])
+                g = seven_point(row[(c - 3) % nx], row[(c - 2) % nx], row[(c - 1) % nx], row[(c + 1) % nx],
+                                row[(c + 2) % nx], row[(c + 3) % nx]) + 0.0 * row[c]
                 if g == g:
                     sx += g * g
                     nxs += 1

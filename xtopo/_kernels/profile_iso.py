@@ -14,7 +14,7 @@ import numpy as np
 
 from .material_ratio_rows import descending, functional_of_sorted, material_ratio_at
 
-__all__ = ["PARAMETERS", "CONVENTIONS", "profile_parameters", "slope_7point", "mean_width"]
+__all__ = ["PARAMETERS", "CONVENTIONS", "profile_parameters", "seven_point", "slope_7point", "mean_width"]
 
 #: names and order of the outputs of :func:`profile_parameters`
 PARAMETERS = ("Ra", "Rq", "Rp", "Rv", "Rz", "Rt", "Rsk", "Rku", "Rdq", "RSm", "Rmr", "Rk", "Rpk", "Rvk", "Rmr1",
@@ -26,6 +26,11 @@ CONVENTIONS = ("iso21920", "iso4287")
 HEIGHT_DISCRIMINATION = 0.1
 #: width discrimination of the profile elements, a fraction of the sampling length (ISO 4287 §3.1.9)
 WIDTH_DISCRIMINATION = 0.01
+
+
+def seven_point(m3, m2, m1, p1, p2, p3):
+    """The 7-point slope × 60Δ from the samples at offsets -3, -2, -1, 1, 2, 3 (arrays; compiled for Sdq)."""
+    return p3 - 9.0 * p2 + 45.0 * p1 - 45.0 * m1 + 9.0 * m2 - m3
 
 
 def slope_7point(z: np.ndarray, dx: float) -> np.ndarray:
@@ -41,7 +46,7 @@ def slope_7point(z: np.ndarray, dx: float) -> np.ndarray:
         return np.gradient(z, dx, axis=-1, edge_order=2) if n >= 3 else np.full(z.shape, np.nan)
     out = np.empty_like(z)
     s = lambda k: z[..., 3 + k: n - 3 + k]  # noqa: E731
-    out[..., 3:-3] = (s(3) - 9 * s(2) + 45 * s(1) - 45 * s(-1) + 9 * s(-2) - s(-3)) / (60.0 * dx)
+    out[..., 3:-3] = seven_point(*(s(k) for k in (-3, -2, -1, 1, 2, 3))) / (60.0 * dx)
     out[..., :3] = np.gradient(z[..., :6], dx, axis=-1, edge_order=2)[..., :3]
     out[..., -3:] = np.gradient(z[..., -6:], dx, axis=-1, edge_order=2)[..., -3:]
     return out
