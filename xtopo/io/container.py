@@ -172,6 +172,14 @@ def _text(value) -> str | None:
     return value if isinstance(value, str) and value else None
 
 
+def _described(meta: dict, keys: tuple) -> dict:
+    """The non-empty text entries ``keys`` of container metadata, then its ``tags`` (JSON)."""
+    out = {key: meta[key] for key in keys if _text(meta.get(key))}
+    if meta.get("tags"):
+        out["tags"] = json.dumps(meta["tags"])
+    return out
+
+
 def _creator(meta: dict) -> dict:
     who = meta.get("created_by") or meta.get("creator")
     out = {}
@@ -187,13 +195,7 @@ def _creator(meta: dict) -> dict:
 
 def _surface_attrs(meta: dict, surface: dict, path: str, sha: str) -> dict:
     attrs = {"source_container": os.path.basename(path), "source_container_sha256": sha}
-    if _text(surface.get("description")):
-        attrs["description"] = surface["description"]
-    if _text(surface.get("category")):
-        attrs["category"] = surface["category"]
-    if surface.get("tags"):
-        attrs["tags"] = json.dumps(surface["tags"])
-    attrs.update(_creator(surface))
+    attrs.update(_described(surface, ("description", "category")), **_creator(surface))
     pub = surface.get("publication")
     if isinstance(pub, dict):
         for key, attr in (("license", "license"), ("url", "publication_url"), ("doi_url", "doi"),
@@ -293,12 +295,7 @@ def _instrument_attrs(meta: dict, units: str) -> dict:
 
 def _measurement_attrs(meta: dict, ds) -> dict:
     out = {"title": _text(meta.get("name"))}
-    if _text(meta.get("description")):
-        out["description"] = meta["description"]
-    if _text(meta.get("measurement_kind")):
-        out["measurement_kind"] = meta["measurement_kind"]
-    if meta.get("tags"):
-        out["tags"] = json.dumps(meta["tags"])
+    out.update(_described(meta, ("description", "measurement_kind")))
     if _text(meta.get("measurement_date")) and not ds.attrs.get("acquisition_time"):
         out["acquisition_time"] = meta["measurement_date"]
     out.update(_creator(meta))
