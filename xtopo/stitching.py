@@ -503,19 +503,28 @@ def twin_psd(tree, *, areal: Annotated[bool, Flag()] = False, window: Annotated[
 
     {returns}
     """
+    params = dict(locals())
     if areal:
-        ms = _measurements(tree)
-        lines = [n for n, ds in ms.items() if ds["height"].ndim != 2]
+        lines = [n for n, ds in _measurements(tree).items() if ds["height"].ndim != 2]
         if lines:
             raise XtopoError(f"areal averages need area scans only; line scans: {lines}")
-        curves, errors = _per_measurement(tree, psd, {"kind": "iso"}, {}, units, reliable, window=window)
-    else:
-        curves, errors = _per_measurement(tree, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
-                                          window=window, prewhiten=True)
-        curves = {n: _main_lobe(c) for n, c in curves.items()}
-    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
-    return _with_provenance(out, tree, "twin_psd", areal=areal, window=window, per_decade=per_decade, units=units,
-                            reliable=reliable, max_error=max_error)
+        return _binned(tree, "twin_psd", params, psd, {"kind": "iso"}, {}, "psd", window=window)
+    return _binned(tree, "twin_psd", params, psd, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, "psd", _main_lobe,
+                   window=window, prewhiten=True)
+
+
+def _binned(tree, analysis: str, params: dict, func, area_kw: dict, line_kw: dict, quantity, post=None,
+            **kw) -> xr.Dataset:
+    """The twin average ``analysis`` in log bins of each measurement's ``func`` (``post`` applied to each curve);
+    ``params``: the public function's arguments, in its order, for the provenance (``tree`` left out)."""
+    params = {k: v for k, v in params.items() if k != "tree"}
+    curves, errors = _per_measurement(tree, func, area_kw, line_kw, params["units"], params["reliable"],
+                                      quantity=quantity, **kw)
+    if post is not None:
+        curves = {n: post(c) for n, c in curves.items()}
+    out = average_curves(curves, per_decade=params["per_decade"], method="bin", errors=errors,
+                         max_error=params["max_error"])
+    return _with_provenance(out, tree, analysis, **params)
 
 
 def _main_lobe(curve: xr.DataArray) -> xr.DataArray:
@@ -554,11 +563,7 @@ def twin_acf(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
 
     {returns}
     """
-    curves, errors = _per_measurement(tree, acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, units, reliable,
-                                      quantity="acf")
-    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
-    return _with_provenance(out, tree, "twin_acf", per_decade=per_decade, units=units, reliable=reliable,
-                            max_error=max_error)
+    return _binned(tree, "twin_acf", locals(), acf, {"kind": "1d", "dim": "x"}, {"kind": "1d"}, "acf")
 
 
 @checked
@@ -581,11 +586,9 @@ def twin_average(tree, measure: Callable, *, error: Callable | None = None,
 
     {returns}
     """
-    curves, errors = _per_measurement(tree, measure, kwargs, kwargs, units, reliable, quantity=error)
-    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
-    return _with_provenance(out, tree, "twin_average", measure=measure.__name__,
-                            error=None if error is None else error.__name__, per_decade=per_decade,
-                            units=units, reliable=reliable, max_error=max_error, **kwargs)
+    params = dict(measure=measure.__name__, error=None if error is None else error.__name__, per_decade=per_decade,
+                  units=units, reliable=reliable, max_error=max_error, **kwargs)
+    return _binned(tree, "twin_average", params, measure, kwargs, kwargs, error)
 
 
 def _vbm(ds: xr.Dataset, **kw) -> xr.DataArray:
@@ -614,11 +617,7 @@ def twin_vbm(tree, *, kind: Annotated[str, Choice("area", "1d")] = "area",
 
     {returns}
     """
-    curves, errors = _per_measurement(tree, _vbm, {"kind": kind}, {}, units, reliable, quantity="vbm",
-                                      average=average)
-    out = average_curves(curves, per_decade=per_decade, method="bin", errors=errors, max_error=max_error)
-    return _with_provenance(out, tree, "twin_vbm", kind=kind, average=average, per_decade=per_decade, units=units,
-                            reliable=reliable, max_error=max_error)
+    return _binned(tree, "twin_vbm", locals(), _vbm, {"kind": kind}, {}, "vbm", average=average)
 
 
 @checked
