@@ -392,7 +392,7 @@ def test_material_ratio_kernel_is_exact_at_class_edges():
     """At class edges ratio, material and void are exact; inside a class off by at most the class's points."""
     rng = np.random.default_rng(2)
     z = rng.standard_normal(5000) ** 3  # heavy tails, a cusp at 0: many points share the classes near 0
-    dist = iso_areal._mr.distribution(z)
+    dist = iso_areal._mr.Distribution(z)
     d = z - z.mean()
     for c in dist.edges[[1, 1000, 40000, 41234, 79000]]:
         assert float(dist.ratio(c)) == pytest.approx(np.mean(d >= c), abs=1e-12)

@@ -296,7 +296,7 @@ def _one(z, dy, dx, periodic, groups, s, p, q, c, mr, sxp, sdc, pruning):
     out = {}
     dist = None
     if {"height", "functional", "volume"} & groups:
-        dist = _mr.distribution(z)
+        dist = _mr.Distribution(z)
     if "height" in groups:
         sa, s2, s3, s4 = dist.moments
         sq = math.sqrt(s2) if dist.n else np.nan

@@ -32,7 +32,7 @@ from ._lazy import LazyJit
 
 njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
-__all__ = ["Distribution", "distribution", "FUNCTIONAL", "functional", "CURVE_SAMPLES"]
+__all__ = ["Distribution", "FUNCTIONAL", "functional", "CURVE_SAMPLES"]
 
 _JIT = dict(nogil=True, cache=True)
 
@@ -93,9 +93,9 @@ def _classes(z, mean, lo, hi, counts, sums):
 
 
 class Distribution:
-    """Heights of one measurement (deviations from their mean) classed for the material ratio curve.
+    """Heights of one measurement (``values`` of any shape, NaN ignored) classed for the material ratio curve.
 
-    Attributes: ``n`` (finite points), ``moments`` (Σ|d|, Σd², Σd³, Σd⁴ over n), ``lo``/``hi``
+    Attributes: ``n`` (finite points), deviations ``d`` from their mean, ``moments`` (Σ|d|, Σd², Σd³, Σd⁴ over n), ``lo``/``hi``
     (lowest/highest deviation), ``edges`` (``m + 1`` class edges), ``above`` / ``sum_above``
     (points, and the sum of their deviations, in the classes from edge ``k`` up).
     """
@@ -178,13 +178,8 @@ class Distribution:
         return np.maximum(self.excess(c) - self.sum_above[0] / self.n + c, 0.0)
 
 
-def distribution(values) -> Distribution:
-    """The :class:`Distribution` of ``values`` (any shape, NaN ignored)."""
-    return Distribution(values)
-
-
 #: names and order of :func:`functional`'s outputs
-FUNCTIONAL = ("Sk", "Spk", "Svk", "Smr1", "Smr2")
+FUNCTIONAL = tuple("S" + name for name in _rows.FUNCTIONAL)
 
 
 def functional(dist: Distribution) -> np.ndarray:

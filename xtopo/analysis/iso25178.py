@@ -183,7 +183,7 @@ def _at_kernel(h, *, values, kind):
     h = np.asarray(h, dtype=float)
     out = np.empty(h.shape[:-2] + (values.size,))
     for idx in np.ndindex(h.shape[:-2]):
-        dist = _mr.distribution(h[idx])
+        dist = _mr.Distribution(h[idx])
         if not dist.n:
             out[idx] = np.nan
         elif kind == "height":
