@@ -95,8 +95,8 @@ def _classes(z, mean, lo, hi, counts, sums):
 class Distribution:
     """Heights of one measurement (``values`` of any shape, NaN ignored) classed for the material ratio curve.
 
-    Attributes: ``n`` (finite points), deviations ``d`` from their mean, ``moments`` (Σ|d|, Σd², Σd³, Σd⁴ over n), ``lo``/``hi``
-    (lowest/highest deviation), ``edges`` (``m + 1`` class edges), ``above`` / ``sum_above``
+    Attributes: ``n`` (finite points), ``moments`` (Σ|d|, Σd², Σd³, Σd⁴ over n of the deviations ``d`` from
+    the mean), ``lo``/``hi`` (lowest/highest deviation), ``edges`` (``m + 1`` class edges), ``above`` / ``sum_above``
     (points, and the sum of their deviations, in the classes from edge ``k`` up).
     """
 
