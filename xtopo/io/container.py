@@ -61,7 +61,7 @@ from ..conventions import (append_history, height_of, is_nonuniform, is_periodic
 from ..errors import ReaderError, UnitsError, ValidationError, XtopoError, warn
 from ..params import Path, checked
 from ..preprocess import detrend, fill_missing
-from .formats.st_netcdf import to_surfacetopography_netcdf
+from .formats.st_netcdf import instrument_info, to_surfacetopography_netcdf
 from .netcdf import atomic_write
 from .open import open_topography, sha256
 from ._zip import MAX_MEMBER, check_declared, copy_member, read_member, unsafe_name
@@ -571,15 +571,7 @@ def _topography_meta(name: str, ds: xr.Dataset, member: str) -> dict:
     date = _date(ds.attrs.get("acquisition_time", ""))
     if date:
         meta["measurement_date"] = date
-    instrument = {}
-    if ds.attrs.get("instrument"):
-        instrument["name"] = str(ds.attrs["instrument"])
-    if ds.attrs.get("instrument_type"):
-        instrument["type"] = str(ds.attrs["instrument_type"])
-    params = {k: {"value": float(ds.attrs[k]), "unit": str(ds.attrs.get(f"{k}_units") or unit)}
-              for k in ("tip_radius", "resolution") if k in ds.attrs}
-    if params:
-        instrument["parameters"] = params
+    instrument = instrument_info(ds.attrs, (("instrument", "name"), ("instrument_type", "type")), unit)
     if instrument:
         meta["instrument"] = instrument
     return meta

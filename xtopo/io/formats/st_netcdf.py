@@ -41,7 +41,7 @@ from ..netcdf import atomic_write, read_engine
 from ...params import Path, checked
 from ..registry import Format, register
 
-__all__ = ["read_st_netcdf", "to_surfacetopography_netcdf"]
+__all__ = ["read_st_netcdf", "to_surfacetopography_netcdf", "instrument_info"]
 
 _OPTIONS = ("physical_size", "file_units", "height_units")
 _OPEN_ERRORS = (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError, AttributeError, OverflowError)
@@ -81,15 +81,21 @@ def _is_time(value) -> bool:
     return True
 
 
+def instrument_info(attrs: Mapping, keys: tuple, unit: str) -> dict:
+    """The ``instrument`` entry of SurfaceTopography's ``info`` (and of contact.engineering's metadata): the
+    text ``attrs`` named in ``keys`` (``(attr, key)`` pairs), then the tip radius and resolution in their
+    ``*_units`` (else in ``unit``)."""
+    out = {key: str(attrs[a]) for a, key in keys if attrs.get(a) not in (None, "")}
+    parameters = {p: {"value": float(attrs[p]), "unit": str(attrs.get(f"{p}_units") or unit) or None}
+                  for p in _PARAMETERS if p in attrs}
+    return {**out, "parameters": parameters} if parameters else out
+
+
 def _info_from_attrs(attrs: dict) -> dict:
     """SurfaceTopography's ``info`` from the plain (text/number) attributes of an xtopo measurement."""
     info = {k: v for k, v in attrs.items()
             if k not in {a for a, _ in _INSTRUMENT + _TOP} | {f"{p}{u}" for p in _PARAMETERS for u in ("", "_units")}}
-    instrument = {key: str(attrs[a]) for a, key in _INSTRUMENT if attrs.get(a) not in (None, "")}
-    parameters = {p: {"value": float(attrs[p]), "unit": str(attrs.get(f"{p}_units") or attrs.get("units", ""))
-                      or None} for p in _PARAMETERS if p in attrs}
-    if parameters:
-        instrument["parameters"] = parameters
+    instrument = instrument_info(attrs, _INSTRUMENT, attrs.get("units", ""))
     if instrument:
         info["instrument"] = instrument
     for a, key in _TOP:
