@@ -61,7 +61,7 @@ from ..conventions import (append_history, height_of, is_nonuniform, is_periodic
 from ..errors import ReaderError, UnitsError, ValidationError, XtopoError, warn
 from ..params import Path, checked
 from ..preprocess import detrend, fill_missing
-from .formats.st_netcdf import instrument_info, to_surfacetopography_netcdf
+from .formats.st_netcdf import instrument_attrs, instrument_info, to_surfacetopography_netcdf
 from .netcdf import atomic_write
 from .open import open_topography, sha256
 from ._zip import MAX_MEMBER, check_declared, copy_member, read_member, unsafe_name
@@ -270,36 +270,14 @@ def _check_size(ds, meta: dict, where: str, path) -> None:
              f"the container's {tuple(v * f for v in size)}; the file's size is used", UserWarning)
 
 
-def _instrument_attrs(meta: dict, units: str) -> dict:
-    inst = meta.get("instrument")
-    out = {}
-    if not isinstance(inst, dict):
-        return out
-    if _text(inst.get("name")):
-        out["instrument"] = inst["name"]
-    if _text(inst.get("type")):
-        out["instrument_type"] = inst["type"]
-    params = inst.get("parameters")
-    for key in ("tip_radius", "resolution"):
-        entry = params.get(key) if isinstance(params, dict) else None
-        if not isinstance(entry, dict):
-            continue
-        try:
-            value = float(entry.get("value")) * length_factor(entry.get("unit"), units)
-        except (TypeError, ValueError, UnitsError, XtopoError):
-            continue  # not a length with a unit: kept in nothing (ST ignores it too)
-        if math.isfinite(value) and value > 0:
-            out.update({key: value, f"{key}_units": units})
-    return out
-
-
 def _measurement_attrs(meta: dict, ds) -> dict:
     out = {"title": _text(meta.get("name"))}
     out.update(_described(meta, ("description", "measurement_kind")))
     if _text(meta.get("measurement_date")) and not ds.attrs.get("acquisition_time"):
         out["acquisition_time"] = meta["measurement_date"]
     out.update(_creator(meta))
-    out.update(_instrument_attrs(meta, ds["height"].attrs["units"]))
+    out.update(instrument_attrs(meta.get("instrument"), (("instrument", "name"), ("instrument_type", "type")),
+                                ds["height"].attrs["units"]))
     return {k: v for k, v in out.items() if v is not None}
 
 

@@ -33,15 +33,15 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
-from ...conventions import (height_of, is_nonuniform, is_periodic, lateral_dims, normalize_units, periodic_flag,
-                            physical_size, shared_length_unit)
+from ...conventions import (height_of, is_nonuniform, is_periodic, lateral_dims, length_factor, normalize_units,
+                            periodic_flag, physical_size, shared_length_unit)
 from ...errors import ReaderError, UnitsError, UnsupportedFormatError, ValidationError
 from .._generic import check_array_bytes, generic_measurement, single_channel
 from ..netcdf import atomic_write, read_engine
 from ...params import Path, checked
 from ..registry import Format, register
 
-__all__ = ["read_st_netcdf", "to_surfacetopography_netcdf", "instrument_info"]
+__all__ = ["read_st_netcdf", "to_surfacetopography_netcdf", "instrument_info", "instrument_attrs"]
 
 _OPTIONS = ("physical_size", "file_units", "height_units")
 _OPEN_ERRORS = (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError, AttributeError, OverflowError)
@@ -91,6 +91,28 @@ def instrument_info(attrs: Mapping, keys: tuple, unit: str) -> dict:
     return {**out, "parameters": parameters} if parameters else out
 
 
+def instrument_attrs(instrument, keys: tuple, units: str | None = None) -> dict:
+    """The attributes an ``instrument`` entry stands for (the inverse of :func:`instrument_info`): its
+    non-empty text ``keys``, and the tip radius and resolution that are positive lengths with a unit
+    (converted to ``units`` where given); anything else is left out."""
+    if not isinstance(instrument, dict):
+        return {}
+    out = {a: instrument[key] for a, key in keys if isinstance(instrument.get(key), str) and instrument[key]}
+    parameters = instrument.get("parameters")
+    for p in _PARAMETERS:
+        entry = parameters.get(p) if isinstance(parameters, dict) else None
+        if not isinstance(entry, dict):
+            continue
+        try:
+            unit = normalize_units(entry.get("unit"))
+            value = float(entry.get("value")) * (1.0 if units is None else length_factor(unit, units))
+        except (TypeError, ValueError, UnitsError):  # no number, or no length unit
+            continue
+        if math.isfinite(value) and value > 0:
+            out.update({p: value, f"{p}_units": units or unit})
+    return out
+
+
 def _info_from_attrs(attrs: dict) -> dict:
     """SurfaceTopography's ``info`` from the plain (text/number) attributes of an xtopo measurement."""
     info = {k: v for k, v in attrs.items()
@@ -107,22 +129,7 @@ def _info_from_attrs(attrs: dict) -> dict:
 
 def _attrs_from_info(info: dict) -> dict:
     """The xtopo attributes that the fields SurfaceTopography knows in ``info`` stand for (others are left out)."""
-    out = {}
-    instrument = info.get("instrument")
-    if isinstance(instrument, dict):
-        out.update({a: instrument[key] for a, key in _INSTRUMENT if isinstance(instrument.get(key), str)
-                    and instrument[key]})
-        parameters = instrument.get("parameters")
-        for p in _PARAMETERS:
-            entry = parameters.get(p) if isinstance(parameters, dict) else None
-            if not isinstance(entry, dict) or not isinstance(entry.get("unit"), str):
-                continue
-            try:
-                value, units = float(entry.get("value")), normalize_units(entry["unit"])
-            except (TypeError, ValueError, UnitsError):
-                continue  # not a length: the JSON (attr st_info) still holds it
-            if math.isfinite(value) and value > 0:
-                out.update({p: value, f"{p}_units": units})
+    out = instrument_attrs(info.get("instrument"), _INSTRUMENT)  # other values: the JSON (attr st_info) holds them
     for a, key in _TOP:
         if isinstance(info.get(key), str) and info[key]:
             out[a] = info[key]
