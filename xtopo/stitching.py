@@ -648,18 +648,15 @@ def twin_sdrp(tree, order: Annotated[int, Choice(1, 2)] = 1, *, per_decade: Anno
     if not hi > 0:
         raise GridError("twin_sdrp needs a measurement with at least two points along 'x'")
     grid = collocation_points(lo, hi, per_decade)
-    curves, errors, settings = {}, {}, {}
-    for name, ds in ms.items():
-        ds = _complete(convert_length(ds, units), name)
-        settings[name] = _setting(ds)
+
+    def on_grid(ds, reliable):  # the common collocation distances inside the measurement's range
         x = np.asarray(ds["x"].values, dtype=float)
         mine = grid[:0] if x.size < 2 else grid[(grid >= np.min(np.diff(x)) * (1 - 1e-9))
                                                 & (grid <= (x[-1] - x[0]) / 2)]
-        curves[name] = _reliable_part(sdrp(ds, order, dim="x", distances=mine, reliable=False), ds, "distance",
-                                      reliable)
-        curves[name], errors[name] = one_task(*_predicted_error(curves[name], ds, "distance",
-                                                                ("slope", "curvature")[order - 1]))
-    out = average_curves(curves, points=grid, errors=_pool_errors(errors, settings), max_error=max_error)
+        return sdrp(ds, order, dim="x", distances=mine, reliable=reliable)
+
+    curves, errors = _per_measurement(tree, on_grid, {}, {}, units, reliable, ("slope", "curvature")[order - 1])
+    out = average_curves(curves, points=grid, errors=errors, max_error=max_error)
     return _with_provenance(out, tree, "twin_sdrp", order=order, per_decade=per_decade, units=units,
                             reliable=reliable, max_error=max_error)
 
