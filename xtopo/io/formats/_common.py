@@ -96,30 +96,28 @@ def sniff_magic(*magics: bytes):
     return sniff
 
 
-def to_float(path, text, what: str, default=None) -> float:
-    """``float(text)`` (finite) or ``default``; :class:`ReaderError` if neither."""
+def _header_number(path, text, what: str, default, parse, ok, expected: str):
+    """``parse(text)`` where ``ok`` accepts it, else ``default``; :class:`ReaderError` (``expected``) if neither."""
     try:
-        val = float(str(text).strip().replace(",", ".") if isinstance(text, (str, bytes)) else text)
-        if math.isfinite(val):
+        val = parse(str(text).strip() if isinstance(text, (str, bytes)) else text)
+        if ok(val):
             return val
     except (TypeError, ValueError, OverflowError):
         pass
     if default is not None:
         return default
-    raise ReaderError(path, f"header field {what} is not a finite number: {text!r}")
+    raise ReaderError(path, f"header field {what} is not {expected}: {text!r}")
+
+
+def to_float(path, text, what: str, default=None) -> float:
+    """``float(text)`` (finite; a decimal comma read as a point) or ``default``; :class:`ReaderError` if neither."""
+    return _header_number(path, text, what, default, lambda t: float(t.replace(",", ".") if isinstance(t, str) else t),
+                          math.isfinite, "a finite number")
 
 
 def to_int(path, text, what: str, default=None, minimum: int = 0) -> int:
     """``int(text)`` (``>= minimum``) or ``default``; :class:`ReaderError` if neither."""
-    try:
-        val = int(str(text).strip()) if isinstance(text, (str, bytes)) else int(text)
-        if val >= minimum:
-            return val
-    except (TypeError, ValueError, OverflowError):
-        pass
-    if default is not None:
-        return default
-    raise ReaderError(path, f"header field {what} is not an integer >= {minimum}: {text!r}")
+    return _header_number(path, text, what, default, int, lambda v: v >= minimum, f"an integer >= {minimum}")
 
 
 def clean_text(raw: bytes, encoding: str = "latin-1") -> str:
