@@ -315,6 +315,14 @@ def _predicted_error(curve: xr.DataArray, ds: xr.Dataset, coord: str, quantity):
     return curve, err.assign_coords({coord: curve[coord]})
 
 
+def _mask_short_scales(y, cut, *, x, spectrum: bool):
+    """``y`` (abscissae ``x`` on its last axis) with the points below the short cutoff ``cut`` set to NaN
+    (spectra: above the wavevector ``2π/cut``); a cutoff that is not positive masks nothing."""
+    cut = np.asarray(cut)[..., np.newaxis]
+    keep = (x <= 2 * np.pi / cut) if spectrum else (x >= cut)
+    return np.where(keep | ~(cut > 0), y, np.array(np.nan, dtype=y.dtype))
+
+
 def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bool) -> xr.DataArray:
     """Mask (never drop) the unreliable scales so every backend yields the same coordinates.
 
@@ -333,9 +341,10 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
             method = "sampling"
         cut = np.fmax(cut, sampling)
     cut.attrs["method"] = method
-    x = curve[coord]
-    keep = (x <= 2 * np.pi / cut) if coord == "q" else (x >= cut)
-    out = curve.where(keep | ~(cut > 0))
+    out = xr.apply_ufunc(_mask_short_scales, curve, cut, input_core_dims=[[coord], []], output_core_dims=[[coord]],
+                         kwargs={"x": np.asarray(curve[coord].values), "spectrum": coord == "q"},
+                         dask="parallelized", output_dtypes=[curve.dtype])  # one dask array, not seven
+    out = out.transpose(*curve.dims, ...)
     out.attrs = dict(curve.attrs, reliable=1)
     return out.assign_coords(reliability_cutoff=cut.variable)
 

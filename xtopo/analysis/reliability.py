@@ -18,7 +18,7 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
-from .._apply import apply_lateral
+from .._apply import apply_lateral, check_core_chunks
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import length_attr, length_factor
 from ..errors import GridError
@@ -62,6 +62,31 @@ def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarra
     return out
 
 
+def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) -> xr.DataArray:
+    """Tip-radius cutoff of eq. (13) along each of ``dims`` (combined by max), on the heights ``h``."""
+    cut = None
+    for dim in dims:
+        other = [d for d in lat if d != dim]
+        dx = spacings[dim]
+        emax = (h.sizes[dim] - 1) / 2
+        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(emax))) + 1)
+        etas = np.unique(np.geomspace(1.0, emax, nb))
+        curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
+                             output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
+                             kwargs=dict(dx=dx, etas=etas, periodic=periodic, rows=len(other)),
+                             height_power=(1,), what="reliability_cutoff")
+        one = xr.apply_ufunc(_crossing, curv, input_core_dims=[["_eta"]],
+                             kwargs=dict(dist=2 * etas * dx, threshold=threshold))
+        cut = one if cut is None else np.maximum(cut, one)
+    return cut
+
+
+def _tip_cutoff_block(values: np.ndarray, *, batch, lat, **kw) -> np.ndarray:
+    """:func:`_tip_cutoff` of one block of heights (lateral dims last), as numpy."""
+    return _tip_cutoff(xr.DataArray(values, dims=batch + tuple(lat)), lat=lat, **kw).transpose(*batch).values
+
+
+
 @checked
 def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> xr.DataArray:
     """Shortest reliable length scale of a measurement (paper §4.9).
@@ -103,32 +128,20 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
                             attrs={"units": units, "long_name": "short reliability cutoff", "method": "none"})
     threshold = c / tip
     h = prep.h
-    parts = []
-    for dim in prep.lat:
-        other = [d for d in prep.lat if d != dim]
-        n = h.sizes[dim]
-        dx = prep.spacing(dim)
-        emax = (n - 1) / 2
-        if emax < 1:
-            continue
-        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(emax))) + 1)
-        etas = np.unique(np.geomspace(1.0, emax, nb))
-        curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
-                             output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
-                             kwargs=dict(dx=dx, etas=etas, periodic=prep.periodic, rows=len(other)),
-                             height_power=(1,), what="reliability_cutoff")
-        parts.append(curv.assign_coords(_eta=2 * etas * dx))
-    if not parts:
+    dims = [dim for dim in prep.lat if (h.sizes[dim] - 1) / 2 >= 1]
+    if not dims:
         raise GridError(f"reliability_cutoff: the tip-radius criterion (eq. 13) needs at least 3 points along "
                         f"{' or '.join(repr(d) for d in prep.lat)}, these data have {dict(h.sizes)}; remove the "
                         "'tip_radius' attribute or pass reliable=False")
-    # curvature criterion along every direction; the cutoffs of the directions are combined by max
-    cut = None
-    for curv in parts:
-        dist = np.asarray(curv["_eta"].values)
-        one = xr.apply_ufunc(_crossing, curv, input_core_dims=[["_eta"]], kwargs=dict(dist=dist, threshold=threshold),
+    kw = dict(lat=tuple(prep.lat), dims=tuple(dims), spacings={d: prep.spacing(d) for d in dims},
+              periodic=prep.periodic, threshold=threshold)
+    if h.chunks is None:
+        cut = _tip_cutoff(h, **kw)
+    else:  # one task per chunk, not a chain of dask arrays: building those dominated twins of many files
+        check_core_chunks(h, tuple(prep.lat), "reliability_cutoff")
+        batch = tuple(d for d in h.dims if d not in prep.lat)
+        cut = xr.apply_ufunc(_tip_cutoff_block, h, input_core_dims=[list(prep.lat)], kwargs=dict(kw, batch=batch),
                              dask="parallelized", output_dtypes=[float])
-        cut = one if cut is None else np.maximum(cut, one)
     cut = cut.drop_vars([v for v in cut.coords if v == "_eta"], errors="ignore")
     cut.name = "reliability_cutoff"
     cut.attrs = {"units": units, "long_name": "short reliability cutoff", "method": "tip_radius",
