@@ -16,8 +16,8 @@ import xarray as xr
 from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
 from ..errors import ContactError, UnitsError, XtopoError
 from ..contact.models import scene_models
-from ..contact.solve import ONE_SEQUENCE, control_value, given, solver_parameters
-from ..params import Count, Flag, LengthUnit, Positive, checked
+from ..contact.solve import ONE_SEQUENCE, control_value, solver_parameters
+from ..params import Flag, LengthUnit, checked
 from ._engine import run_batch
 from ._inputs import Progress, Retries, StorePath, Workers, checked_read_options, names_and_sources, run_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
@@ -156,14 +156,11 @@ def _snap_grid(ds):
     return ds.assign_coords(snapped)
 
 
-_SCENE = Positive(error=ContactError)  # the scene's and the solver's parameters, as Scene and solve declare them
-
-
 @checked(ONE_SEQUENCE)
 def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
-            modulus: Annotated[float, _SCENE] = 1.0, hardness: Annotated[float | None, _SCENE] = None,
+            modulus: float = 1.0, hardness: float | None = None,
             periodic: Annotated[bool | None, Flag(error=ContactError)] = None,
-            tol: Annotated[float | None, _SCENE] = None, maxiter: Annotated[int | None, Count(error=ContactError)] = None,
+            tol: float | None = None, maxiter: int | None = None,
             maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
             workers: Workers = None, store: StorePath = None, progress: Progress = True, fft_threads: Workers = 1,
             retries: Retries = 1, read_options: dict | None = None, units: Annotated[str | None, LengthUnit()] = None,
@@ -227,11 +224,13 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         '' where it failed). Where some item failed, ``iterations`` and ``converged`` are
         floats (1.0/0.0 for True/False, NaN for the failed items), as :func:`run` says.
     """
-    control, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
-    control = control[:-1]
+    # the one control (ONE_SEQUENCE, declared above); modulus, hardness, tol and maxiter are checked below by
+    # the functions Scene and solve use, once here for every item
+    control, values = next((k[:-1], v) for k, v in (("loads", loads), ("mean_pressures", mean_pressures),
+                                                    ("penetrations", penetrations)) if v is not None)
     _require_contact()
     models = scene_models(modulus, hardness)
-    # parameters shared by every item are declared (checked here, not N times in the workers)
+    # parameters shared by every item are checked here, not N times in the workers
     tol, maxiter = solver_parameters(tol, maxiter)
     run_options(_contact_item, control, values)  # values: a 1D, non-empty sequence
     values = [control_value(control, v, models) for v in np.atleast_1d(np.asarray(values, dtype=object))]
