@@ -27,8 +27,7 @@ import struct
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from .._tiff import TiffFile, head_tags
-from ..registry import Format, register
-from ._common import channel_info, guarded, measurement, parse_time, pick_channel, value_unit
+from ._common import channel_format, channel_info, measurement, parse_time, value_unit
 
 MAGIC = 0x0E031301
 _DTYPES = {0: "<i2", 1: "<i4", 2: "<f4"}
@@ -70,18 +69,10 @@ def _parse(path):
     name = hdr["source"] or "Z Height"
     unit = hdr["zunit"] or "um"
     info = channel_info(0, name, (hdr["ny"], hdr["nx"]), (hdr["ly"], hdr["lx"]), "um", unit)
-    return tif, hdr, info
+    return [info], tif, hdr
 
 
-@guarded("Park TIFF")
-def _channels(path):
-    return [_parse(path)[2]]
-
-
-@guarded("Park TIFF")
-def _read(path, *, channel=None):
-    tif, hdr, info = _parse(path)
-    pick_channel(path, [info], channel)
+def _load(path, info, tif, hdr):
     typ, count, off = tif.ifds[0].get(50434, (None, 0, -1))
     if off < 0:
         raise ReaderError(path, "Park data tag 50434 is missing or points beyond the end of the file")
@@ -100,5 +91,5 @@ def _read(path, *, channel=None):
                        value_units=info.height_units, height_scale=hdr["gain"], **attrs)
 
 
-FORMAT = register(Format("park_tiff", "Park Systems (PSIA) TIFF image", (".tiff", ".tif"),
-                         _sniff, _read, _channels, priority=20))
+channel_format("park_tiff", "Park Systems (PSIA) TIFF image", (".tiff", ".tif"), _sniff, "Park TIFF", _parse, _load,
+               priority=20)

@@ -25,8 +25,7 @@ import re
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, unit_factor,
+from ._common import (channel_format, channel_info, length_unit, measurement, to_float, to_int, unit_factor,
                       value_unit)
 
 _DTYPES = {"short": "<i2", "integer": "<i4", "int": "<i4", "float": "<f4", "double": "<f8",
@@ -89,7 +88,7 @@ def _parse(path):
         if vmax == vmin:
             raise ReaderError(path, "WSxM Maximum equals Minimum: the integer height scale is undefined")
         scale = zamp / (vmax - vmin)
-    return data, start, _DTYPES[kind], info, scale, zunit, lunit, fields
+    return [info], data, start, _DTYPES[kind], scale, zunit, lunit, fields
 
 
 def _factor(path, unit, to):
@@ -99,15 +98,7 @@ def _factor(path, unit, to):
     return f
 
 
-@guarded("WSxM")
-def _channels(path):
-    return [_parse(path)[3]]
-
-
-@guarded("WSxM")
-def _read(path, *, channel=None):
-    data, start, dtype, info, scale, zunit, lunit, fields = _parse(path)
-    pick_channel(path, [info], channel)
+def _load(path, info, data, start, dtype, scale, zunit, lunit, fields):
     ny, nx = info.shape
     raw = BinaryReader(data, path).array(dtype, nx * ny, what="WSxM image data", at=start).reshape(ny, nx)
     raw = raw[:, ::-1]  # rows are stored right to left
@@ -122,5 +113,5 @@ def _read(path, *, channel=None):
                        height_scale=scale, **attrs)
 
 
-FORMAT = register(Format("wsxm", "WSxM image (Nanotec Electronica)", (".top", ".stp", ".ch1", ".ch2", ".cur"),
-                         _sniff, _read, _channels, priority=10))
+channel_format("wsxm", "WSxM image (Nanotec Electronica)", (".top", ".stp", ".ch1", ".ch2", ".cur"), _sniff, "WSxM",
+               _parse, _load)
