@@ -25,16 +25,12 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, lateral_unit_or_given, length_unit, measurement, metres_assumed,
-                      pick_channel, sniff_magic, value_unit)
+from ._common import (channel_format, channel_info, lateral_unit_or_given, length_unit, measurement, metres_assumed,
+                      sniff_magic, value_unit)
 
 _MAGIC = b"GWYP"
 _MAX_DEPTH = 64
 _SCALARS = {"b": ("<u1", 1), "c": ("<u1", 1), "i": ("<i4", 4), "q": ("<i8", 8), "d": ("<f8", 8)}
-
-
-_sniff = sniff_magic(_MAGIC)
 
 
 class _Parser:
@@ -137,16 +133,8 @@ def _parse(path, file_units=None):
     return infos, fields
 
 
-@guarded("GWY")
-def _channels(path, *, file_units=None):
-    return _parse(path, file_units)[0]
-
-
-@guarded("GWY")
-def _read(path, *, channel=None, file_units=None):
-    infos, fields = _parse(path, file_units)
-    i = pick_channel(path, infos, channel)
-    info, f = infos[i], fields[i]
+def _load(path, info, fields, file_units=None):
+    f = fields[info.index]
     values = np.array(f["data"], dtype=np.float64).reshape(info.shape)
     attrs = dict(vendor="Gwyddion", gwy_key=f["key"])
     meta = f["meta"]
@@ -160,5 +148,5 @@ def _read(path, *, channel=None, file_units=None):
                        value_units=f["zunit"] or f["lunit"], **attrs)
 
 
-FORMAT = register(Format("gwy", "Gwyddion native file (GwyContainer)", (".gwy",), _sniff, _read, _channels,
-                         priority=10, options=("file_units",)))
+channel_format("gwy", "Gwyddion native file (GwyContainer)", (".gwy",), sniff_magic(_MAGIC), "GWY", _parse, _load,
+               options=("file_units",))

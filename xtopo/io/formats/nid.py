@@ -22,8 +22,7 @@ import re
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit
+from ._common import channel_format, channel_info, length_unit, measurement, to_float, to_int, value_unit
 
 _MARK = b"#!"
 
@@ -92,19 +91,11 @@ def _parse(path):
             blocks.append(dict(offset=offset, dtype=dtype, nx=nx, ny=ny, scale=vrange / float(1 << bits),
                                zero=vmin - raw_min * vrange / float(1 << bits), unit=unit, lunit=xu))
             offset += nx * ny * bits // 8
-    return data, ini, infos, blocks
+    return infos, data, ini, blocks
 
 
-@guarded("NID")
-def _channels(path):
-    return _parse(path)[2]
-
-
-@guarded("NID")
-def _read(path, *, channel=None):
-    data, ini, infos, blocks = _parse(path)
-    i = pick_channel(path, infos, channel)
-    b, info = blocks[i], infos[i]
+def _load(path, info, data, ini, blocks):
+    b = blocks[info.index]
     r = BinaryReader(data, path)
     if b["offset"] > len(data):
         raise ReaderError(path, f"NID channel {info.name!r} starts beyond the end of the file (truncated)")
@@ -131,4 +122,4 @@ def _read(path, *, channel=None):
                        **attrs)
 
 
-FORMAT = register(Format("nid", "Nanosurf NID image", (".nid",), _sniff, _read, _channels, priority=10))
+channel_format("nid", "Nanosurf NID image", (".nid",), _sniff, "NID", _parse, _load)

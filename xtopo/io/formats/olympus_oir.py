@@ -34,9 +34,8 @@ from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from .._xml import child, child_text, local_name, parse_xml
 from .._zip import open_zip, read_member
-from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel, sniff_magic,
-                      to_float, to_int, unit_factor)
+from ._common import (channel_format, channel_info, length_unit, measurement, parse_time, sniff_magic, to_float, to_int,
+                      unit_factor)
 
 _MAGIC = b"OLYMPUSRAWFORMAT"
 _HEADER = 96
@@ -176,19 +175,11 @@ def _all(path):
                         raise
     if not found:
         raise ReaderError(path, "the OIR file holds no HEIGHT channel")
-    return [(dataclasses.replace(info, index=i), extra) for i, (info, extra) in enumerate(found)]
+    return [dataclasses.replace(info, index=i) for i, (info, _) in enumerate(found)], [extra for _, extra in found]
 
 
-@guarded("Olympus OIR")
-def _channels(path):
-    return [info for info, _ in _all(path)]
-
-
-@guarded("Olympus OIR")
-def _read(path, *, channel=None):
-    found = _all(path)
-    i = pick_channel(path, [info for info, _ in found], channel)
-    info, extra = found[i]
+def _load(path, info, extras):
+    extra = extras[info.index]
     ny, nx = info.shape
     offset, nbytes = extra["block"]
     dtype = "u1" if extra["depth"] == 1 else "<u2"
@@ -204,7 +195,7 @@ def _sniff_poir(head: bytes, path: str) -> bool:
     return head.startswith(b"PK\x03\x04") and b".oir" in head.lower()
 
 
-register(Format("oir", "Olympus OIR laser scanning microscope file", (".oir",), sniff_magic(_MAGIC),
-                _read, _channels, priority=10))
-register(Format("poir", "Olympus packed OIR (zip of OIR files)", (".poir",), _sniff_poir, _read, _channels,
-                priority=9))
+channel_format("oir", "Olympus OIR laser scanning microscope file", (".oir",), sniff_magic(_MAGIC), "Olympus OIR", _all,
+               _load)
+channel_format("poir", "Olympus packed OIR (zip of OIR files)", (".poir",), _sniff_poir, "Olympus OIR", _all, _load,
+               priority=9)

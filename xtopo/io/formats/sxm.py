@@ -25,15 +25,10 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, sniff_magic, to_float, to_int,
-                      value_unit)
+from ._common import channel_format, channel_info, measurement, parse_time, sniff_magic, to_float, to_int, value_unit
 
 _END = b":SCANIT_END:"
 _TYPES = {"FLOAT": "f4", "INT": "i4", "UINT": "u4", "DOUBLE": "f8"}
-
-
-_sniff = sniff_magic(b":NANONIS_VERSION:")
 
 
 def _parse(path):
@@ -84,20 +79,12 @@ def _parse(path):
             name = f"{sig} ({d})"
             infos.append(channel_info(len(infos), name, (ny, nx), (ly, lx), "m", unit, hint=sig))
             images.append(dict(unit=unit, backward=d == "backward"))
-    return dict(data=data, start=mark + 2, dtype=dtype, nx=nx, ny=ny, infos=infos, images=images,
-                one=one, down=one("SCAN_DIR").lower() == "down")
+    return infos, dict(data=data, start=mark + 2, dtype=dtype, nx=nx, ny=ny, images=images, one=one,
+                       down=one("SCAN_DIR").lower() == "down")
 
 
-@guarded("Nanonis SXM")
-def _channels(path):
-    return _parse(path)["infos"]
-
-
-@guarded("Nanonis SXM")
-def _read(path, *, channel=None):
-    p = _parse(path)
-    i = pick_channel(path, p["infos"], channel)
-    info, img = p["infos"][i], p["images"][i]
+def _load(path, info, p):
+    i, img = info.index, p["images"][info.index]
     nx, ny = p["nx"], p["ny"]
     item = np.dtype(p["dtype"]).itemsize
     at = p["start"] + i * nx * ny * item
@@ -123,4 +110,4 @@ def _read(path, *, channel=None):
                        value_units=img["unit"], **attrs)
 
 
-FORMAT = register(Format("sxm", "Nanonis scan (.sxm)", (".sxm",), _sniff, _read, _channels, priority=10))
+channel_format("sxm", "Nanonis scan (.sxm)", (".sxm",), sniff_magic(b":NANONIS_VERSION:"), "Nanonis SXM", _parse, _load)
