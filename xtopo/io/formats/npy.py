@@ -18,12 +18,12 @@ from numpy.lib import format as npformat
 
 from ...errors import ReaderError
 from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array, single_channel
-from ..registry import Format, register
+from ..registry import READ_OPTIONS, Format, register
+from ._common import sniff_magic
 
 __all__ = ["read_npy", "read_npz"]
 
 _MAGIC = b"\x93NUMPY"
-_OPTIONS = ("physical_size", "file_units", "height_units")
 
 
 def _header(path, f, what):
@@ -112,10 +112,6 @@ def _channels_npz(path, **options):
             raise ReaderError(path, f"corrupt .npz archive: {exc}") from None
 
 
-def _sniff_npy(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
-
-
 def _sniff_npz(head: bytes, path: str) -> bool:
     # first local file header: name length at offset 26, name at 30
     if not head.startswith(b"PK\x03\x04") or len(head) < 30:
@@ -124,7 +120,7 @@ def _sniff_npz(head: bytes, path: str) -> bool:
     return head[30:30 + n].endswith(b".npy")
 
 
-register(Format("npy", "numpy .npy array", (".npy",), _sniff_npy, read_npy, channels=_channels_npy,
-                priority=10, options=_OPTIONS))
+register(Format("npy", "numpy .npy array", (".npy",), sniff_magic(_MAGIC), read_npy, channels=_channels_npy,
+                priority=10, options=READ_OPTIONS))
 register(Format("npz", "numpy .npz archive of arrays", (".npz",), _sniff_npz, read_npz, channels=_channels_npz,
-                priority=10, options=_OPTIONS))
+                priority=10, options=READ_OPTIONS))

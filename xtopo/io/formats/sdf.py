@@ -20,6 +20,7 @@ from ...errors import ReaderError, UnsupportedFormatError
 from .._binary import BinaryReader, read_bytes
 from .._text import header_value, parse_table
 from ..registry import Format, register
+from ._common import sniff_magic
 
 __all__ = ["read_sdf"]
 
@@ -105,8 +106,5 @@ def read_sdf(path, *, channel=None):
     raise UnsupportedFormatError(path, "not an SDF file (expected aISO-1.0, bISO-1.0, aBCR-1.0 or bBCR-1.0)")
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head[:8] in _MAGICS_ASCII + _MAGICS_BINARY
-
-
-register(Format("sdf", "ISO 25178-71 / Surfstand SDF (ASCII or binary)", (".sdf",), _sniff, read_sdf, priority=20))
+register(Format("sdf", "ISO 25178-71 / Surfstand SDF (ASCII or binary)", (".sdf",),
+                sniff_magic(*_MAGICS_ASCII, *_MAGICS_BINARY), read_sdf, priority=20))
