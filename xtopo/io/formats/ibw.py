@@ -66,16 +66,10 @@ def _parse(path, file_units=None):
     wfm_size, formula_size, note_size, data_eunits_size = hdr[2:6]
     dim_eunits = hdr[6:10]
     dim_labels = hdr[10:14]
-    wh = 64
-    npnts = r.unpack("i", "npnts", at=wh + 12)
-    typ = r.unpack("h", "wave type", at=wh + 16)
-    r.seek(wh + 28)
-    name = clean_text(r.read(32, "wave name"))
-    ndim = list(r.unpack("4i", "nDim", at=wh + 68))
-    sfa = list(r.unpack("4d", "sfA", at=wh + 84))
-    r.seek(wh + 148)
-    data_units = clean_text(r.read(4, "data units"))
-    dim_units = [clean_text(r.read(4, "dimension units")) for _ in range(4)]
+    # WaveHeader5 from offset 12 to 168: npnts, type, name, nDim, sfA (sfB skipped), dataUnits, dimUnits[4]
+    npnts, typ, name, *fields = r.unpack("ih10x32s8x4i4d32x4s4s4s4s4s", "IBW wave header", at=64 + 12)
+    name, ndim, sfa = clean_text(name), list(fields[:4]), fields[4:8]
+    data_units, *dim_units = (clean_text(u) for u in fields[8:])
     if typ & 1:
         raise ReaderError(path, "complex Igor waves are not topographies")
     if typ not in _TYPES:

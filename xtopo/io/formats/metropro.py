@@ -25,6 +25,10 @@ from ._common import ChannelInfo, channel_format, clean_text, sniff_magic, unix_
 _MAGICS = (b"\x88\x1b\x03\x6f", b"\x88\x1b\x03\x70", b"\x88\x1b\x03\x71")
 _PHASE_RES = {0: 4096, 1: 32768, 2: 131072}
 _INVALID = 2147483640
+#: the header fields read, from offset 0 (the layout above; ``x``: bytes skipped)
+_HEADER = "4sHI42x3H2xI4x2HIi82s2x6f30xh22xH2x12s40s"
+_NAMES = ("magic format header_size ac_w ac_h ac_buckets ac_bytes nx ny cn_bytes time comment S wavelength _na O "
+          "magnification lateral_res phase_res serial objective part").split()
 
 
 def _parse(path):
@@ -32,16 +36,8 @@ def _parse(path):
     r = BinaryReader(data, path, ">")
     if data[:4] not in _MAGICS:
         raise r.error("not a Zygo MetroPro DAT file")
-    h = {"header_size": r.unpack("I", "header size", at=6)}
-    h["ac_w"], h["ac_h"], h["ac_buckets"] = r.unpack("3H", "intensity size", at=52)
-    h["ac_bytes"] = r.unpack("I", "intensity size", at=60)
-    h["nx"], h["ny"], h["cn_bytes"], h["time"] = r.unpack("2HIi", "phase size", at=68)
-    h["comment"] = clean_text(r.read(82, "comment"))
-    h["S"], h["wavelength"], _na, h["O"], h["magnification"], h["lateral_res"] = r.unpack("6f", "scales", at=164)
-    h["phase_res"] = r.unpack("h", "phase_res", at=218)
-    h["objective"] = clean_text(r.read(12, "objective name") if r.seek(246) is None else b"")
-    h["part"] = clean_text(r.read(40, "part name"))
-    h["serial"] = r.unpack("H", "serial", at=242)
+    h = dict(zip(_NAMES, r.unpack(_HEADER, "MetroPro header", at=0)))
+    h.update({k: clean_text(h[k]) for k in ("comment", "objective", "part")})
     if h["phase_res"] not in _PHASE_RES:
         raise r.error(f"unknown MetroPro phase resolution code {h['phase_res']}")
     if h["nx"] == 0 or h["ny"] == 0:

@@ -67,25 +67,13 @@ def _parse_header(path, data: bytes) -> list[tuple[str, dict]]:
     return sections
 
 
-def _value(text: str):
-    """``(soft scale name, hard value, hard unit)`` of a ``V [..] (..) value unit`` field."""
+def _value(text: str, bare: bool = False):
+    """``(soft scale name, hard value, hard unit)`` of a ``V [..] (..) value unit`` field (``bare``: or of a
+    ``value unit`` without the type letter, as a sensitivity ``@Sens. X: V 20.8 nm/V`` may be)."""
     m = _VALUE_RE.match(text or "")
-    if not m:
-        return None, None, ""
-    soft, rest = m.group(2), m.group(4)
-    nm = _NUM_UNIT_RE.match(rest)
-    if not nm:
-        return soft, None, ""
-    return soft, float(nm.group(1)), nm.group(2)
-
-
-def _sens(text: str):
-    """``(value, unit)`` of ``@Sens. X: V 20.8 nm/V``."""
-    m = _VALUE_RE.match(text or "")
-    nm = _NUM_UNIT_RE.match(m.group(4) if m else (text or ""))
-    if not nm:
-        return None, ""
-    return float(nm.group(1)), nm.group(2)
+    nm = _NUM_UNIT_RE.match(m.group(4) if m else (text or "") if bare else "")
+    soft = m.group(2) if m else None
+    return (soft, float(nm.group(1)), nm.group(2)) if nm else (soft, None, "")
 
 
 def _scan_size(path, text: str, what: str):
@@ -157,7 +145,7 @@ def _parse(path):
         scale = hard_value / float(1 << (8 * bpp))
         unit = hard_unit
         if soft:
-            sval, sunit = _sens(sens.get(soft.lower(), ""))
+            _, sval, sunit = _value(sens.get(soft.lower(), ""), bare=True)
             if sval is not None:
                 scale *= sval
                 if "/" in sunit:
