@@ -269,9 +269,10 @@ def unix_time(seconds) -> str | None:
         return None
 
 
-def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, value_units: str,
-                height_scale: float = 1.0, mask=None, **attrs):
-    """Build the measurement for one channel.
+def measurement(path, values, info: ChannelInfo, *, size=None, lateral_units: str | None = None,
+                value_units: str | None = None, height_scale: float = 1.0, mask=None, **attrs):
+    """Build the measurement for one channel (``size``, ``lateral_units``, ``value_units``: by default those of
+    ``info``).
 
     Height channels (``value_units`` a length) are converted to ``lateral_units`` so that the
     Dataset has one length unit.  Other channels (phase, amplitude, current, ...) keep their
@@ -280,7 +281,9 @@ def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, va
     :func:`xtopo.open_topography` refuses it with an :class:`UnsupportedFormatError` that
     names the file, while the format's own ``read`` returns it.
     """
-    lat = normalize_units(lateral_units)
+    size = info.size if size is None else size
+    value_units = info.height_units if value_units is None else value_units
+    lat = normalize_units(info.units if lateral_units is None else lateral_units)
     vlen = length_unit(value_units)
     scale = float(height_scale)
     if vlen is not None:

@@ -144,8 +144,7 @@ def _load(path, info, fields, file_units=None):
                 attrs[f"meta_{re.sub(r'[^A-Za-z0-9_]+', '_', k).strip('_')}"] = v
     if f["assumed"] and file_units is None:
         attrs.update(metres_assumed(path, "Gwyddion data field"))
-    return measurement(path, values, info, size=info.size, lateral_units=f["lunit"],
-                       value_units=f["zunit"] or f["lunit"], **attrs)
+    return measurement(path, values, info, value_units=f["zunit"] or f["lunit"], **attrs)
 
 
 channel_format("gwy", "Gwyddion native file (GwyContainer)", (".gwy",), sniff_magic(_MAGIC), "GWY", _parse, _load,

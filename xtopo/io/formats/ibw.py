@@ -148,8 +148,7 @@ def _load(path, info, p, file_units=None):
     )
     if p["assumed"] and file_units is None:
         attrs.update(metres_assumed(path, "Igor wave"))
-    return measurement(path, arr, info, size=info.size, lateral_units=p["lunit"],
-                       value_units=info.height_units or p["lunit"], **attrs)
+    return measurement(path, arr, info, value_units=info.height_units or p["lunit"], **attrs)
 
 
 channel_format("ibw", "Igor Pro binary wave (Asylum Research AFM)", (".ibw",), _sniff, "IBW", _parse, _load, priority=5,

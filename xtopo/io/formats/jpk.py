@@ -106,7 +106,7 @@ def _load(path, info, tif, chans):
         calibration_slot=ch["slot"],
         channel_id=ch["ident"],
     )
-    return measurement(path, values, info, size=info.size, lateral_units="m", value_units=ch["unit"], **attrs)
+    return measurement(path, values, info, **attrs)
 
 
 def _instrument(tif: TiffFile):

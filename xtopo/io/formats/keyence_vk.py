@@ -108,8 +108,7 @@ def _load(path, info, r, images, meta, dz):
     ny, nx = info.shape
     values = r.array(_DEPTHS[depth], nx * ny, f"Keyence {info.name} image", at=start).reshape(ny, nx)
     is_height = info.height_units == "pm"
-    return measurement(path, values.astype(np.float64), info, size=info.size, lateral_units="pm",
-                       value_units=info.height_units, height_scale=dz if is_height else 1.0, vendor="Keyence",
+    return measurement(path, values.astype(np.float64), info, height_scale=dz if is_height else 1.0, vendor="Keyence",
                        instrument="Keyence VK-X laser scanning confocal microscope",
                        acquisition_time=meta["acquisition_time"], objective=meta.get("objective"),
                        objective_magnification=meta["objective_magnification"],

@@ -109,8 +109,7 @@ def _load(path, info, heights, valid, dz, meta):
         if bits.shape != z.shape:
             raise ReaderError(path, f"the ZON validity map is {bits.shape}, the heights {z.shape}")
         mask = (bits & _INVALID_BITS) != 0
-    return measurement(path, z, info, size=info.size, lateral_units="m", value_units="m", height_scale=dz, mask=mask,
-                       vendor="Keyence", **meta)
+    return measurement(path, z, info, height_scale=dz, mask=mask, vendor="Keyence", **meta)
 
 
 channel_format("zon", "Keyence ZON (VR series 3D macroscope)", (".zon",), _sniff, _WHAT, _parse, _load)

@@ -93,8 +93,8 @@ def _load(path, info, r, frames):
     _name, (ny, nx), size, xu, zu, zstep, zoff, start, date = frames[info.index]
     raw = r.array("<i2", nx * ny, f"MDT frame {info.name!r}", at=start).reshape(ny, nx)[::-1]
     values = raw.astype(np.float64) * zstep + zoff
-    return measurement(path, values, info, size=size, lateral_units=xu, value_units=zu, vendor="NT-MDT",
-                       acquisition_time=date, instrument="NT-MDT scanning probe microscope")
+    return measurement(path, values, info, vendor="NT-MDT", acquisition_time=date,
+                       instrument="NT-MDT scanning probe microscope")
 
 
 channel_format("mdt", "NT-MDT scanning probe microscope file (scanned frames)", (".mdt",), sniff_magic(_MAGIC),

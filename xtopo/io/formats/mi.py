@@ -59,7 +59,7 @@ def _parse(path):
         unit = value_unit(b.get("bufferUnit", ""))
         rng = to_float(path, b.get("bufferRange"), f"bufferRange of buffer {i}")
         infos.append(channel_info(i, name, (ny, nx), (ly, lx), "m", unit))
-        scales.append((rng / float(1 << (bits - 1)), unit))
+        scales.append(rng / float(1 << (bits - 1)))
     return infos, dict(data=data, start=m.end(), bits=bits, glob=glob, scales=scales, nx=nx, ny=ny)
 
 
@@ -70,7 +70,7 @@ def _load(path, info, p):
     r = BinaryReader(p["data"], path)
     raw = r.array("<i4" if item == 4 else "<i2", nx * ny, what=f"MI buffer {info.name!r}",
                   at=min(p["start"] + i * nx * ny * item, len(p["data"]))).reshape(ny, nx)
-    scale, unit = p["scales"][i]
+    scale = p["scales"][i]
     g = p["glob"]
     attrs = dict(
         instrument=f"Agilent / Molecular Imaging AFM ({g['version']})" if g.get("version") else None,
@@ -78,8 +78,7 @@ def _load(path, info, p):
         acquisition_time=parse_time(g.get("dateAcquired", ""), "%a %b %d %H:%M:%S %Y"),
         imaging_mode=g.get("mode") or None,
     )
-    return measurement(path, raw, info, size=info.size, lateral_units="m", value_units=unit,
-                       height_scale=scale, **attrs)
+    return measurement(path, raw, info, height_scale=scale, **attrs)
 
 
 channel_format("mi", "Agilent / Molecular Imaging PicoView image (.mi)", (".mi",),

@@ -180,8 +180,7 @@ def _load(path, info, data, glob, channels):
     if tip_nm is not None:
         # "Tip Radius" carries no unit in the header; Bruker states it in nm
         attrs["tip_radius"] = tip_nm * (unit_factor("nm", ch["lunit"]) or 1.0)
-    return measurement(path, raw, info, size=info.size, lateral_units=ch["lunit"], value_units=ch["unit"],
-                       height_scale=ch["scale"], **attrs)
+    return measurement(path, raw, info, height_scale=ch["scale"], **attrs)
 
 
 channel_format("nanoscope", "Bruker/Digital Instruments NanoScope AFM image (.spm, .di, .00x)",

@@ -89,7 +89,7 @@ def _parse(path):
             dtype = f"{endian}{'i' if signed else 'u'}{bits // 8}"
             raw_min = -(1 << (bits - 1)) if signed else 0
             blocks.append(dict(offset=offset, dtype=dtype, nx=nx, ny=ny, scale=vrange / float(1 << bits),
-                               zero=vmin - raw_min * vrange / float(1 << bits), unit=unit, lunit=xu))
+                               zero=vmin - raw_min * vrange / float(1 << bits)))
             offset += nx * ny * bits // 8
     return infos, data, ini, blocks
 
@@ -118,8 +118,7 @@ def _load(path, info, data, ini, blocks):
         a, bb, y = int(m.group(1)), int(m.group(2)), m.group(3)
         day, month = (a, bb) if a > 12 else (bb, a)
         attrs["acquisition_time"] = f"{y}-{month:02d}-{day:02d}T{time}"
-    return measurement(path, values, info, size=info.size, lateral_units=b["lunit"], value_units=b["unit"],
-                       **attrs)
+    return measurement(path, values, info, **attrs)
 
 
 channel_format("nid", "Nanosurf NID image", (".nid",), _sniff, "NID", _parse, _load)

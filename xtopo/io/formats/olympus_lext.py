@@ -125,8 +125,7 @@ def _load(path, info, tif, ifds, invalid, dz, meta):
     values = _image(tif, ifds[info.index], info.shape, info.name).astype(np.float64)
     is_height = info.name == "Height"
     mask = _invalid_mask(tif, invalid, info.shape) if invalid is not None else None
-    return measurement(path, values, info, size=info.size, lateral_units="pm", value_units=info.height_units,
-                       height_scale=dz if is_height else 1.0, mask=mask, vendor="Olympus",
+    return measurement(path, values, info, height_scale=dz if is_height else 1.0, mask=mask, vendor="Olympus",
                        instrument="Olympus LEXT laser scanning confocal microscope", **meta)
 
 

@@ -145,7 +145,7 @@ def _channels_of(path, blocks, data, label=""):
             raise ReaderError(path, f"the OIR file has no data block for height channel {uuid}")
         name = f"{label}Height" + (f" {len(out) + 1}" if out else "")
         out.append((channel_info(0, name, (ny, nx), (ny * dy, nx * dx), units[2], units[2], height=True),
-                    dict(block=block, depth=depth, zscale=lengths[2] * cal[2], unit=units[2], meta=meta)))
+                    dict(block=block, depth=depth, zscale=lengths[2] * cal[2], meta=meta)))
     return out
 
 
@@ -187,8 +187,8 @@ def _load(path, info, extras):
         raise ReaderError(path, f"OIR data block of {nbytes} bytes does not hold {nx} x {ny} pixels of "
                                 f"{extra['depth']} bytes")
     values = extra["reader"].array(dtype, nx * ny, "OIR height data", at=offset).reshape(ny, nx)
-    return measurement(path, values.astype(np.float64), info, size=info.size, lateral_units=extra["unit"],
-                       value_units=extra["unit"], height_scale=extra["zscale"], vendor="Olympus", **extra["meta"])
+    return measurement(path, values.astype(np.float64), info, height_scale=extra["zscale"], vendor="Olympus",
+                       **extra["meta"])
 
 
 def _sniff_poir(head: bytes, path: str) -> bool:

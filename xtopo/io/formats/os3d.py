@@ -48,8 +48,7 @@ def _load(path, info, r, meta):
     ny, nx = info.shape
     z = r.array("<f4", nx * ny, "OS3D heights").astype(np.float64).reshape(ny, nx)
     mask = (z < _INVALID) | ~np.isfinite(z)
-    return measurement(path, np.where(mask, np.nan, z), info, size=info.size, lateral_units="um",
-                       value_units="um", mask=mask, vendor="Digital Metrology", **meta)
+    return measurement(path, np.where(mask, np.nan, z), info, mask=mask, vendor="Digital Metrology", **meta)
 
 
 channel_format("os3d", "Digital Metrology OmniSurf3D", (".os3d",), sniff_magic(_MAGIC), "OmniSurf3D", _parse, _load)

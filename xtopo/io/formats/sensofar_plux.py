@@ -66,9 +66,8 @@ def _load(path, info, members, items, date):
             raise ReaderError(path, f"the PLUX archive lacks the layer member {members[info.index]!r}") from None
         raw = read_member(path, zf, member, _WHAT, expected=4 * nx * ny)
     z = np.frombuffer(raw, dtype="<f4").astype(np.float64).reshape(ny, nx)
-    return measurement(path, z, info, size=info.size, lateral_units="um", value_units="um", mask=~np.isfinite(z),
-                       vendor="Sensofar", instrument=items.get("Device"), objective=items.get("Objective"),
-                       technique=items.get("Technique"), comment=items.get("Comment"),
+    return measurement(path, z, info, mask=~np.isfinite(z), vendor="Sensofar", instrument=items.get("Device"),
+                       objective=items.get("Objective"), technique=items.get("Technique"), comment=items.get("Comment"),
                        acquisition_time=parse_time(date, "%Y-%m-%dT%H:%M:%S", "%Y-%m-%d %H:%M:%S",
                                                    "%d/%m/%Y %H:%M:%S", "%a %b %d %H:%M:%S %Y"))
 

@@ -68,7 +68,7 @@ def _parse(path):
     if not rows or rows[0][:2] != ["Channel", "Name"]:
         raise ReaderError(path, "Nanonis header lacks the DATA_INFO table")
     head = rows[0]
-    infos, images = [], []
+    infos, backward = [], []
     for row in rows[1:]:
         rec = dict(zip(head, (c.strip() for c in row)))
         sig = rec.get("Name", "")
@@ -78,13 +78,13 @@ def _parse(path):
         for d in dirs:
             name = f"{sig} ({d})"
             infos.append(channel_info(len(infos), name, (ny, nx), (ly, lx), "m", unit, hint=sig))
-            images.append(dict(unit=unit, backward=d == "backward"))
-    return infos, dict(data=data, start=mark + 2, dtype=dtype, nx=nx, ny=ny, images=images, one=one,
+            backward.append(d == "backward")
+    return infos, dict(data=data, start=mark + 2, dtype=dtype, nx=nx, ny=ny, backward=backward, one=one,
                        down=one("SCAN_DIR").lower() == "down")
 
 
 def _load(path, info, p):
-    i, img = info.index, p["images"][info.index]
+    i = info.index
     nx, ny = p["nx"], p["ny"]
     item = np.dtype(p["dtype"]).itemsize
     at = p["start"] + i * nx * ny * item
@@ -92,7 +92,7 @@ def _load(path, info, p):
         raise ReaderError(path, f"Nanonis channel {info.name!r} starts beyond the end of the file (truncated)")
     values = BinaryReader(p["data"], path).array(p["dtype"], nx * ny, what=f"Nanonis channel {info.name!r}",
                                                  at=at).reshape(ny, nx)
-    if img["backward"]:
+    if p["backward"][i]:
         values = values[:, ::-1]
     if p["down"]:
         values = values[::-1, :]
@@ -106,8 +106,7 @@ def _load(path, info, p):
         comment=one("COMMENT") or None,
     )
     attrs = {k: v for k, v in attrs.items() if not (isinstance(v, float) and np.isnan(v))}
-    return measurement(path, np.ascontiguousarray(values), info, size=info.size, lateral_units="m",
-                       value_units=img["unit"], **attrs)
+    return measurement(path, np.ascontiguousarray(values), info, **attrs)
 
 
 channel_format("sxm", "Nanonis scan (.sxm)", (".sxm",), sniff_magic(b":NANONIS_VERSION:"), "Nanonis SXM", _parse, _load)

@@ -78,8 +78,7 @@ def _load(path, info, tif, hdr):
         imaging_mode=hdr["mode"] or None,
         data_gain=hdr["gain"],
     )
-    return measurement(path, values, info, size=info.size, lateral_units="um",
-                       value_units=info.height_units, height_scale=hdr["gain"], **attrs)
+    return measurement(path, values, info, height_scale=hdr["gain"], **attrs)
 
 
 channel_format("park_tiff", "Park Systems (PSIA) TIFF image", (".tiff", ".tif"), _sniff, "Park TIFF", _parse, _load,

@@ -70,10 +70,11 @@ def _parse(path):
     ny = to_int(path, fields.get("General Info/Number of rows"), "Number of rows", minimum=1)
     lx, ux = _quantity(path, fields.get("Control/X Amplitude"), "X Amplitude")
     ly, uy = _quantity(path, fields.get("Control/Y Amplitude"), "Y Amplitude")
+    for axis, unit in (("X", ux), ("Y", uy)):
+        if length_unit(unit) is None:
+            raise ReaderError(path, f"WSxM {axis} Amplitude unit {unit!r} is not a length")
     lunit = length_unit(ux)
-    if lunit is None:
-        raise ReaderError(path, f"WSxM X Amplitude unit {ux!r} is not a length")
-    ly *= _factor(path, uy, lunit)
+    ly *= unit_factor(length_unit(uy), lunit)
     zamp, zunit = _quantity(path, fields.get("General Info/Z Amplitude"), "Z Amplitude")
     kind = fields.get("General Info/Image Data Type", "short").lower()
     if kind not in _DTYPES:
@@ -88,17 +89,10 @@ def _parse(path):
         if vmax == vmin:
             raise ReaderError(path, "WSxM Maximum equals Minimum: the integer height scale is undefined")
         scale = zamp / (vmax - vmin)
-    return [info], data, start, _DTYPES[kind], scale, zunit, lunit, fields
+    return [info], data, start, _DTYPES[kind], scale, fields
 
 
-def _factor(path, unit, to):
-    f = unit_factor(length_unit(unit) or "?", to) if length_unit(unit) else None
-    if f is None:
-        raise ReaderError(path, f"WSxM Y Amplitude unit {unit!r} is not a length")
-    return f
-
-
-def _load(path, info, data, start, dtype, scale, zunit, lunit, fields):
+def _load(path, info, data, start, dtype, scale, fields):
     ny, nx = info.shape
     raw = BinaryReader(data, path).array(dtype, nx * ny, what="WSxM image data", at=start).reshape(ny, nx)
     raw = raw[:, ::-1]  # rows are stored right to left
@@ -109,8 +103,7 @@ def _load(path, info, data, start, dtype, scale, zunit, lunit, fields):
         software_version=fields.get("Miscellaneous/Saved with version"),
         comment=fields.get("Miscellaneous/Comments") or None,
     )
-    return measurement(path, raw, info, size=info.size, lateral_units=lunit, value_units=zunit,
-                       height_scale=scale, **attrs)
+    return measurement(path, raw, info, height_scale=scale, **attrs)
 
 
 channel_format("wsxm", "WSxM image (Nanotec Electronica)", (".top", ".stp", ".ch1", ".ch2", ".cur"), _sniff, "WSxM",

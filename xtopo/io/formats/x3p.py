@@ -30,7 +30,7 @@ from ...conventions import make_measurement
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._xml import child, child_text, local_name, parse_xml
-from .._zip import MAX_MEMBER, open_zip, read_member, unsafe_name
+from .._zip import open_zip, read_member, unsafe_name
 from ._common import ChannelInfo, channel_format
 
 _DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
@@ -49,11 +49,6 @@ def _sniff(head: bytes, path: str) -> bool:
         return False
 
 
-def _read_member(path, zf, info, expected=None, limit=MAX_MEMBER):
-    """Bytes of ``info``, refusing bombs and size mismatches; decompression is capped."""
-    return read_member(path, zf, info, "X3P", expected=expected, limit=limit, expected_from="main.xml")
-
-
 def _linked(path, zf, base, rec3, key, expected):
     """Bytes of the member that ``DataLink/<key>`` names (relative to main.xml), or ``None`` without one."""
     link = child_text(rec3, "DataLink", key)
@@ -66,7 +61,7 @@ def _linked(path, zf, base, rec3, key, expected):
         info = zf.getinfo(name)
     except KeyError:
         raise ReaderError(path, f"the X3P archive lacks the member {name!r} named in main.xml") from None
-    return _read_member(path, zf, info, expected=expected)
+    return read_member(path, zf, info, "X3P", expected=expected, expected_from="main.xml")
 
 
 def _open(path):
@@ -77,7 +72,7 @@ def _open(path):
     if not mains:
         zf.close()
         raise ReaderError(path, "the zip archive has no main.xml, so it is not an X3P file")
-    root = parse_xml(_read_member(path, zf, zf.getinfo(mains[0]), limit=_MAX_MAIN_XML), path, "X3P main.xml")
+    root = parse_xml(read_member(path, zf, zf.getinfo(mains[0]), "X3P", limit=_MAX_MAIN_XML), path, "X3P main.xml")
     return zf, posixpath.dirname(mains[0]), root
 
 

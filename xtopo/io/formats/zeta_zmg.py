@@ -38,8 +38,7 @@ def _parse(path):
 def _load(path, info, r, dz, meta):
     ny, nx = info.shape
     z = r.array("<u2", nx * ny, "ZMG heights").reshape(ny, nx).astype(np.float64)
-    return measurement(path, z, info, size=info.size, lateral_units="um", value_units="um", height_scale=dz,
-                       vendor="KLA", instrument="KLA Zeta optical profiler", **meta)
+    return measurement(path, z, info, height_scale=dz, vendor="KLA", instrument="KLA Zeta optical profiler", **meta)
 
 
 channel_format("zmg", "KLA Zeta optical profiler file", (".zmg",), sniff_magic(_MAGIC), "KLA Zeta ZMG", _parse, _load)

@@ -120,8 +120,7 @@ def _load(path, info, surface, attrs, no_data):
     mask = ~np.isfinite(values)
     if no_data is not None:
         mask |= values == no_data
-    return measurement(path, np.where(mask, np.nan, values), info, size=info.size, lateral_units="m",
-                       value_units=info.height_units, mask=mask, vendor="Zygo", **attrs)
+    return measurement(path, np.where(mask, np.nan, values), info, mask=mask, vendor="Zygo", **attrs)
 
 
 channel_format("datx", "Zygo DATX (Mx software, HDF5)", (".datx",), _sniff, "Zygo DATX", _parse, _load, priority=8)
