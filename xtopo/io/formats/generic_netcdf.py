@@ -40,12 +40,8 @@ def _open(path):
 
 def _variables(f):
     """``[(name, variable)]`` of the numeric variables that are not coordinate variables, in file order."""
-    out = []
-    for name, var in f.variables.items():
-        dims = tuple(var.dimensions)
-        if var.data.dtype.kind in "biuf" and not (len(dims) == 1 and dims[0] == name):
-            out.append((name, var))
-    return out
+    return [(name, var) for name, var in f.variables.items()
+            if var.data.dtype.kind in "biuf" and tuple(var.dimensions) != (name,)]
 
 
 def read_generic_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):

@@ -217,9 +217,7 @@ def read_text_measurement(path, *, channel=None, physical_size=None, file_units=
         if xcol is not None:
             return xcol
     if nrows == 1 or ncols == 1:
-        h = table.ravel()
-        size = sizes.get("x")
-        return generic_measurement(path, h, found_size=size, **common)
+        return generic_measurement(path, table.ravel(), found_size=sizes.get("x"), **common)
     found_size = (sizes["y"], sizes["x"]) if "x" in sizes and "y" in sizes else None
     return generic_measurement(path, table, found_size=found_size, **common)
 
