@@ -102,13 +102,10 @@ def _parse(path, file_units=None):
     name, root = p.obj()
     if name != "GwyContainer":
         raise ReaderError(path, f"GWY top-level object is {name!r}, not a GwyContainer")
-    keys = []
-    for key, val in root.items():
-        m = re.fullmatch(r"/(\d+)/data", key)
-        if m and isinstance(val, tuple) and val[0] == "GwyDataField":
-            keys.append((int(m.group(1)), key))
+    keys = sorted((int(key.split("/")[1]), key) for key, val in root.items()
+                  if re.fullmatch(r"/\d+/data", key) and isinstance(val, tuple) and val[0] == "GwyDataField")
     infos, fields = [], []
-    for n, key in sorted(keys):
+    for n, key in keys:
         f = root[key][1]
         nx, ny = f.get("xres"), f.get("yres")
         if not (isinstance(nx, int) and isinstance(ny, int) and nx > 0 and ny > 0):

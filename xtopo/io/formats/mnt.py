@@ -189,15 +189,10 @@ def _software(path, ole):
     return {"software": child_text(root, "ProductName"), "software_build_date": child_text(root, "BuildDate")}
 
 
-def _open(path):
+def _parse(path):
     ole = OleFile(path)
     if not ole.exists("ScopedContents"):
         raise ReaderError(path, "OLE file without a ScopedContents stream is not a Mountains document")
-    return ole
-
-
-def _parse(path):
-    ole = _open(path)
     surfaces = _surfaces(path, ole)
     infos = [ChannelInfo(i, s["name"], (s["ny"], s["nx"]), (s["ny"] * s["dy"], s["nx"] * s["dx"]), s["units"],
                          s["units"]) for i, s in enumerate(surfaces)]

@@ -64,18 +64,6 @@ def _linked(path, zf, base, rec3, key, expected):
     return read_member(path, zf, info, "X3P", expected=expected, expected_from="main.xml")
 
 
-def _open(path):
-    zf = open_zip(path, "X3P")
-    names = zf.namelist()
-    mains = sorted((n for n in names if posixpath.basename(n) == "main.xml" and not n.startswith("__MACOSX/")),
-                   key=lambda n: (n.count("/"), n))
-    if not mains:
-        zf.close()
-        raise ReaderError(path, "the zip archive has no main.xml, so it is not an X3P file")
-    root = parse_xml(read_member(path, zf, zf.getinfo(mains[0]), "X3P", limit=_MAX_MAIN_XML), path, "X3P main.xml")
-    return zf, posixpath.dirname(mains[0]), root
-
-
 def _float(text, default):
     return default if text is None else float(text)
 
@@ -108,8 +96,13 @@ def _header(path, root):
 
 
 def _parse(path):
-    zf, base, root = _open(path)
-    zf.close()
+    with open_zip(path, "X3P") as zf:
+        mains = sorted((n for n in zf.namelist() if posixpath.basename(n) == "main.xml"
+                        and not n.startswith("__MACOSX/")), key=lambda n: (n.count("/"), n))
+        if not mains:
+            raise ReaderError(path, "the zip archive has no main.xml, so it is not an X3P file")
+        root = parse_xml(read_member(path, zf, zf.getinfo(mains[0]), "X3P", limit=_MAX_MAIN_XML), path, "X3P main.xml")
+    base = posixpath.dirname(mains[0])
     axes, nx, ny, rec3 = _header(path, root)
     if ny == 1:
         return [ChannelInfo(0, "Height", (nx,), (nx * axes["CX"]["inc"],), "m", "m")], base, root, axes, nx, ny, rec3
