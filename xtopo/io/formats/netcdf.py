@@ -20,5 +20,5 @@ def _read(path, *, channel=None):
     return ds
 
 
-FORMAT = register(Format("netcdf", "xtopo NetCDF measurement", (".nc", ".nc4", ".h5", ".hdf5"),
-                         sniff_magic(b"CDF", b"\x89HDF\r\n\x1a\n"), _read, priority=-1))
+register(Format("netcdf", "xtopo NetCDF measurement", (".nc", ".nc4", ".h5", ".hdf5"),
+                sniff_magic(b"CDF", b"\x89HDF\r\n\x1a\n"), _read, priority=-1))
