@@ -77,11 +77,7 @@ class _Parser:
         if low in _SCALARS or low in "so":
             n = r.unpack("I", f"{what} array length")
             if low in _SCALARS:
-                dt, size = _SCALARS[low]
-                check_count(self.path, n, size, len(r) - r.pos, what)
-                arr = np.frombuffer(r.data, dtype=dt, count=n, offset=r.pos)
-                r.pos += n * size
-                return arr
+                return r.array(_SCALARS[low][0], n, what)
             check_count(self.path, n, 1, len(r) - r.pos, what)
             return [self.cstr(what) if low == "s" else self.obj(depth + 1) for _ in range(n)]
         raise r.error(f"unknown component type {typ!r} in {what}")

@@ -94,10 +94,9 @@ def _parse(path):
         device, scan = _xml(path, zf, _DEVICE, optional=True), _xml(path, zf, _SCAN, optional=True)
     nx, ny = BinaryReader(heights, path, "<").unpack("2I", "ZON height header")
     info = channel_info(0, "Height", (ny, nx), (ny * dxy, nx * dxy), "m", "m", height=True)
-    meta = {"instrument": child_text(device, "DeviceModelName") if device is not None else None,
-            "serial_number": child_text(device, "DeviceSerialId") if device is not None else None,
+    meta = {"instrument": child_text(device, "DeviceModelName"), "serial_number": child_text(device, "DeviceSerialId"),
             "acquisition_time": parse_time((child_text(scan, "ScanDateTime") or "")[:19], "%Y-%m-%dT%H:%M:%S",
-                                           "%Y-%m-%d %H:%M:%S", "%Y/%m/%d %H:%M:%S") if scan is not None else None}
+                                           "%Y-%m-%d %H:%M:%S", "%Y/%m/%d %H:%M:%S")}
     return [info], heights, valid, dz, meta
 
 

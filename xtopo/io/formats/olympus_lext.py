@@ -63,7 +63,7 @@ def _calibration(path, tif):
     raw = tif.raw(sub, _DEVICE_SETTINGS)  # ASCII (2) or UNDEFINED (7): bytes either way
     root = _xml_block(path, raw.decode("latin-1"), "<ExifTagDescData", "LEXT EXIF settings")
     for i, axis in enumerate("XYZ"):
-        text = child_text(root, "ImageCommonSettingsInfo", f"MakerCalibrationValue{axis}") if root is not None else None
+        text = child_text(root, "ImageCommonSettingsInfo", f"MakerCalibrationValue{axis}")
         if text is not None:
             value = 1e-6 * to_float(path, text, f"MakerCalibrationValue{axis}")
             if value > 0:

@@ -114,7 +114,7 @@ def _channels_of(path, blocks, data, label=""):
     ny = to_int(path, child_text(info, "height"), "imageInfo/height", minimum=1)
     calibration = child(root, "acquisition", "microscopeConfiguration", "pixelCalibration")
     cal = [to_float(path, child_text(calibration, a), f"pixelCalibration/{a}") if child_text(calibration, a)
-           else 1.0 for a in "xyz"] if calibration is not None else [1.0, 1.0, 1.0]
+           else 1.0 for a in "xyz"]
     prefix = (blocks.get(6) or [[""]])[0][0]
     topography = {entry[0] for entry in blocks.get(8, [])}
     meta = {"acquisition_time": parse_time((child_text(root, "general", "creationDateTime") or "")[:19],

@@ -144,7 +144,7 @@ def _load(path, info, base, root, axes, nx, ny, rec3):
         z = raw.astype(np.float64) * axes["CZ"]["inc"] + axes["CZ"]["off"]
         undefined = ~np.isfinite(z) if valid is None else (~valid | ~np.isfinite(z))
     rec2 = child(root, "Record2")
-    inst = child(rec2, "Instrument") if rec2 is not None else None
+    inst = child(rec2, "Instrument")
     manu, model = _known(child_text(inst, "Manufacturer")), _known(child_text(inst, "Model"))
     shape = (ny, nx) if ny > 1 else (nx,)
     sp = (axes["CY"]["inc"], axes["CX"]["inc"]) if ny > 1 else axes["CX"]["inc"]
@@ -153,10 +153,8 @@ def _load(path, info, base, root, axes, nx, ny, rec3):
         instrument=" ".join(t for t in (manu, model) if t) or None,
         instrument_serial=_known(child_text(inst, "Serial")),
         instrument_version=_known(child_text(inst, "Version")),
-        acquisition_time=_iso(child_text(rec2, "Date")) if rec2 is not None else None,
-        creator=child_text(rec2, "Creator") if rec2 is not None else None,
-        probing_system=_known(child_text(rec2, "ProbingSystem", "Type")) if rec2 is not None else None,
-        comment=child_text(rec2, "Comment") if rec2 is not None else None,
+        acquisition_time=_iso(child_text(rec2, "Date")), creator=child_text(rec2, "Creator"),
+        probing_system=_known(child_text(rec2, "ProbingSystem", "Type")), comment=child_text(rec2, "Comment"),
         x_offset=axes["CX"]["off"], y_offset=axes["CY"]["off"], original_units="m")
 
 
