@@ -5,6 +5,7 @@ underscore keeps the registry from importing it as one).
   turn any failure while parsing a file into a :class:`~xtopo.errors.ReaderError`
   naming the file.
 * :func:`sniff_magic` makes the sniffer of a format recognised by its first bytes.
+* :func:`channel_format` registers a format from a ``parse`` (the channels) and a ``load`` (one channel).
 * :func:`pick_channel` resolves ``channel=`` (index or name) against a list of channel
   names or :class:`ChannelInfo`.
 * :func:`to_float` / :func:`to_int` / :func:`clean_text` convert header fields defensively.
@@ -28,11 +29,11 @@ import numpy as np
 from ..._units import _ureg
 from ...conventions import make_measurement, normalize_units
 from ...errors import MetadataWarning, ReaderError, UnitsError, UnsupportedFormatError, XtopoError, warn
-from ..registry import ChannelInfo
+from ..registry import ChannelInfo, Format, register
 
 __all__ = ["reading", "guarded", "pick_channel", "to_float", "to_int", "clean_text", "length_unit", "value_unit",
            "unit_factor", "channel_info", "measurement", "unique_name", "iso_time", "parse_time", "unix_time",
-           "sniff_magic", "ChannelInfo", "HEIGHT_NAME_RE", "lateral_unit_or_given", "metres_assumed"]
+           "sniff_magic", "channel_format", "ChannelInfo", "HEIGHT_NAME_RE", "lateral_unit_or_given", "metres_assumed"]
 
 #: Channel names that denote topography (heights) rather than an auxiliary signal.
 HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|^z[ _(]", re.IGNORECASE)
@@ -94,6 +95,30 @@ def sniff_magic(*magics: bytes):
         return head.startswith(magics)
 
     return sniff
+
+
+def channel_format(name: str, description: str, suffixes: tuple, sniff, what: str, parse, load, *,
+                   priority: int = 10, options: tuple = (), empty: str | None = None) -> Format:
+    """Register (and return) the :class:`Format` ``name`` whose ``read`` and ``channels`` share one parser.
+
+    ``parse(path, **options)`` returns ``(channels, *state)``: the file's :class:`ChannelInfo`, then what
+    ``load(path, info, *state, **options)`` needs to build the Dataset of the channel ``info`` that
+    :func:`pick_channel` chose. Both run inside :func:`reading` ``(path, what)``; ``empty`` is the
+    message for a file without channels (default: :func:`pick_channel`'s).
+    """
+
+    @guarded(what)
+    def channels(path, **opts):
+        return parse(path, **opts)[0]
+
+    @guarded(what)
+    def read(path, *, channel=None, **opts):
+        infos, *state = parse(path, **opts)
+        if not infos and empty:
+            raise ReaderError(path, empty)
+        return load(path, infos[pick_channel(path, infos, channel)], *state, **opts)
+
+    return register(Format(name, description, suffixes, sniff, read, channels, priority, options))
 
 
 def _header_number(path, text, what: str, default, parse, ok, expected: str):
@@ -244,9 +269,10 @@ def unix_time(seconds) -> str | None:
         return None
 
 
-def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, value_units: str,
-                height_scale: float = 1.0, mask=None, **attrs):
-    """Build the measurement for one channel.
+def measurement(path, values, info: ChannelInfo, *, size=None, lateral_units: str | None = None,
+                value_units: str | None = None, height_scale: float = 1.0, mask=None, **attrs):
+    """Build the measurement for one channel (``size``, ``lateral_units``, ``value_units``: by default those of
+    ``info``).
 
     Height channels (``value_units`` a length) are converted to ``lateral_units`` so that the
     Dataset has one length unit.  Other channels (phase, amplitude, current, ...) keep their
@@ -255,7 +281,9 @@ def measurement(path, values, info: ChannelInfo, *, size, lateral_units: str, va
     :func:`xtopo.open_topography` refuses it with an :class:`UnsupportedFormatError` that
     names the file, while the format's own ``read`` returns it.
     """
-    lat = normalize_units(lateral_units)
+    size = info.size if size is None else size
+    value_units = info.height_units if value_units is None else value_units
+    lat = normalize_units(info.units if lateral_units is None else lateral_units)
     vlen = length_unit(value_units)
     scale = float(height_scale)
     if vlen is not None:

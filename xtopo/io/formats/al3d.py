@@ -14,14 +14,10 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader
-from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, pick_channel, reading, sniff_magic
+from ._common import ChannelInfo, channel_format, clean_text, sniff_magic
 
 _MAGIC = b"AliconaImaging\x00\r\n"
 _TAG = 52
-
-
-_sniff = sniff_magic(_MAGIC)
 
 
 def _parse(path):
@@ -49,33 +45,25 @@ def _parse(path):
         raise r.error(f"AL3D header lacks the tag {exc.args[0]!r}") from None
     if nx <= 0 or ny <= 0 or not (dx > 0 and dy > 0):
         raise r.error(f"invalid AL3D grid {nx} x {ny} with pixel size {dx} x {dy} m")
-    return r, tags, nx, ny, dx, dy, offset
+    return [ChannelInfo(0, "Depth", (ny, nx), (ny * dy, nx * dx), "m", "m")], r, tags, dx, dy, offset
 
 
-def _channels(path):
-    with reading(path, "Alicona AL3D"):
-        _r, _t, nx, ny, dx, dy, _o = _parse(path)
-        return [ChannelInfo(0, "Depth", (ny, nx), (ny * dy, nx * dx), "m", "m")]
+def _load(path, info, r, tags, dx, dy, offset):
+    ny, nx = info.shape
+    row = (nx * 4 + 7) // 8 * 8 // 4  # row length with padding, in floats
+    texture = int(tags.get("TextureImageOffset", "0") or 0)
+    if texture > offset and not 0 <= texture - (offset + 4 * row * ny) < 4 * row:
+        raise r.error(f"the {ny} x {nx} depth image at offset {offset} does not end where the texture image "
+                      f"starts ({texture}): Rows/Cols corrupt?")
+    z = r.array("f4", row * ny, "AL3D depth image", at=offset).reshape(ny, row)[:, :nx].astype(np.float64)
+    undefined = ~np.isfinite(z)
+    invalid = float(tags.get("InvalidPixelValue", "nan"))
+    if np.isfinite(invalid):
+        undefined |= np.abs(z - invalid) <= 1e-6 * abs(invalid)
+    return make_measurement(z, spacing=(dy, dx), units="m", mask=undefined, vendor="Alicona Imaging",
+                            instrument="Alicona InfiniteFocus", software=tags.get("CreatingApplication"),
+                            comment=tags["Comment"] or None, original_units="m")
 
 
-def _read(path, *, channel=None):
-    with reading(path, "Alicona AL3D"):
-        r, tags, nx, ny, dx, dy, offset = _parse(path)
-        pick_channel(path, ["Depth"], channel)
-        row = (nx * 4 + 7) // 8 * 8 // 4  # row length with padding, in floats
-        texture = int(tags.get("TextureImageOffset", "0") or 0)
-        if texture > offset and not 0 <= texture - (offset + 4 * row * ny) < 4 * row:
-            raise r.error(f"the {ny} x {nx} depth image at offset {offset} does not end where the texture image "
-                          f"starts ({texture}): Rows/Cols corrupt?")
-        z = r.array("f4", row * ny, "AL3D depth image", at=offset).reshape(ny, row)[:, :nx].astype(np.float64)
-        undefined = ~np.isfinite(z)
-        invalid = float(tags.get("InvalidPixelValue", "nan"))
-        if np.isfinite(invalid):
-            undefined |= np.abs(z - invalid) <= 1e-6 * abs(invalid)
-        return make_measurement(z, spacing=(dy, dx), units="m", mask=undefined, vendor="Alicona Imaging",
-                                instrument="Alicona InfiniteFocus", software=tags.get("CreatingApplication"),
-                                comment=tags["Comment"] or None, original_units="m")
-
-
-FORMAT = register(Format("al3d", "Alicona Imaging AL3D depth image", (".al3d",), _sniff, _read, _channels,
-                         priority=10))
+channel_format("al3d", "Alicona Imaging AL3D depth image", (".al3d",), sniff_magic(_MAGIC), "Alicona AL3D", _parse,
+               _load)

@@ -24,15 +24,10 @@ import numpy as np
 
 from ...conventions import length_factor, make_measurement, normalize_units
 from .._binary import BinaryReader, read_bytes
-from ..registry import ChannelInfo, Format, register
-from ._common import pick_channel, reading
+from ._common import ChannelInfo, channel_format, sniff_magic
 
 _MAGIC = "fileformat = bcr"
 _FORMATS = ("bcrstm", "bcrf", "bcrstm_unicode", "bcrf_unicode")
-
-
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC.encode("latin-1")) or head.startswith(_MAGIC.encode("utf-16-le"))
 
 
 def _header(text: str) -> dict:
@@ -65,49 +60,32 @@ def _parse(path):
     nx, ny = int(h["xpixels"]), int(h["ypixels"])
     if nx <= 0 or ny <= 0:
         raise r.error(f"invalid BCR grid {nx} x {ny}")
-    return r, h, size, nx, ny
+    xu, yu, zu = (normalize_units(h.get(f"{a}unit", "nm")) for a in "xyz")
+    span = [(float(h[k]) * length_factor(u, zu), n) for k, u, n in (("ylength", yu, ny), ("xlength", xu, nx))]
+    extent = tuple(length * n / (n - 1) if n > 1 else length for length, n in span)
+    return [ChannelInfo(0, "Height", (ny, nx), extent, zu, zu)], r, h, size, f"x {xu}, y {yu}, z {zu}"
 
 
-def _units(h):
-    xu = normalize_units(h.get("xunit", "nm"))
-    yu = normalize_units(h.get("yunit", "nm"))
-    zu = normalize_units(h.get("zunit", "nm"))
-    return xu, yu, zu
+def _load(path, info, r, h, start, units):
+    ny, nx = info.shape
+    stm = h["fileformat"].startswith("bcrstm")
+    itemsize = 2 if stm else 4
+    if len(r) - start - nx * ny * itemsize >= nx * itemsize:
+        raise r.error(f"the file holds {len(r) - start} bytes of data but the {nx} x {ny} grid needs "
+                      f"{nx * ny * itemsize} (corrupt xpixels/ypixels, or data appended)")
+    raw = r.array("i2" if stm else "f4", nx * ny, "BCR height data", at=start).astype(np.float64)
+    if stm:
+        undefined = raw == 32767
+        z = raw * float(h.get("bit2nm", "1"))
+    else:
+        undefined = ~np.isfinite(raw) | (raw > 1.7e38)
+        if "voidpixels" in h:
+            void = float(h["voidpixels"])
+            undefined |= np.isclose(raw, void, rtol=1e-6)
+        z = raw
+    return make_measurement(z.reshape(ny, nx), size=info.size, units=info.units, mask=undefined.reshape(ny, nx),
+                            original_units=units, bcr_format=h["fileformat"])
 
 
-def _channels(path):
-    with reading(path, "BCR"):
-        _r, h, _s, nx, ny = _parse(path)
-        xu, yu, zu = _units(h)
-        span = [(float(h[k]) * length_factor(u, zu), n) for k, u, n in (("ylength", yu, ny), ("xlength", xu, nx))]
-        size = tuple(length * n / (n - 1) if n > 1 else length for length, n in span)
-        return [ChannelInfo(0, "Height", (ny, nx), size, zu, zu)]
-
-
-def _read(path, *, channel=None):
-    with reading(path, "BCR"):
-        r, h, start, nx, ny = _parse(path)
-        info = _channels(path)[0]
-        pick_channel(path, [info.name], channel)
-        stm = h["fileformat"].startswith("bcrstm")
-        itemsize = 2 if stm else 4
-        if len(r) - start - nx * ny * itemsize >= nx * itemsize:
-            raise r.error(f"the file holds {len(r) - start} bytes of data but the {nx} x {ny} grid needs "
-                          f"{nx * ny * itemsize} (corrupt xpixels/ypixels, or data appended)")
-        raw = r.array("i2" if stm else "f4", nx * ny, "BCR height data", at=start).astype(np.float64)
-        if stm:
-            undefined = raw == 32767
-            z = raw * float(h.get("bit2nm", "1"))
-        else:
-            undefined = ~np.isfinite(raw) | (raw > 1.7e38)
-            if "voidpixels" in h:
-                void = float(h["voidpixels"])
-                undefined |= np.isclose(raw, void, rtol=1e-6)
-            z = raw
-        xu, yu, zu = _units(h)
-        return make_measurement(z.reshape(ny, nx), size=info.size, units=zu, mask=undefined.reshape(ny, nx),
-                                original_units=f"x {xu}, y {yu}, z {zu}", bcr_format=h["fileformat"])
-
-
-FORMAT = register(Format("bcr", "BCR-STM / BCRF image (SPIP interchange)", (".bcr", ".bcrf"), _sniff, _read,
-                         _channels, priority=10))
+channel_format("bcr", "BCR-STM / BCRF image (SPIP interchange)", (".bcr", ".bcrf"),
+               sniff_magic(_MAGIC.encode("latin-1"), _MAGIC.encode("utf-16-le")), "BCR", _parse, _load)

@@ -17,15 +17,11 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, check_count
-from ..registry import ChannelInfo, Format, register
-from ._common import pick_channel, reading, sniff_magic, unix_time
+from ._common import ChannelInfo, channel_format, sniff_magic, unix_time
 
 _MAGIC = b"FRTM_GLIDERV"
 _UNDEFINED = 1
 _HEIGHT_TYPES = {0x0004: "Topography", 0x0080: "Thickness", 0x0800: "Sample thickness", 0x1000: "AFM"}
-
-
-_sniff = sniff_magic(_MAGIC)
 
 
 def _parse(path):
@@ -48,7 +44,10 @@ def _parse(path):
     for tag in (0x66, 0x67, 0x6C):
         if tag not in blocks:
             raise r.error(f"FRT file lacks the block 0x{tag:04x} (grid, size or height scale)")
-    return r, blocks
+    lx, ly = r.unpack("2d", "FRT size block", at=blocks[0x67][0])
+    images = _images(r, blocks)
+    return [ChannelInfo(i, name, (ny, nx), (ly, lx), "m", "m")
+            for i, (name, nx, ny, _b, _o, _s) in enumerate(images)], r, blocks, images
 
 
 def _images(r, blocks):
@@ -74,32 +73,19 @@ def _images(r, blocks):
     return out
 
 
-def _channels(path):
-    with reading(path, "FRT MicroProf"):
-        r, blocks = _parse(path)
-        lx, ly = r.unpack("2d", "FRT size block", at=blocks[0x67][0])
-        return [ChannelInfo(i, name, (ny, nx), (ly, lx), "m", "m")
-                for i, (name, nx, ny, _b, _o, _s) in enumerate(_images(r, blocks))]
+def _load(path, info, r, blocks, images):
+    name, nx, ny, bits, off, size = images[info.index]
+    if bits not in (16, 32):
+        raise r.error(f"unsupported FRT bit depth {bits}")
+    check_count(path, nx * ny, bits // 8, size, f"FRT raster {name!r}")
+    raw = r.array("u2" if bits == 16 else "i4", nx * ny, "FRT height data", at=off).reshape(ny, nx)[::-1]
+    _range, scale = r.unpack("Id", "FRT height scale block", at=blocks[0x6C][0])
+    undefined = raw == _UNDEFINED
+    z = np.where(undefined, np.nan, raw.astype(np.float64) * scale)
+    started = r.unpack("I", "FRT time block", at=blocks[0x72][0]) if 0x72 in blocks else 0
+    return make_measurement(z, size=info.size, units="m", mask=undefined, name=name, vendor="FRT",
+                            instrument="FRT MicroProf", acquisition_time=unix_time(started), original_units="m")
 
 
-def _read(path, *, channel=None):
-    with reading(path, "FRT MicroProf"):
-        r, blocks = _parse(path)
-        infos = _channels(path)
-        idx = pick_channel(path, [c.name for c in infos], channel)
-        name, nx, ny, bits, off, size = _images(r, blocks)[idx]
-        if bits not in (16, 32):
-            raise r.error(f"unsupported FRT bit depth {bits}")
-        check_count(path, nx * ny, bits // 8, size, f"FRT raster {name!r}")
-        raw = r.array("u2" if bits == 16 else "i4", nx * ny, "FRT height data", at=off).reshape(ny, nx)[::-1]
-        _range, scale = r.unpack("Id", "FRT height scale block", at=blocks[0x6C][0])
-        undefined = raw == _UNDEFINED
-        z = np.where(undefined, np.nan, raw.astype(np.float64) * scale)
-        started = r.unpack("I", "FRT time block", at=blocks[0x72][0]) if 0x72 in blocks else 0
-        return make_measurement(z, size=infos[idx].size, units="m", mask=undefined, name=name, vendor="FRT",
-                                instrument="FRT MicroProf", acquisition_time=unix_time(started),
-                                original_units="m")
-
-
-FORMAT = register(Format("frt", "FRT MicroProf optical profilometer data", (".frt",), _sniff, _read, _channels,
-                         priority=10))
+channel_format("frt", "FRT MicroProf optical profilometer data", (".frt",), sniff_magic(_MAGIC), "FRT MicroProf",
+               _parse, _load)

@@ -19,12 +19,12 @@ import numpy as np
 from ...errors import ReaderError
 from .._netcdf3 import check_netcdf3_header
 from .._generic import check_array_bytes, container_channels, read_container_array
-from ..registry import Format, register
+from ..registry import READ_OPTIONS, Format, register
+from ._common import sniff_magic
 
 __all__ = ["read_generic_netcdf"]
 
 _MAGIC = (b"CDF\x01", b"CDF\x02")  # classic, 64-bit offset (scipy reads no CDF-5)
-_OPTIONS = ("physical_size", "file_units", "height_units")
 _ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, OverflowError, MemoryError)
 
 
@@ -40,12 +40,8 @@ def _open(path):
 
 def _variables(f):
     """``[(name, variable)]`` of the numeric variables that are not coordinate variables, in file order."""
-    out = []
-    for name, var in f.variables.items():
-        dims = tuple(var.dimensions)
-        if var.data.dtype.kind in "biuf" and not (len(dims) == 1 and dims[0] == name):
-            out.append((name, var))
-    return out
+    return [(name, var) for name, var in f.variables.items()
+            if var.data.dtype.kind in "biuf" and tuple(var.dimensions) != (name,)]
 
 
 def read_generic_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
@@ -64,9 +60,5 @@ def _channels(path, **options):
     return container_channels(path, _open, _variables, _ERRORS, "NetCDF-3", **options)
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head[:4] in _MAGIC
-
-
-register(Format("generic-netcdf", "generic NetCDF-3 file (one 1D/2D variable)", (".nc", ".cdf"), _sniff,
-                read_generic_netcdf, channels=_channels, priority=-5, options=_OPTIONS))
+register(Format("generic-netcdf", "generic NetCDF-3 file (one 1D/2D variable)", (".nc", ".cdf"), sniff_magic(*_MAGIC),
+                read_generic_netcdf, channels=_channels, priority=-5, options=READ_OPTIONS))

@@ -25,16 +25,12 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, lateral_unit_or_given, length_unit, measurement, metres_assumed,
-                      pick_channel, sniff_magic, value_unit)
+from ._common import (channel_format, channel_info, lateral_unit_or_given, length_unit, measurement, metres_assumed,
+                      sniff_magic, value_unit)
 
 _MAGIC = b"GWYP"
 _MAX_DEPTH = 64
 _SCALARS = {"b": ("<u1", 1), "c": ("<u1", 1), "i": ("<i4", 4), "q": ("<i8", 8), "d": ("<f8", 8)}
-
-
-_sniff = sniff_magic(_MAGIC)
 
 
 class _Parser:
@@ -81,11 +77,7 @@ class _Parser:
         if low in _SCALARS or low in "so":
             n = r.unpack("I", f"{what} array length")
             if low in _SCALARS:
-                dt, size = _SCALARS[low]
-                check_count(self.path, n, size, len(r) - r.pos, what)
-                arr = np.frombuffer(r.data, dtype=dt, count=n, offset=r.pos)
-                r.pos += n * size
-                return arr
+                return r.array(_SCALARS[low][0], n, what)
             check_count(self.path, n, 1, len(r) - r.pos, what)
             return [self.cstr(what) if low == "s" else self.obj(depth + 1) for _ in range(n)]
         raise r.error(f"unknown component type {typ!r} in {what}")
@@ -106,13 +98,10 @@ def _parse(path, file_units=None):
     name, root = p.obj()
     if name != "GwyContainer":
         raise ReaderError(path, f"GWY top-level object is {name!r}, not a GwyContainer")
-    keys = []
-    for key, val in root.items():
-        m = re.fullmatch(r"/(\d+)/data", key)
-        if m and isinstance(val, tuple) and val[0] == "GwyDataField":
-            keys.append((int(m.group(1)), key))
+    keys = sorted((int(key.split("/")[1]), key) for key, val in root.items()
+                  if re.fullmatch(r"/\d+/data", key) and isinstance(val, tuple) and val[0] == "GwyDataField")
     infos, fields = [], []
-    for n, key in sorted(keys):
+    for n, key in keys:
         f = root[key][1]
         nx, ny = f.get("xres"), f.get("yres")
         if not (isinstance(nx, int) and isinstance(ny, int) and nx > 0 and ny > 0):
@@ -137,16 +126,8 @@ def _parse(path, file_units=None):
     return infos, fields
 
 
-@guarded("GWY")
-def _channels(path, *, file_units=None):
-    return _parse(path, file_units)[0]
-
-
-@guarded("GWY")
-def _read(path, *, channel=None, file_units=None):
-    infos, fields = _parse(path, file_units)
-    i = pick_channel(path, infos, channel)
-    info, f = infos[i], fields[i]
+def _load(path, info, fields, file_units=None):
+    f = fields[info.index]
     values = np.array(f["data"], dtype=np.float64).reshape(info.shape)
     attrs = dict(vendor="Gwyddion", gwy_key=f["key"])
     meta = f["meta"]
@@ -156,9 +137,8 @@ def _read(path, *, channel=None, file_units=None):
                 attrs[f"meta_{re.sub(r'[^A-Za-z0-9_]+', '_', k).strip('_')}"] = v
     if f["assumed"] and file_units is None:
         attrs.update(metres_assumed(path, "Gwyddion data field"))
-    return measurement(path, values, info, size=info.size, lateral_units=f["lunit"],
-                       value_units=f["zunit"] or f["lunit"], **attrs)
+    return measurement(path, values, info, value_units=f["zunit"] or f["lunit"], **attrs)
 
 
-FORMAT = register(Format("gwy", "Gwyddion native file (GwyContainer)", (".gwy",), _sniff, _read, _channels,
-                         priority=10, options=("file_units",)))
+channel_format("gwy", "Gwyddion native file (GwyContainer)", (".gwy",), sniff_magic(_MAGIC), "GWY", _parse, _load,
+               options=("file_units",))

@@ -18,12 +18,12 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._generic import check_array_bytes, container_channels, read_container_array
-from ..registry import Format, register
+from ..registry import READ_OPTIONS, Format, register
+from ._common import sniff_magic
 
 __all__ = ["read_hdf5", "h5_datasets", "open_h5"]
 
 _MAGIC = b"\x89HDF\r\n\x1a\n"
-_OPTIONS = ("physical_size", "file_units", "height_units")
 _H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
 
 
@@ -87,9 +87,5 @@ def _channels(path, **options):
     return container_channels(path, open_h5, h5_datasets, _H5_ERRORS, "HDF5", **options)
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
-
-
-register(Format("hdf5", "generic HDF5 file (one 1D/2D dataset)", (".h5", ".hdf5", ".hdf"), _sniff, read_hdf5,
-                channels=_channels, priority=-5, options=_OPTIONS))
+register(Format("hdf5", "generic HDF5 file (one 1D/2D dataset)", (".h5", ".hdf5", ".hdf"), sniff_magic(_MAGIC),
+                read_hdf5, channels=_channels, priority=-5, options=READ_OPTIONS))

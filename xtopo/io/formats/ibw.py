@@ -32,9 +32,8 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, lateral_unit_or_given, length_unit, measurement, metres_assumed,
-                      parse_time, pick_channel)
+from ._common import (channel_format, channel_info, clean_text, lateral_unit_or_given, length_unit, measurement,
+                      metres_assumed, parse_time)
 
 _TYPES = {2: "f4", 4: "f8", 8: "i1", 16: "i2", 32: "i4", 8 | 64: "u1", 16 | 64: "u2", 32 | 64: "u4"}
 #: Value units of Asylum channels whose wave unit (usually "m") does not apply.
@@ -54,10 +53,6 @@ def _sniff(head: bytes, path: str) -> bool:
     return False
 
 
-def _text(raw: bytes) -> str:
-    return raw.split(b"\0", 1)[0].decode("latin-1", errors="replace").strip()
-
-
 def _parse(path, file_units=None):
     data = read_bytes(path)
     if len(data) < 2:
@@ -71,16 +66,10 @@ def _parse(path, file_units=None):
     wfm_size, formula_size, note_size, data_eunits_size = hdr[2:6]
     dim_eunits = hdr[6:10]
     dim_labels = hdr[10:14]
-    wh = 64
-    npnts = r.unpack("i", "npnts", at=wh + 12)
-    typ = r.unpack("h", "wave type", at=wh + 16)
-    r.seek(wh + 28)
-    name = _text(r.read(32, "wave name"))
-    ndim = list(r.unpack("4i", "nDim", at=wh + 68))
-    sfa = list(r.unpack("4d", "sfA", at=wh + 84))
-    r.seek(wh + 148)
-    data_units = _text(r.read(4, "data units"))
-    dim_units = [_text(r.read(4, "dimension units")) for _ in range(4)]
+    # WaveHeader5 from offset 12 to 168: npnts, type, name, nDim, sfA (sfB skipped), dataUnits, dimUnits[4]
+    npnts, typ, name, *fields = r.unpack("ih10x32s8x4i4d32x4s4s4s4s4s", "IBW wave header", at=64 + 12)
+    name, ndim, sfa = clean_text(name), list(fields[:4]), fields[4:8]
+    data_units, *dim_units = (clean_text(u) for u in fields[8:])
     if typ & 1:
         raise ReaderError(path, "complex Igor waves are not topographies")
     if typ not in _TYPES:
@@ -106,15 +95,15 @@ def _parse(path, file_units=None):
     note = r.read(note_size, "wave note").decode("latin-1", errors="replace") if pos <= len(data) else ""
     ext = r.read(data_eunits_size, "extended data units") if data_eunits_size else b""
     if ext:
-        data_units = _text(ext)
+        data_units = clean_text(ext)
     for i in range(4):
         if dim_eunits[i]:
-            dim_units[i] = _text(r.read(dim_eunits[i], "extended dimension units"))
+            dim_units[i] = clean_text(r.read(dim_eunits[i], "extended dimension units"))
     labels = []
     for i in range(4):
         raw = r.read(dim_labels[i], "dimension labels") if dim_labels[i] else b""
         if i == 2:
-            labels = [_text(raw[k:k + 32]) for k in range(0, len(raw), 32)]
+            labels = [clean_text(raw[k:k + 32]) for k in range(0, len(raw), 32)]
     nchan = shape[2] if len(shape) == 3 else 1
     # the first label names the dimension itself, the others the channels
     chan_names = labels[1:1 + nchan] if len(labels) >= nchan + 1 else []
@@ -138,23 +127,14 @@ def _parse(path, file_units=None):
                 unit = u
                 break
         infos.append(channel_info(i, cname, (ny, nx), size, lunit, unit, height=True if nchan == 1 else None))
-    return dict(r=r, dtype=dtype, npnts=npnts, start=data_start, shape=shape, infos=infos, notes=notes,
-                lunit=lunit, assumed=assumed, wave=name)
+    return infos, dict(r=r, dtype=dtype, npnts=npnts, start=data_start, shape=shape, notes=notes, lunit=lunit,
+                       assumed=assumed, wave=name)
 
 
-@guarded("IBW")
-def _channels(path, *, file_units=None):
-    return _parse(path, file_units)["infos"]
-
-
-@guarded("IBW")
-def _read(path, *, channel=None, file_units=None):
-    p = _parse(path, file_units)
-    i = pick_channel(path, p["infos"], channel)
-    info = p["infos"][i]
+def _load(path, info, p, file_units=None):
     arr = p["r"].array(p["dtype"], p["npnts"], what="IBW wave data", at=p["start"])
     nx, ny = p["shape"][0], p["shape"][1]
-    arr = arr.reshape(-1, ny, nx)[i]  # first dimension fastest: (channel, y, x)
+    arr = arr.reshape(-1, ny, nx)[info.index]  # first dimension fastest: (channel, y, x)
     notes = p["notes"]
     model = notes.get("MicroscopeModel")
     date = f"{notes.get('Date', '')} {notes.get('Time', '')}"
@@ -168,9 +148,8 @@ def _read(path, *, channel=None, file_units=None):
     )
     if p["assumed"] and file_units is None:
         attrs.update(metres_assumed(path, "Igor wave"))
-    return measurement(path, arr, info, size=info.size, lateral_units=p["lunit"],
-                       value_units=info.height_units or p["lunit"], **attrs)
+    return measurement(path, arr, info, value_units=info.height_units or p["lunit"], **attrs)
 
 
-FORMAT = register(Format("ibw", "Igor Pro binary wave (Asylum Research AFM)", (".ibw",),
-                         _sniff, _read, _channels, priority=5, options=("file_units",)))
+channel_format("ibw", "Igor Pro binary wave (Asylum Research AFM)", (".ibw",), _sniff, "IBW", _parse, _load, priority=5,
+               options=("file_units",))

@@ -20,8 +20,7 @@ from __future__ import annotations
 from ...errors import ReaderError
 from .._binary import read_bytes
 from .._tiff import TiffFile, head_tags
-from ..registry import Format, register
-from ._common import channel_info, guarded, measurement, parse_time, pick_channel, to_float, unique_name, value_unit
+from ._common import channel_format, channel_info, measurement, parse_time, to_float, unique_name, value_unit
 
 _GRID = (32832, 32833, 32834, 32835, 32838, 32839)
 _MAX_SLOTS = 64
@@ -87,19 +86,11 @@ def _parse(path):
         slot, unit, mult, off = _slot(tif, ifd, path)
         infos.append(channel_info(len(infos), name, (ny, nx), (ly, lx), "m", unit, hint=ident))
         chans.append(dict(ifd=ifd, ident=ident, slot=slot, unit=unit, mult=mult, off=off))
-    return tif, infos, chans, (nx, ny)
+    return infos, tif, chans
 
 
-@guarded("JPK")
-def _channels(path):
-    return _parse(path)[1]
-
-
-@guarded("JPK")
-def _read(path, *, channel=None):
-    tif, infos, chans, (nx, ny) = _parse(path)
-    i = pick_channel(path, infos, channel)
-    info, ch = infos[i], chans[i]
+def _load(path, info, tif, chans):
+    ch, (ny, nx) = chans[info.index], info.shape
     w, h = tif.value(ch["ifd"], 256), tif.value(ch["ifd"], 257)
     if (w, h) != (nx, ny):
         raise ReaderError(path, f"JPK channel {info.name!r} is {w}x{h} pixels, the grid {nx}x{ny}")
@@ -115,7 +106,7 @@ def _read(path, *, channel=None):
         calibration_slot=ch["slot"],
         channel_id=ch["ident"],
     )
-    return measurement(path, values, info, size=info.size, lateral_units="m", value_units=ch["unit"], **attrs)
+    return measurement(path, values, info, **attrs)
 
 
 def _instrument(tif: TiffFile):
@@ -131,5 +122,5 @@ def _instrument(tif: TiffFile):
     return None
 
 
-FORMAT = register(Format("jpk", "JPK Instruments image / QI map (TIFF based)", (".jpk", ".jpk-qi-image"),
-                         _sniff, _read, _channels, priority=20))
+channel_format("jpk", "JPK Instruments image / QI map (TIFF based)", (".jpk", ".jpk-qi-image"), _sniff, "JPK", _parse,
+               _load, priority=20)

@@ -30,8 +30,7 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from .._zip import open_zip, read_member
-from ..registry import Format, register
-from ._common import channel_info, guarded, iso_time, measurement, pick_channel
+from ._common import channel_format, channel_info, iso_time, measurement
 
 _OFFSETS = ("conditions", "color_peak", "color_light", "light", "light2", "light3", "height", "height2",
             "height3", "thumb_color_peak", "thumb_color", "thumb_light", "thumb_height", "assemble",
@@ -101,31 +100,21 @@ def _parse(path):
         r.seek(offsets["strings"])
         meta["title"] = _utf16(r, "title") or None
         meta["objective"] = _utf16(r, "lens name") or None
-    return r, infos, images, meta, dz
+    return infos, r, images, meta, dz
 
 
-@guarded("Keyence VK")
-def _channels(path):
-    return _parse(path)[1]
-
-
-@guarded("Keyence VK")
-def _read(path, *, channel=None):
-    r, infos, images, meta, dz = _parse(path)
-    i = pick_channel(path, infos, channel)
-    info, (start, depth) = infos[i], images[i]
+def _load(path, info, r, images, meta, dz):
+    start, depth = images[info.index]
     ny, nx = info.shape
     values = r.array(_DEPTHS[depth], nx * ny, f"Keyence {info.name} image", at=start).reshape(ny, nx)
     is_height = info.height_units == "pm"
-    return measurement(path, values.astype(np.float64), info, size=info.size, lateral_units="pm",
-                       value_units=info.height_units, height_scale=dz if is_height else 1.0, vendor="Keyence",
+    return measurement(path, values.astype(np.float64), info, height_scale=dz if is_height else 1.0, vendor="Keyence",
                        instrument="Keyence VK-X laser scanning confocal microscope",
                        acquisition_time=meta["acquisition_time"], objective=meta.get("objective"),
                        objective_magnification=meta["objective_magnification"],
                        title=meta.get("title"))
 
 
-register(Format("vk4", "Keyence VK4 laser confocal microscope file", (".vk4",), _sniff_vk4, _read, _channels,
-                priority=10))
-register(Format("vk6", "Keyence VK6/VK7 laser confocal microscope file (zip with VK4 content)", (".vk6", ".vk7"),
-                _sniff_vk67, _read, _channels, priority=10))
+channel_format("vk4", "Keyence VK4 laser confocal microscope file", (".vk4",), _sniff_vk4, "Keyence VK", _parse, _load)
+channel_format("vk6", "Keyence VK6/VK7 laser confocal microscope file (zip with VK4 content)", (".vk6", ".vk7"),
+               _sniff_vk67, "Keyence VK", _parse, _load)

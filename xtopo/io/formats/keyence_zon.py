@@ -28,8 +28,7 @@ from ...errors import ReaderError
 from .._binary import BinaryReader, check_count
 from .._xml import child_text, parse_xml
 from .._zip import MAX_MEMBER, open_zip, read_member
-from ..registry import Format, register
-from ._common import channel_info, guarded, measurement, parse_time, pick_channel, to_float
+from ._common import channel_format, channel_info, measurement, parse_time, to_float
 
 _WHAT = "Keyence ZON"
 _HEIGHT = "4cdb0c75-5706-48cc-a9a1-adf395d609ae"
@@ -84,44 +83,32 @@ def _raster(path, data, itemsize, dtype, what):
     return r.array(dtype, ny * (stride // itemsize), f"ZON {what}").reshape(ny, stride // itemsize)[:, :nx]
 
 
-def _parse(path, zf):
-    unit = _xml(path, zf, _UNIT)
-    dxy = to_float(path, child_text(unit, "XYCalibration", "MeterPerPixel"), "XYCalibration/MeterPerPixel")
-    dz = to_float(path, child_text(unit, "ZCalibration", "MeterPerUnit"), "ZCalibration/MeterPerUnit")
-    if not (dxy > 0 and dz != 0):
-        raise ReaderError(path, f"invalid ZON calibration: {dxy} m per pixel, {dz} m per unit")
-    heights = _member(path, zf, _HEIGHT)
+def _parse(path):
+    with open_zip(path, _WHAT) as zf:
+        unit = _xml(path, zf, _UNIT)
+        dxy = to_float(path, child_text(unit, "XYCalibration", "MeterPerPixel"), "XYCalibration/MeterPerPixel")
+        dz = to_float(path, child_text(unit, "ZCalibration", "MeterPerUnit"), "ZCalibration/MeterPerUnit")
+        if not (dxy > 0 and dz != 0):
+            raise ReaderError(path, f"invalid ZON calibration: {dxy} m per pixel, {dz} m per unit")
+        heights, valid = _member(path, zf, _HEIGHT), _member(path, zf, _VALID, optional=True)
+        device, scan = _xml(path, zf, _DEVICE, optional=True), _xml(path, zf, _SCAN, optional=True)
     nx, ny = BinaryReader(heights, path, "<").unpack("2I", "ZON height header")
     info = channel_info(0, "Height", (ny, nx), (ny * dxy, nx * dxy), "m", "m", height=True)
-    device, scan = _xml(path, zf, _DEVICE, optional=True), _xml(path, zf, _SCAN, optional=True)
-    meta = {"instrument": child_text(device, "DeviceModelName") if device is not None else None,
-            "serial_number": child_text(device, "DeviceSerialId") if device is not None else None,
+    meta = {"instrument": child_text(device, "DeviceModelName"), "serial_number": child_text(device, "DeviceSerialId"),
             "acquisition_time": parse_time((child_text(scan, "ScanDateTime") or "")[:19], "%Y-%m-%dT%H:%M:%S",
-                                           "%Y-%m-%d %H:%M:%S", "%Y/%m/%d %H:%M:%S") if scan is not None else None}
-    return info, heights, dz, meta
+                                           "%Y-%m-%d %H:%M:%S", "%Y/%m/%d %H:%M:%S")}
+    return [info], heights, valid, dz, meta
 
 
-@guarded(_WHAT)
-def _channels(path):
-    with open_zip(path, _WHAT) as zf:
-        return [_parse(path, zf)[0]]
-
-
-@guarded(_WHAT)
-def _read(path, *, channel=None):
-    with open_zip(path, _WHAT) as zf:
-        info, heights, dz, meta = _parse(path, zf)
-        pick_channel(path, [info], channel)
-        z = _raster(path, heights, 4, "<i4", "height data").astype(np.float64)
-        valid = _member(path, zf, _VALID, optional=True)
+def _load(path, info, heights, valid, dz, meta):
+    z = _raster(path, heights, 4, "<i4", "height data").astype(np.float64)
     mask = None
     if valid is not None:
         bits = _raster(path, valid, 1, "u1", "validity map")
         if bits.shape != z.shape:
             raise ReaderError(path, f"the ZON validity map is {bits.shape}, the heights {z.shape}")
         mask = (bits & _INVALID_BITS) != 0
-    return measurement(path, z, info, size=info.size, lateral_units="m", value_units="m", height_scale=dz, mask=mask,
-                       vendor="Keyence", **meta)
+    return measurement(path, z, info, height_scale=dz, mask=mask, vendor="Keyence", **meta)
 
 
-register(Format("zon", "Keyence ZON (VR series 3D macroscope)", (".zon",), _sniff, _read, _channels, priority=10))
+channel_format("zon", "Keyence ZON (VR series 3D macroscope)", (".zon",), _sniff, _WHAT, _parse, _load)

@@ -12,12 +12,12 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._generic import channel_infos, generic_measurement, pick_array
-from ..registry import Format, register
+from ..registry import READ_OPTIONS, Format, register
+from ._common import sniff_magic
 from .hdf5 import h5_datasets, open_h5, read_dataset
 
 __all__ = ["read_matlab"]
 
-_OPTIONS = ("physical_size", "file_units", "height_units")
 _NUMERIC = {"double", "single", "int8", "int16", "int32", "int64", "uint8", "uint16", "uint32", "uint64", "logical"}
 _ERRORS = (ValueError, TypeError, OSError, EOFError, KeyError, IndexError, OverflowError, AttributeError,
            UnicodeDecodeError, NotImplementedError)
@@ -89,9 +89,5 @@ def _channels(path, **options):
     return channel_infos(path, _entries_v5(path), **options)
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head.startswith(b"MATLAB")
-
-
-register(Format("matlab", "MATLAB .mat file (v5/v7, v7.3)", (".mat",), _sniff, read_matlab, channels=_channels,
-                priority=10, options=_OPTIONS))
+register(Format("matlab", "MATLAB .mat file (v5/v7, v7.3)", (".mat",), sniff_magic(b"MATLAB"), read_matlab,
+                channels=_channels, priority=10, options=READ_OPTIONS))

@@ -25,8 +25,7 @@ import math
 import numpy as np
 
 from .._binary import BinaryReader, check_count
-from ..registry import Format, register
-from ._common import channel_info, guarded, iso_time, measurement, pick_channel, sniff_magic
+from ._common import channel_format, channel_info, iso_time, measurement, sniff_magic
 
 _MAGIC = b"\x01\xb0\x93\xff"
 _HEADER = 33
@@ -52,7 +51,7 @@ def _frames(path):
             if frame is not None:
                 out.append(frame)
         pos += size
-    return r, out
+    return _infos(out), r, out
 
 
 def _scanned(r, pos, size):
@@ -90,25 +89,14 @@ def _infos(frames):
     return out
 
 
-@guarded("NT-MDT")
-def _channels(path):
-    return _infos(_frames(path)[1])
-
-
-@guarded("NT-MDT")
-def _read(path, *, channel=None):
-    r, frames = _frames(path)
-    if not frames:
-        raise r.error("the MDT file holds no scanned height image (only spectroscopy, text or MDA frames)")
-    infos = _infos(frames)
-    i = pick_channel(path, infos, channel)
-    info = infos[i]
-    _name, (ny, nx), size, xu, zu, zstep, zoff, start, date = frames[i]
+def _load(path, info, r, frames):
+    _name, (ny, nx), size, xu, zu, zstep, zoff, start, date = frames[info.index]
     raw = r.array("<i2", nx * ny, f"MDT frame {info.name!r}", at=start).reshape(ny, nx)[::-1]
     values = raw.astype(np.float64) * zstep + zoff
-    return measurement(path, values, info, size=size, lateral_units=xu, value_units=zu, vendor="NT-MDT",
-                       acquisition_time=date, instrument="NT-MDT scanning probe microscope")
+    return measurement(path, values, info, vendor="NT-MDT", acquisition_time=date,
+                       instrument="NT-MDT scanning probe microscope")
 
 
-register(Format("mdt", "NT-MDT scanning probe microscope file (scanned frames)", (".mdt",), sniff_magic(_MAGIC),
-                _read, _channels, priority=10))
+channel_format("mdt", "NT-MDT scanning probe microscope file (scanned frames)", (".mdt",), sniff_magic(_MAGIC),
+               "NT-MDT", _frames, _load,
+               empty="the MDT file holds no scanned height image (only spectroscopy, text or MDA frames)")

@@ -20,16 +20,15 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, pick_channel, reading, unix_time
+from ._common import ChannelInfo, channel_format, clean_text, sniff_magic, unix_time
 
 _MAGICS = (b"\x88\x1b\x03\x6f", b"\x88\x1b\x03\x70", b"\x88\x1b\x03\x71")
 _PHASE_RES = {0: 4096, 1: 32768, 2: 131072}
 _INVALID = 2147483640
-
-
-def _sniff(head: bytes, path: str) -> bool:
-    return head[:4] in _MAGICS
+#: the header fields read, from offset 0 (the layout above; ``x``: bytes skipped)
+_HEADER = "4sHI42x3H2xI4x2HIi82s2x6f30xh22xH2x12s40s"
+_NAMES = ("magic format header_size ac_w ac_h ac_buckets ac_bytes nx ny cn_bytes time comment S wavelength _na O "
+          "magnification lateral_res phase_res serial objective part").split()
 
 
 def _parse(path):
@@ -37,16 +36,8 @@ def _parse(path):
     r = BinaryReader(data, path, ">")
     if data[:4] not in _MAGICS:
         raise r.error("not a Zygo MetroPro DAT file")
-    h = {"header_size": r.unpack("I", "header size", at=6)}
-    h["ac_w"], h["ac_h"], h["ac_buckets"] = r.unpack("3H", "intensity size", at=52)
-    h["ac_bytes"] = r.unpack("I", "intensity size", at=60)
-    h["nx"], h["ny"], h["cn_bytes"], h["time"] = r.unpack("2HIi", "phase size", at=68)
-    h["comment"] = clean_text(r.read(82, "comment"))
-    h["S"], h["wavelength"], _na, h["O"], h["magnification"], h["lateral_res"] = r.unpack("6f", "scales", at=164)
-    h["phase_res"] = r.unpack("h", "phase_res", at=218)
-    h["objective"] = clean_text(r.read(12, "objective name") if r.seek(246) is None else b"")
-    h["part"] = clean_text(r.read(40, "part name"))
-    h["serial"] = r.unpack("H", "serial", at=242)
+    h = dict(zip(_NAMES, r.unpack(_HEADER, "MetroPro header", at=0)))
+    h.update({k: clean_text(h[k]) for k in ("comment", "objective", "part")})
     if h["phase_res"] not in _PHASE_RES:
         raise r.error(f"unknown MetroPro phase resolution code {h['phase_res']}")
     if h["nx"] == 0 or h["ny"] == 0:
@@ -54,37 +45,24 @@ def _parse(path):
     if h["cn_bytes"] != 4 * h["nx"] * h["ny"]:
         raise r.error(f"the phase data size field ({h['cn_bytes']} bytes) does not match the "
                       f"{h['nx']} x {h['ny']} phase grid of 4-byte values (corrupt header)")
-    return r, h
-
-
-def _size(h):
     d = h["lateral_res"]
-    return (h["ny"] * d, h["nx"] * d) if d > 0 else None
+    return [ChannelInfo(0, "Height", (h["ny"], h["nx"]), (h["ny"] * d, h["nx"] * d) if d > 0 else None, "m", "m")], r, h
 
 
-def _channels(path):
-    with reading(path, "Zygo MetroPro"):
-        _r, h = _parse(path)
-        return [ChannelInfo(0, "Height", (h["ny"], h["nx"]), _size(h), "m", "m")]
+def _load(path, info, r, h):
+    if info.size is None:
+        raise r.error("lateral_res is zero: the lateral calibration of this MetroPro file is unknown")
+    start = h["header_size"] + h["ac_bytes"]
+    raw = r.array("i4", h["nx"] * h["ny"], "MetroPro phase data", at=start).reshape(h["ny"], h["nx"])
+    undefined = raw >= _INVALID
+    scale = h["S"] * h["O"] * h["wavelength"] / _PHASE_RES[h["phase_res"]]
+    z = np.where(undefined, np.nan, raw.astype(np.float64) * scale)
+    return make_measurement(
+        z, size=info.size, units="m", mask=undefined, vendor="Zygo", instrument="Zygo interferometer (MetroPro)",
+        acquisition_time=unix_time(h["time"]), wavelength=h["wavelength"], wavelength_units="m",
+        magnification=h["magnification"], objective=h["objective"] or None, part_name=h["part"] or None,
+        comment=h["comment"] or None, serial=str(h["serial"]) if h["serial"] else None, original_units="m")
 
 
-def _read(path, *, channel=None):
-    with reading(path, "Zygo MetroPro"):
-        r, h = _parse(path)
-        pick_channel(path, ["Height"], channel)
-        if _size(h) is None:
-            raise r.error("lateral_res is zero: the lateral calibration of this MetroPro file is unknown")
-        start = h["header_size"] + h["ac_bytes"]
-        raw = r.array("i4", h["nx"] * h["ny"], "MetroPro phase data", at=start).reshape(h["ny"], h["nx"])
-        undefined = raw >= _INVALID
-        scale = h["S"] * h["O"] * h["wavelength"] / _PHASE_RES[h["phase_res"]]
-        z = np.where(undefined, np.nan, raw.astype(np.float64) * scale)
-        return make_measurement(
-            z, size=_size(h), units="m", mask=undefined, vendor="Zygo", instrument="Zygo interferometer (MetroPro)",
-            acquisition_time=unix_time(h["time"]), wavelength=h["wavelength"], wavelength_units="m",
-            magnification=h["magnification"], objective=h["objective"] or None, part_name=h["part"] or None,
-            comment=h["comment"] or None, serial=str(h["serial"]) if h["serial"] else None, original_units="m")
-
-
-FORMAT = register(Format("metropro", "Zygo MetroPro DAT interferometer data", (".dat",), _sniff, _read,
-                         _channels, priority=10))
+channel_format("metropro", "Zygo MetroPro DAT interferometer data", (".dat",), sniff_magic(*_MAGICS), "Zygo MetroPro",
+               _parse, _load)

@@ -18,14 +18,10 @@ import re
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, sniff_magic, to_float, to_int,
-                      unique_name, value_unit)
+from ._common import (channel_format, channel_info, measurement, parse_time, sniff_magic, to_float, to_int, unique_name,
+                      value_unit)
 
 _DATA_RE = re.compile(rb"\ndata {2,}(BINARY_32|BINARY|ASCII\w*)\r?\n")
-
-
-_sniff = sniff_magic(b"fileType      Image", b"fileType      Spectroscopy")
 
 
 def _parse(path):
@@ -63,26 +59,18 @@ def _parse(path):
         unit = value_unit(b.get("bufferUnit", ""))
         rng = to_float(path, b.get("bufferRange"), f"bufferRange of buffer {i}")
         infos.append(channel_info(i, name, (ny, nx), (ly, lx), "m", unit))
-        scales.append((rng / float(1 << (bits - 1)), unit))
-    return dict(data=data, start=m.end(), bits=bits, glob=glob, infos=infos, scales=scales, nx=nx, ny=ny)
+        scales.append(rng / float(1 << (bits - 1)))
+    return infos, dict(data=data, start=m.end(), bits=bits, glob=glob, scales=scales, nx=nx, ny=ny)
 
 
-@guarded("MI")
-def _channels(path):
-    return _parse(path)["infos"]
-
-
-@guarded("MI")
-def _read(path, *, channel=None):
-    p = _parse(path)
-    i = pick_channel(path, p["infos"], channel)
-    info = p["infos"][i]
+def _load(path, info, p):
+    i = info.index
     nx, ny = p["nx"], p["ny"]
     item = p["bits"] // 8
     r = BinaryReader(p["data"], path)
     raw = r.array("<i4" if item == 4 else "<i2", nx * ny, what=f"MI buffer {info.name!r}",
                   at=min(p["start"] + i * nx * ny * item, len(p["data"]))).reshape(ny, nx)
-    scale, unit = p["scales"][i]
+    scale = p["scales"][i]
     g = p["glob"]
     attrs = dict(
         instrument=f"Agilent / Molecular Imaging AFM ({g['version']})" if g.get("version") else None,
@@ -90,9 +78,8 @@ def _read(path, *, channel=None):
         acquisition_time=parse_time(g.get("dateAcquired", ""), "%a %b %d %H:%M:%S %Y"),
         imaging_mode=g.get("mode") or None,
     )
-    return measurement(path, raw, info, size=info.size, lateral_units="m", value_units=unit,
-                       height_scale=scale, **attrs)
+    return measurement(path, raw, info, height_scale=scale, **attrs)
 
 
-FORMAT = register(Format("mi", "Agilent / Molecular Imaging PicoView image (.mi)", (".mi",),
-                         _sniff, _read, _channels, priority=10))
+channel_format("mi", "Agilent / Molecular Imaging PicoView image (.mi)", (".mi",),
+               sniff_magic(b"fileType      Image", b"fileType      Spectroscopy"), "MI", _parse, _load)

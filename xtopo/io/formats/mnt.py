@@ -32,8 +32,7 @@ from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._ole import OLE_MAGIC, OleFile
 from .._xml import child_text, parse_xml
-from ..registry import ChannelInfo, Format, register
-from ._common import pick_channel, reading
+from ._common import ChannelInfo, channel_format
 
 _SURFACE, _SURFACE_DATA, _MASK, _HEIGHTS = 9012, 9062, 9056, 9049
 _MEASURED = 9
@@ -190,45 +189,39 @@ def _software(path, ole):
     return {"software": child_text(root, "ProductName"), "software_build_date": child_text(root, "BuildDate")}
 
 
-def _open(path):
+def _parse(path):
     ole = OleFile(path)
     if not ole.exists("ScopedContents"):
         raise ReaderError(path, "OLE file without a ScopedContents stream is not a Mountains document")
-    return ole
+    surfaces = _surfaces(path, ole)
+    infos = [ChannelInfo(i, s["name"], (s["ny"], s["nx"]), (s["ny"] * s["dy"], s["nx"] * s["dx"]), s["units"],
+                         s["units"]) for i, s in enumerate(surfaces)]
+    return infos, ole, surfaces
 
 
-def _channels(path):
-    with reading(path, "Digital Surf Mountains"):
-        return [ChannelInfo(i, s["name"], (s["ny"], s["nx"]), (s["ny"] * s["dy"], s["nx"] * s["dx"]),
-                            s["units"], s["units"]) for i, s in enumerate(_surfaces(path, _open(path)))]
+def _load(path, info, ole, surfaces):
+    s = surfaces[info.index]
+    nx, ny = s["nx"], s["ny"]
+    count = _num(_get(s["heights"], 1), "<I")
+    if count != nx * ny:
+        raise ReaderError(path, f"Mountains height array has {count} values for a {nx} x {ny} grid")
+    buf, esize = _blocks(path, _get(s["heights"], 2), count, 8 * count)
+    if esize not in (2, 4):
+        raise ReaderError(path, f"unsupported Mountains height size {esize} bytes")
+    counts = np.frombuffer(buf, f"<i{esize}").reshape(ny, nx)
+    z = counts * s["zscale"] + s["zorigin"]
+    undefined = None
+    if s["mask"] is not None and _class(s["mask"]) == _MASK:
+        mbody = _get(s["mask"], 2)
+        arr = _get(mbody, 5, 2)
+        mcount = _num(_get(arr, 1), "<I")
+        if mcount != (nx + 2) * (ny + 2):
+            raise ReaderError(path, "Mountains mask does not match the grid")
+        mbuf, _ = _blocks(path, _get(arr, 2), mcount, mcount)
+        undefined = np.frombuffer(mbuf, np.uint8).reshape(ny + 2, nx + 2)[1:-1, 1:-1] != _MEASURED
+    return make_measurement(z, spacing=(s["dy"], s["dx"]), units=s["units"], mask=undefined, name=s["name"],
+                            vendor="Digital Surf", original_units=s["units"], **_software(path, ole))
 
 
-def _read(path, *, channel=None):
-    with reading(path, "Digital Surf Mountains"):
-        ole = _open(path)
-        surfaces = _surfaces(path, ole)
-        s = surfaces[pick_channel(path, [x["name"] for x in surfaces], channel)]
-        nx, ny = s["nx"], s["ny"]
-        count = _num(_get(s["heights"], 1), "<I")
-        if count != nx * ny:
-            raise ReaderError(path, f"Mountains height array has {count} values for a {nx} x {ny} grid")
-        buf, esize = _blocks(path, _get(s["heights"], 2), count, 8 * count)
-        if esize not in (2, 4):
-            raise ReaderError(path, f"unsupported Mountains height size {esize} bytes")
-        counts = np.frombuffer(buf, f"<i{esize}").reshape(ny, nx)
-        z = counts * s["zscale"] + s["zorigin"]
-        undefined = None
-        if s["mask"] is not None and _class(s["mask"]) == _MASK:
-            mbody = _get(s["mask"], 2)
-            arr = _get(mbody, 5, 2)
-            mcount = _num(_get(arr, 1), "<I")
-            if mcount != (nx + 2) * (ny + 2):
-                raise ReaderError(path, "Mountains mask does not match the grid")
-            mbuf, _ = _blocks(path, _get(arr, 2), mcount, mcount)
-            undefined = np.frombuffer(mbuf, np.uint8).reshape(ny + 2, nx + 2)[1:-1, 1:-1] != _MEASURED
-        return make_measurement(z, spacing=(s["dy"], s["dx"]), units=s["units"], mask=undefined, name=s["name"],
-                                vendor="Digital Surf", original_units=s["units"], **_software(path, ole))
-
-
-FORMAT = register(Format("mnt", "Digital Surf Mountains document (OLE)", (".mnt",), _sniff, _read, _channels,
-                         priority=5))
+channel_format("mnt", "Digital Surf Mountains document (OLE)", (".mnt",), _sniff, "Digital Surf Mountains", _parse,
+               _load, priority=5)

@@ -33,16 +33,12 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel, sniff_magic, to_float,
-                      to_int, unique_name, unit_factor, value_unit)
+from ._common import (channel_format, channel_info, length_unit, measurement, parse_time, sniff_magic, to_float, to_int,
+                      unique_name, unit_factor, value_unit)
 
 _END = b"\\*File list end"
 _VALUE_RE = re.compile(r"^([VCS])\s+(?:\[([^\]]*)\]\s*)?(?:\(([^)]*)\)\s*)?(.*)$")
 _NUM_UNIT_RE = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
-
-
-_sniff = sniff_magic(b"\\*File list", b"?*File list")
 
 
 def _parse_header(path, data: bytes) -> list[tuple[str, dict]]:
@@ -71,25 +67,13 @@ def _parse_header(path, data: bytes) -> list[tuple[str, dict]]:
     return sections
 
 
-def _value(text: str):
-    """``(soft scale name, hard value, hard unit)`` of a ``V [..] (..) value unit`` field."""
+def _value(text: str, bare: bool = False):
+    """``(soft scale name, hard value, hard unit)`` of a ``V [..] (..) value unit`` field (``bare``: or of a
+    ``value unit`` without the type letter, as a sensitivity ``@Sens. X: V 20.8 nm/V`` may be)."""
     m = _VALUE_RE.match(text or "")
-    if not m:
-        return None, None, ""
-    soft, rest = m.group(2), m.group(4)
-    nm = _NUM_UNIT_RE.match(rest)
-    if not nm:
-        return soft, None, ""
-    return soft, float(nm.group(1)), nm.group(2)
-
-
-def _sens(text: str):
-    """``(value, unit)`` of ``@Sens. X: V 20.8 nm/V``."""
-    m = _VALUE_RE.match(text or "")
-    nm = _NUM_UNIT_RE.match(m.group(4) if m else (text or ""))
-    if not nm:
-        return None, ""
-    return float(nm.group(1)), nm.group(2)
+    nm = _NUM_UNIT_RE.match(m.group(4) if m else (text or "") if bare else "")
+    soft = m.group(2) if m else None
+    return (soft, float(nm.group(1)), nm.group(2)) if nm else (soft, None, "")
 
 
 def _scan_size(path, text: str, what: str):
@@ -161,7 +145,7 @@ def _parse(path):
         scale = hard_value / float(1 << (8 * bpp))
         unit = hard_unit
         if soft:
-            sval, sunit = _sens(sens.get(soft.lower(), ""))
+            _, sval, sunit = _value(sens.get(soft.lower(), ""), bare=True)
             if sval is not None:
                 scale *= sval
                 if "/" in sunit:
@@ -175,12 +159,11 @@ def _parse(path):
         channels.append(dict(
             info=channel_info(i, name, (ny, nx), (sy, sx), lunit, unit, hint=f"{ident} {label}"),
             ident=ident, nx=nx, ny=ny, bpp=bpp, offset=offset, scale=scale, unit=unit, lunit=lunit))
-    return data, globals_, channels
+    return [c["info"] for c in channels], data, globals_, channels
 
 
-def _read(path, *, channel=None):
-    data, glob, channels = _parse(path)
-    ch = channels[pick_channel(path, [c["info"] for c in channels], channel)]
+def _load(path, info, data, glob, channels):
+    ch = channels[info.index]
     dtype = {1: "i1", 2: "<i2", 4: "<i4"}[ch["bpp"]]
     raw = BinaryReader(data, path).array(dtype, ch["nx"] * ch["ny"], what=f"NanoScope channel {ch['info'].name!r}",
                                          at=ch["offset"]).reshape(ch["ny"], ch["nx"])
@@ -197,15 +180,9 @@ def _read(path, *, channel=None):
     if tip_nm is not None:
         # "Tip Radius" carries no unit in the header; Bruker states it in nm
         attrs["tip_radius"] = tip_nm * (unit_factor("nm", ch["lunit"]) or 1.0)
-    info = ch["info"]
-    return measurement(path, raw, info, size=info.size, lateral_units=ch["lunit"], value_units=ch["unit"],
-                       height_scale=ch["scale"], **attrs)
+    return measurement(path, raw, info, height_scale=ch["scale"], **attrs)
 
 
-_channels = guarded("NanoScope")(lambda path: [c["info"] for c in _parse(path)[2]])
-_read = guarded("NanoScope")(_read)
-
-FORMAT = register(Format(
-    "nanoscope", "Bruker/Digital Instruments NanoScope AFM image (.spm, .di, .00x)",
-    (".spm", ".di", ".000", ".001", ".002", ".003", ".004", ".005", ".006", ".007", ".008", ".009"),
-    _sniff, _read, _channels, priority=10))
+channel_format("nanoscope", "Bruker/Digital Instruments NanoScope AFM image (.spm, .di, .00x)",
+               (".spm", ".di", ".000", ".001", ".002", ".003", ".004", ".005", ".006", ".007", ".008", ".009"),
+               sniff_magic(b"\\*File list", b"?*File list"), "NanoScope", _parse, _load)

@@ -4,12 +4,8 @@ from __future__ import annotations
 
 from ...errors import ReaderError, UnsupportedFormatError
 from ..netcdf import is_contact_result, read_netcdf
-from ._common import pick_channel
+from ._common import pick_channel, sniff_magic
 from ..registry import Format, register
-
-
-def _sniff(head: bytes, path: str) -> bool:
-    return head[:3] == b"CDF" or head[:8] == b"\x89HDF\r\n\x1a\n"
 
 
 def _read(path, *, channel=None):
@@ -24,5 +20,5 @@ def _read(path, *, channel=None):
     return ds
 
 
-FORMAT = register(Format("netcdf", "xtopo NetCDF measurement", (".nc", ".nc4", ".h5", ".hdf5"),
-                         _sniff, _read, priority=-1))
+register(Format("netcdf", "xtopo NetCDF measurement", (".nc", ".nc4", ".h5", ".hdf5"),
+                sniff_magic(b"CDF", b"\x89HDF\r\n\x1a\n"), _read, priority=-1))

@@ -22,8 +22,7 @@ import re
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, value_unit
+from ._common import channel_format, channel_info, length_unit, measurement, to_float, to_int, value_unit
 
 _MARK = b"#!"
 
@@ -90,21 +89,13 @@ def _parse(path):
             dtype = f"{endian}{'i' if signed else 'u'}{bits // 8}"
             raw_min = -(1 << (bits - 1)) if signed else 0
             blocks.append(dict(offset=offset, dtype=dtype, nx=nx, ny=ny, scale=vrange / float(1 << bits),
-                               zero=vmin - raw_min * vrange / float(1 << bits), unit=unit, lunit=xu))
+                               zero=vmin - raw_min * vrange / float(1 << bits)))
             offset += nx * ny * bits // 8
-    return data, ini, infos, blocks
+    return infos, data, ini, blocks
 
 
-@guarded("NID")
-def _channels(path):
-    return _parse(path)[2]
-
-
-@guarded("NID")
-def _read(path, *, channel=None):
-    data, ini, infos, blocks = _parse(path)
-    i = pick_channel(path, infos, channel)
-    b, info = blocks[i], infos[i]
+def _load(path, info, data, ini, blocks):
+    b = blocks[info.index]
     r = BinaryReader(data, path)
     if b["offset"] > len(data):
         raise ReaderError(path, f"NID channel {info.name!r} starts beyond the end of the file (truncated)")
@@ -127,8 +118,7 @@ def _read(path, *, channel=None):
         a, bb, y = int(m.group(1)), int(m.group(2)), m.group(3)
         day, month = (a, bb) if a > 12 else (bb, a)
         attrs["acquisition_time"] = f"{y}-{month:02d}-{day:02d}T{time}"
-    return measurement(path, values, info, size=info.size, lateral_units=b["lunit"], value_units=b["unit"],
-                       **attrs)
+    return measurement(path, values, info, **attrs)
 
 
-FORMAT = register(Format("nid", "Nanosurf NID image", (".nid",), _sniff, _read, _channels, priority=10))
+channel_format("nid", "Nanosurf NID image", (".nid",), _sniff, "NID", _parse, _load)

@@ -16,8 +16,7 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, parse_time, pick_channel, reading
+from ._common import ChannelInfo, channel_format, clean_text, parse_time
 
 _HEADER = 3468
 _VERSION = b"OM_MS_2.0"
@@ -43,32 +42,22 @@ def _parse(path):
         raise r.error(f"invalid NMS grid {nx} x {ny} with spacing {dx} x {dy} nm")
     title = clean_text(data[52:52 + 64])
     when = parse_time(clean_text(data[1076:1096]), "%Y-%m-%dT%H:%M:%S", "%Y-%m-%dT%H:%M")
-    return r, dict(n_low=n_low, n_high=n_high, f_low=f_low, f_high=f_high, nx=nx, ny=ny, dx=dx * 1e-3,
-                   dy=dy * 1e-3, has_intensity=has_intensity > 0, title=title or "Height", time=when)
+    h = dict(n_low=n_low, n_high=n_high, f_low=f_low, f_high=f_high, dx=dx * 1e-3, dy=dy * 1e-3,
+             has_intensity=has_intensity > 0, time=when)
+    return [ChannelInfo(0, title or "Height", (ny, nx), (ny * h["dy"], nx * h["dx"]), "um", "um")], r, h
 
 
-def _channels(path):
-    with reading(path, "NanoFocus NMS"):
-        _r, h = _parse(path)
-        return [ChannelInfo(0, h["title"], (h["ny"], h["nx"]), (h["ny"] * h["dy"], h["nx"] * h["dx"]), "um", "um")]
+def _load(path, info, r, h):
+    n = info.shape[0] * info.shape[1]
+    raw = r.array("u2", n, "NMS height data", at=_HEADER).astype(np.float64)
+    z = h["f_low"] + (h["f_high"] - h["f_low"]) * (raw - h["n_low"]) / (h["n_high"] - h["n_low"])
+    undefined = np.zeros(n, bool)
+    if h["has_intensity"]:
+        undefined = r.array("u1", n, "NMS intensity image", at=_HEADER + 2 * n) == 0
+    return make_measurement(z.reshape(info.shape), spacing=(h["dy"], h["dx"]), units="um",
+                            mask=undefined.reshape(info.shape), name=info.name, vendor="NanoFocus",
+                            instrument="NanoFocus µsurf confocal microscope", acquisition_time=h["time"],
+                            original_units="lateral nm, heights um")
 
 
-def _read(path, *, channel=None):
-    with reading(path, "NanoFocus NMS"):
-        r, h = _parse(path)
-        pick_channel(path, [h["title"]], channel)
-        n = h["nx"] * h["ny"]
-        raw = r.array("u2", n, "NMS height data", at=_HEADER).astype(np.float64)
-        z = h["f_low"] + (h["f_high"] - h["f_low"]) * (raw - h["n_low"]) / (h["n_high"] - h["n_low"])
-        undefined = np.zeros(n, bool)
-        if h["has_intensity"]:
-            undefined = r.array("u1", n, "NMS intensity image", at=_HEADER + 2 * n) == 0
-        shape = (h["ny"], h["nx"])
-        return make_measurement(z.reshape(shape), spacing=(h["dy"], h["dx"]), units="um",
-                                mask=undefined.reshape(shape), name=h["title"], vendor="NanoFocus",
-                                instrument="NanoFocus µsurf confocal microscope", acquisition_time=h["time"],
-                                original_units="lateral nm, heights um")
-
-
-FORMAT = register(Format("nms", "NanoFocus µsurf NMS confocal image", (".nms",), _sniff, _read, _channels,
-                         priority=10))
+channel_format("nms", "NanoFocus µsurf NMS confocal image", (".nms",), _sniff, "NanoFocus NMS", _parse, _load)

@@ -9,6 +9,7 @@ against the bytes present before anything is allocated.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tokenize
 import zipfile
@@ -18,12 +19,12 @@ from numpy.lib import format as npformat
 
 from ...errors import ReaderError
 from .._generic import channel_infos, check_array_bytes, generic_measurement, pick_array, single_channel
-from ..registry import Format, register
+from ..registry import READ_OPTIONS, Format, register
+from ._common import sniff_magic
 
 __all__ = ["read_npy", "read_npz"]
 
 _MAGIC = b"\x93NUMPY"
-_OPTIONS = ("physical_size", "file_units", "height_units")
 
 
 def _header(path, f, what):
@@ -78,24 +79,27 @@ def _npz_entries(path, zf):
     return out
 
 
-def _open_zip(path):
+@contextlib.contextmanager
+def _npz(path):
+    """The open archive; a broken archive, or member, is a :class:`ReaderError`."""
     try:
-        return zipfile.ZipFile(path)
+        zf = zipfile.ZipFile(path)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
         raise ReaderError(path, f"not a valid .npz (zip) archive: {exc}") from None
+    with zf:
+        try:
+            yield zf
+        except (zipfile.BadZipFile, EOFError, OSError, NotImplementedError) as exc:
+            raise ReaderError(path, f"corrupt .npz archive: {exc}") from None
 
 
 def read_npz(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read one array of an ``.npz`` archive (see the module docstring)."""
-    with _open_zip(path) as zf:
-        try:
-            entries = _npz_entries(path, zf)
-            _, name = pick_array(path, entries, channel)
-            info = zf.getinfo(name + ".npy")
-            with zf.open(info) as f:
-                arr = _read_stream(path, f, info.file_size, name)
-        except (zipfile.BadZipFile, EOFError, OSError, NotImplementedError) as exc:
-            raise ReaderError(path, f"corrupt .npz archive: {exc}") from None
+    with _npz(path) as zf:
+        _, name = pick_array(path, _npz_entries(path, zf), channel)
+        info = zf.getinfo(name + ".npy")
+        with zf.open(info) as f:
+            arr = _read_stream(path, f, info.file_size, name)
     return generic_measurement(path, arr, physical_size=physical_size, file_units=file_units,
                                height_units=height_units, channel=name)
 
@@ -105,15 +109,8 @@ def _channels_npy(path, **options):
 
 
 def _channels_npz(path, **options):
-    with _open_zip(path) as zf:
-        try:
-            return channel_infos(path, _npz_entries(path, zf), **options)
-        except (zipfile.BadZipFile, EOFError, OSError, NotImplementedError) as exc:
-            raise ReaderError(path, f"corrupt .npz archive: {exc}") from None
-
-
-def _sniff_npy(head: bytes, path: str) -> bool:
-    return head.startswith(_MAGIC)
+    with _npz(path) as zf:
+        return channel_infos(path, _npz_entries(path, zf), **options)
 
 
 def _sniff_npz(head: bytes, path: str) -> bool:
@@ -124,7 +121,7 @@ def _sniff_npz(head: bytes, path: str) -> bool:
     return head[30:30 + n].endswith(b".npy")
 
 
-register(Format("npy", "numpy .npy array", (".npy",), _sniff_npy, read_npy, channels=_channels_npy,
-                priority=10, options=_OPTIONS))
+register(Format("npy", "numpy .npy array", (".npy",), sniff_magic(_MAGIC), read_npy, channels=_channels_npy,
+                priority=10, options=READ_OPTIONS))
 register(Format("npz", "numpy .npz archive of arrays", (".npz",), _sniff_npz, read_npz, channels=_channels_npz,
-                priority=10, options=_OPTIONS))
+                priority=10, options=READ_OPTIONS))

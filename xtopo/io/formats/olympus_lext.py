@@ -20,8 +20,7 @@ from ...errors import ReaderError
 from .._binary import read_bytes
 from .._tiff import TiffFile, head_tags, is_tiff
 from .._xml import child_text, parse_xml
-from ..registry import Format, register
-from ._common import channel_info, guarded, measurement, parse_time, pick_channel, to_float
+from ._common import channel_format, channel_info, measurement, parse_time, to_float
 
 _MAGIC = b"<TiffTagDescData"
 _DESCRIPTION, _EXIF, _DEVICE_SETTINGS = 270, 34665, 41995
@@ -64,7 +63,7 @@ def _calibration(path, tif):
     raw = tif.raw(sub, _DEVICE_SETTINGS)  # ASCII (2) or UNDEFINED (7): bytes either way
     root = _xml_block(path, raw.decode("latin-1"), "<ExifTagDescData", "LEXT EXIF settings")
     for i, axis in enumerate("XYZ"):
-        text = child_text(root, "ImageCommonSettingsInfo", f"MakerCalibrationValue{axis}") if root is not None else None
+        text = child_text(root, "ImageCommonSettingsInfo", f"MakerCalibrationValue{axis}")
         if text is not None:
             value = 1e-6 * to_float(path, text, f"MakerCalibrationValue{axis}")
             if value > 0:
@@ -100,7 +99,7 @@ def _parse(path):
         infos.append(channel_info(len(infos), name, (ny, nx), (ny * dy, nx * dx), "pm",
                                   "pm" if name == "Height" else "1", height=name == "Height"))
     when = parse_time(tif.value(0, 306, ""), "%Y:%m:%d %H:%M:%S")
-    return tif, infos, [i for _, i in pages], invalid, dz, {"acquisition_time": when,
+    return infos, tif, [i for _, i in pages], invalid, dz, {"acquisition_time": when,
                                                            "software": tif.value(0, 305) or None}
 
 
@@ -122,23 +121,13 @@ def _invalid_mask(tif, ifd, shape):
     return np.unpackbits(packed, axis=1)[:, :nx].astype(bool)
 
 
-@guarded("Olympus LEXT")
-def _channels(path):
-    return _parse(path)[1]
-
-
-@guarded("Olympus LEXT")
-def _read(path, *, channel=None):
-    tif, infos, ifds, invalid, dz, meta = _parse(path)
-    k = pick_channel(path, infos, channel)
-    info = infos[k]
-    values = _image(tif, ifds[k], info.shape, info.name).astype(np.float64)
+def _load(path, info, tif, ifds, invalid, dz, meta):
+    values = _image(tif, ifds[info.index], info.shape, info.name).astype(np.float64)
     is_height = info.name == "Height"
     mask = _invalid_mask(tif, invalid, info.shape) if invalid is not None else None
-    return measurement(path, values, info, size=info.size, lateral_units="pm", value_units=info.height_units,
-                       height_scale=dz if is_height else 1.0, mask=mask, vendor="Olympus",
+    return measurement(path, values, info, height_scale=dz if is_height else 1.0, mask=mask, vendor="Olympus",
                        instrument="Olympus LEXT laser scanning confocal microscope", **meta)
 
 
-register(Format("lext", "Olympus LEXT laser confocal microscope file (TIFF)", (".lext",), _sniff, _read, _channels,
-                priority=12))
+channel_format("lext", "Olympus LEXT laser confocal microscope file (TIFF)", (".lext",), _sniff, "Olympus LEXT", _parse,
+               _load, priority=12)

@@ -34,9 +34,8 @@ from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
 from .._xml import child, child_text, local_name, parse_xml
 from .._zip import open_zip, read_member
-from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, parse_time, pick_channel, sniff_magic,
-                      to_float, to_int, unit_factor)
+from ._common import (channel_format, channel_info, length_unit, measurement, parse_time, sniff_magic, to_float, to_int,
+                      unit_factor)
 
 _MAGIC = b"OLYMPUSRAWFORMAT"
 _HEADER = 96
@@ -115,7 +114,7 @@ def _channels_of(path, blocks, data, label=""):
     ny = to_int(path, child_text(info, "height"), "imageInfo/height", minimum=1)
     calibration = child(root, "acquisition", "microscopeConfiguration", "pixelCalibration")
     cal = [to_float(path, child_text(calibration, a), f"pixelCalibration/{a}") if child_text(calibration, a)
-           else 1.0 for a in "xyz"] if calibration is not None else [1.0, 1.0, 1.0]
+           else 1.0 for a in "xyz"]
     prefix = (blocks.get(6) or [[""]])[0][0]
     topography = {entry[0] for entry in blocks.get(8, [])}
     meta = {"acquisition_time": parse_time((child_text(root, "general", "creationDateTime") or "")[:19],
@@ -146,7 +145,7 @@ def _channels_of(path, blocks, data, label=""):
             raise ReaderError(path, f"the OIR file has no data block for height channel {uuid}")
         name = f"{label}Height" + (f" {len(out) + 1}" if out else "")
         out.append((channel_info(0, name, (ny, nx), (ny * dy, nx * dx), units[2], units[2], height=True),
-                    dict(block=block, depth=depth, zscale=lengths[2] * cal[2], unit=units[2], meta=meta)))
+                    dict(block=block, depth=depth, zscale=lengths[2] * cal[2], meta=meta)))
     return out
 
 
@@ -176,19 +175,11 @@ def _all(path):
                         raise
     if not found:
         raise ReaderError(path, "the OIR file holds no HEIGHT channel")
-    return [(dataclasses.replace(info, index=i), extra) for i, (info, extra) in enumerate(found)]
+    return [dataclasses.replace(info, index=i) for i, (info, _) in enumerate(found)], [extra for _, extra in found]
 
 
-@guarded("Olympus OIR")
-def _channels(path):
-    return [info for info, _ in _all(path)]
-
-
-@guarded("Olympus OIR")
-def _read(path, *, channel=None):
-    found = _all(path)
-    i = pick_channel(path, [info for info, _ in found], channel)
-    info, extra = found[i]
+def _load(path, info, extras):
+    extra = extras[info.index]
     ny, nx = info.shape
     offset, nbytes = extra["block"]
     dtype = "u1" if extra["depth"] == 1 else "<u2"
@@ -196,15 +187,15 @@ def _read(path, *, channel=None):
         raise ReaderError(path, f"OIR data block of {nbytes} bytes does not hold {nx} x {ny} pixels of "
                                 f"{extra['depth']} bytes")
     values = extra["reader"].array(dtype, nx * ny, "OIR height data", at=offset).reshape(ny, nx)
-    return measurement(path, values.astype(np.float64), info, size=info.size, lateral_units=extra["unit"],
-                       value_units=extra["unit"], height_scale=extra["zscale"], vendor="Olympus", **extra["meta"])
+    return measurement(path, values.astype(np.float64), info, height_scale=extra["zscale"], vendor="Olympus",
+                       **extra["meta"])
 
 
 def _sniff_poir(head: bytes, path: str) -> bool:
     return head.startswith(b"PK\x03\x04") and b".oir" in head.lower()
 
 
-register(Format("oir", "Olympus OIR laser scanning microscope file", (".oir",), sniff_magic(_MAGIC),
-                _read, _channels, priority=10))
-register(Format("poir", "Olympus packed OIR (zip of OIR files)", (".poir",), _sniff_poir, _read, _channels,
-                priority=9))
+channel_format("oir", "Olympus OIR laser scanning microscope file", (".oir",), sniff_magic(_MAGIC), "Olympus OIR", _all,
+               _load)
+channel_format("poir", "Olympus packed OIR (zip of OIR files)", (".poir",), _sniff_poir, "Olympus OIR", _all, _load,
+               priority=9)

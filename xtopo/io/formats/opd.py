@@ -18,8 +18,7 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, parse_time, pick_channel, reading
+from ._common import ChannelInfo, channel_format, clean_text, parse_time
 
 _ENTRY = 24
 _TYPE_ARRAY, _TYPE_TEXT, _TYPE_SHORT, _TYPE_FLOAT, _TYPE_DOUBLE, _TYPE_LONG = 3, 5, 6, 7, 8, 12
@@ -65,59 +64,41 @@ def _parse(path):
         pos += length
     if "Wavelength" not in meta:
         raise r.error("no 'Wavelength' block: the height scale of this OPD file is unknown")
-    return r, meta, arrays
-
-
-def _channel_infos(meta, arrays):
     px = meta.get("Pixel_size")
     aspect = meta.get("Aspect", 1.0) or 1.0
-    out = []
-    for i, (name, nx, ny, _isz, _off, _len) in enumerate(arrays):
-        size = (ny * px * aspect, nx * px) if px and px > 0 else None
-        out.append(ChannelInfo(i, name, (ny, nx), size, "mm", "nm", True))
-    return out
+    infos = [ChannelInfo(i, name, (ny, nx), (ny * px * aspect, nx * px) if px and px > 0 else None, "mm", "nm", True)
+             for i, (name, nx, ny, _isz, _off, _len) in enumerate(arrays)]
+    return infos, r, meta, arrays
 
 
-def _channels(path):
-    with reading(path, "Wyko OPD"):
-        _r, meta, arrays = _parse(path)
-        return _channel_infos(meta, arrays)
+def _load(path, info, r, meta, arrays):
+    name, nx, ny, itemsize, off, length = arrays[info.index]
+    if itemsize not in (1, 2, 4):
+        raise r.error(f"array {name!r} has unsupported item size {itemsize}")
+    if nx * ny * itemsize > length:
+        raise r.error(f"array {name!r} declares {nx}x{ny}x{itemsize} bytes but its block holds {length}")
+    dtype = {1: "u1", 2: "<i2", 4: "<f4"}[itemsize]
+    raw = r.array(dtype, nx * ny, f"array {name!r}", at=off).reshape(nx, ny)
+    # stored x-major, bottom row first -> (y, x) with the top row first
+    raw = raw.T[::-1, :].astype(np.float64)
+    if itemsize == 1:
+        undefined = np.zeros(raw.shape, bool)
+    else:
+        limit = 32766 if itemsize == 2 else 1e38
+        undefined = ~np.isfinite(raw) | (raw >= limit)
+    wavelength = float(meta["Wavelength"])
+    mult = float(meta.get("Mult", 1) or 1)
+    if info.size is None:
+        raise r.error("no 'Pixel_size' block: the lateral calibration is unknown")
+    heights_mm = np.where(undefined, np.nan, raw) * (wavelength / mult * 1e-6)  # nm -> mm
+    date, time = meta.get("Date"), meta.get("Time")
+    when = parse_time(f"{date} {time}", "%m/%d/%Y %H:%M:%S", "%m/%d/%y %H:%M:%S") if date and time else None
+    return make_measurement(
+        heights_mm, size=info.size, units="mm", mask=undefined, name=name,
+        vendor="Veeco/Bruker (Wyko)", instrument="Wyko optical profiler",
+        acquisition_time=when, wavelength=wavelength, wavelength_units="nm",
+        magnification=meta.get("Magnification"), original_units="lateral mm, heights nm",
+        channel=name)
 
 
-def _read(path, *, channel=None):
-    with reading(path, "Wyko OPD"):
-        r, meta, arrays = _parse(path)
-        infos = _channel_infos(meta, arrays)
-        idx = pick_channel(path, [c.name for c in infos], channel)
-        name, nx, ny, itemsize, off, length = arrays[idx]
-        if itemsize not in (1, 2, 4):
-            raise r.error(f"array {name!r} has unsupported item size {itemsize}")
-        if nx * ny * itemsize > length:
-            raise r.error(f"array {name!r} declares {nx}x{ny}x{itemsize} bytes but its block holds {length}")
-        dtype = {1: "u1", 2: "<i2", 4: "<f4"}[itemsize]
-        raw = r.array(dtype, nx * ny, f"array {name!r}", at=off).reshape(nx, ny)
-        # stored x-major, bottom row first -> (y, x) with the top row first
-        raw = raw.T[::-1, :].astype(np.float64)
-        if itemsize == 1:
-            undefined = np.zeros(raw.shape, bool)
-        else:
-            limit = 32766 if itemsize == 2 else 1e38
-            undefined = ~np.isfinite(raw) | (raw >= limit)
-        wavelength = float(meta["Wavelength"])
-        mult = float(meta.get("Mult", 1) or 1)
-        info = infos[idx]
-        if info.size is None:
-            raise r.error("no 'Pixel_size' block: the lateral calibration is unknown")
-        heights_mm = np.where(undefined, np.nan, raw) * (wavelength / mult * 1e-6)  # nm -> mm
-        date, time = meta.get("Date"), meta.get("Time")
-        when = parse_time(f"{date} {time}", "%m/%d/%Y %H:%M:%S", "%m/%d/%y %H:%M:%S") if date and time else None
-        return make_measurement(
-            heights_mm, size=info.size, units="mm", mask=undefined, name=name,
-            vendor="Veeco/Bruker (Wyko)", instrument="Wyko optical profiler",
-            acquisition_time=when, wavelength=wavelength, wavelength_units="nm",
-            magnification=meta.get("Magnification"), original_units="lateral mm, heights nm",
-            channel=name)
-
-
-FORMAT = register(Format("opd", "Wyko/Veeco Vision OPD optical profiler file", (".opd",),
-                         _sniff, _read, _channels, priority=10))
+channel_format("opd", "Wyko/Veeco Vision OPD optical profiler file", (".opd",), _sniff, "Wyko OPD", _parse, _load)

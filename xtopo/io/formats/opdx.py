@@ -24,8 +24,7 @@ import re
 
 from ...conventions import length_factor, make_measurement, normalize_units
 from .._binary import BinaryReader, check_count
-from ..registry import ChannelInfo, Format, register
-from ._common import parse_time, pick_channel, reading, sniff_magic
+from ._common import ChannelInfo, channel_format, parse_time, sniff_magic
 
 _MAGIC = b"VCA DATA\x01\x00\x00\x55"
 _SCALARS = {0x01: "?", 0x04: "h", 0x05: "H", 0x06: "i", 0x07: "I", 0x0A: "q", 0x0B: "Q", 0x0C: "f", 0x0D: "d"}
@@ -37,9 +36,6 @@ _ARRAY_PREFIX = 5
 
 class _Quantity(tuple):
     """``(value, symbol)`` of a quantity or unit item."""
-
-
-_sniff = sniff_magic(_MAGIC)
 
 
 def _name(r):
@@ -73,31 +69,21 @@ def _items(r, out, prefix, end, depth):
             out[path] = r.unpack(_SCALARS[typ], path)
         elif typ == 0x12:
             out[path] = r.read(_varlen(r), path).decode("utf-8", errors="replace")
-        elif typ == 0x13:
+        elif typ in (0x13, 0x18):  # quantity: value, name, symbol; unit: name, symbol, value
             size = _varlen(r)
             stop = r.pos + size
-            value = r.unpack("d", path)
-            _n, symbol = _name(r), _name(r)
-            out[path] = _Quantity((value, symbol))
-            r.seek(stop)
-        elif typ == 0x18:
-            size = _varlen(r)
-            stop = r.pos + size
-            _n, symbol = _name(r), _name(r)
-            out[path] = _Quantity((r.unpack("d", path), symbol))
+            value = r.unpack("d", path) if typ == 0x13 else None
+            _name(r)
+            symbol = _name(r)
+            out[path] = _Quantity((r.unpack("d", path) if value is None else value, symbol))
             r.seek(stop)
         elif typ == 0x15:
             r.read(9, path)
-        elif typ in (0x0E, 0x40, 0x42, 0x7C, 0x45):
+        elif typ in (0x0E, 0x40, 0x42, 0x7C, 0x45, 0x00):
             _name(r)  # type name
-            size = _varlen(r)
-            r.need(size, path)
-            out[path] = ("blob", r.pos, size)
-            r.pos += size
-        elif typ == 0x00:
-            _name(r)
-            r.unpack("I", path)
-            _name(r)
+            if typ == 0x00:
+                r.unpack("I", path)
+                _name(r)
             size = _varlen(r)
             r.need(size, path)
             out[path] = ("blob", r.pos, size)
@@ -112,7 +98,9 @@ def _parse(path):
     r.seek(len(_MAGIC))
     tree = {}
     _items(r, tree, "", len(data), 0)
-    return r, tree
+    profiles = _profiles(r, tree)
+    infos = [ChannelInfo(i, name, (n,), (n * dx,), xu, xu) for i, (name, n, dx, xu, _s, _b) in enumerate(profiles)]
+    return infos, r, tree, profiles
 
 
 def _quantity(r, tree, key):
@@ -138,34 +126,21 @@ def _profiles(r, tree):
     return out
 
 
-def _channels(path):
-    with reading(path, "Bruker OPDx"):
-        r, tree = _parse(path)
-        return [ChannelInfo(i, name, (n,), (n * dx,), xu, xu)
-                for i, (name, n, dx, xu, _s, _b) in enumerate(_profiles(r, tree))]
+def _load(path, info, r, tree, profiles):
+    name, n, dx, xu, scale, (_b, off, size) = profiles[info.index]
+    check_count(path, n, 8, size - _ARRAY_PREFIX, f"OPDx profile {name!r}")
+    z = r.array("f8", n, f"OPDx profile {name!r}", at=off + _ARRAY_PREFIX) * scale
+    meta = {k.rsplit("/", 1)[-1]: v for k, v in tree.items() if k.startswith("/MetaData/") and isinstance(v, str)}
+    when = parse_time(f"{meta.get('Date', '')} {meta.get('Time', '')}",
+                      "%m/%d/%Y %H:%M:%S", "%m/%d/%Y %I:%M:%S %p", "%Y-%m-%d %H:%M:%S", "%d.%m.%Y %H:%M:%S")
+    tip_radius = None
+    m = re.search(r"Radius:\s*([0-9.]+)\s*(\S+)", meta.get("StylusType", ""))
+    if m and float(m.group(1)) > 0:
+        tip_radius = float(m.group(1)) * length_factor(normalize_units(m.group(2)), xu)
+    return make_measurement(z, spacing=dx, units=xu, name=name, vendor="Bruker",
+                            instrument=meta.get("InstrumentName") or "Bruker Dektak (Vision64)",
+                            acquisition_time=when, tip_radius=tip_radius, original_units=xu)
 
 
-def _read(path, *, channel=None):
-    with reading(path, "Bruker OPDx"):
-        r, tree = _parse(path)
-        profiles = _profiles(r, tree)
-        if not profiles:
-            raise r.error("OPDx file holds no 1D profile (areal OPDx maps are not supported yet)")
-        idx = pick_channel(path, [p[0] for p in profiles], channel)
-        name, n, dx, xu, scale, (_b, off, size) = profiles[idx]
-        check_count(path, n, 8, size - _ARRAY_PREFIX, f"OPDx profile {name!r}")
-        z = r.array("f8", n, f"OPDx profile {name!r}", at=off + _ARRAY_PREFIX) * scale
-        meta = {k.rsplit("/", 1)[-1]: v for k, v in tree.items() if k.startswith("/MetaData/") and isinstance(v, str)}
-        when = parse_time(f"{meta.get('Date', '')} {meta.get('Time', '')}",
-                          "%m/%d/%Y %H:%M:%S", "%m/%d/%Y %I:%M:%S %p", "%Y-%m-%d %H:%M:%S", "%d.%m.%Y %H:%M:%S")
-        tip_radius = None
-        m = re.search(r"Radius:\s*([0-9.]+)\s*(\S+)", meta.get("StylusType", ""))
-        if m and float(m.group(1)) > 0:
-            tip_radius = float(m.group(1)) * length_factor(normalize_units(m.group(2)), xu)
-        return make_measurement(z, spacing=dx, units=xu, name=name, vendor="Bruker",
-                                instrument=meta.get("InstrumentName") or "Bruker Dektak (Vision64)",
-                                acquisition_time=when, tip_radius=tip_radius, original_units=xu)
-
-
-FORMAT = register(Format("opdx", "Bruker Vision64 OPDx (Dektak) profile", (".opdx",), _sniff, _read, _channels,
-                         priority=10))
+channel_format("opdx", "Bruker Vision64 OPDx (Dektak) profile", (".opdx",), sniff_magic(_MAGIC), "Bruker OPDx", _parse,
+               _load, empty="OPDx file holds no 1D profile (areal OPDx maps are not supported yet)")

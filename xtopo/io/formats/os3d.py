@@ -14,8 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._binary import BinaryReader
-from ..registry import Format, register
-from ._common import channel_info, guarded, measurement, parse_time, pick_channel, sniff_magic
+from ._common import channel_format, channel_info, measurement, parse_time, sniff_magic
 
 _MAGIC = b"OmniSurf3D"
 _INVALID = -3e38
@@ -42,24 +41,14 @@ def _parse(path):
     meta = {"identification": ident or None, "software_version": f"{major}.{minor}",
             "acquisition_time": parse_time(when, "%Y-%m-%d %H:%M:%S", "%Y-%m-%dT%H:%M:%S", "%m/%d/%Y %H:%M:%S",
                                            "%m/%d/%Y %I:%M:%S %p", "%d.%m.%Y %H:%M:%S")}
-    return r, info, meta
+    return [info], r, meta
 
 
-@guarded("OmniSurf3D")
-def _channels(path):
-    return [_parse(path)[1]]
-
-
-@guarded("OmniSurf3D")
-def _read(path, *, channel=None):
-    r, info, meta = _parse(path)
-    pick_channel(path, [info], channel)
+def _load(path, info, r, meta):
     ny, nx = info.shape
     z = r.array("<f4", nx * ny, "OS3D heights").astype(np.float64).reshape(ny, nx)
     mask = (z < _INVALID) | ~np.isfinite(z)
-    return measurement(path, np.where(mask, np.nan, z), info, size=info.size, lateral_units="um",
-                       value_units="um", mask=mask, vendor="Digital Metrology", **meta)
+    return measurement(path, np.where(mask, np.nan, z), info, mask=mask, vendor="Digital Metrology", **meta)
 
 
-register(Format("os3d", "Digital Metrology OmniSurf3D", (".os3d",), sniff_magic(_MAGIC), _read, _channels,
-                priority=10))
+channel_format("os3d", "Digital Metrology OmniSurf3D", (".os3d",), sniff_magic(_MAGIC), "OmniSurf3D", _parse, _load)

@@ -16,8 +16,7 @@ import numpy as np
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader, read_bytes
-from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, parse_time, pick_channel, reading
+from ._common import ChannelInfo, channel_format, clean_text, parse_time
 
 _UNDEFINED = 1000001.0
 _TYPES = {1: "profile", 3: "topography"}
@@ -53,35 +52,26 @@ def _parse(path):
     r.seek(500)
     if not (h["dx"] > 0 and h["dy"] > 0):
         raise r.error(f"invalid PLU pixel size {h['dx']} x {h['dy']} µm")
-    return r, h
+    rows, cols = r.unpack("2I", "PLU layer size")
+    if rows == 1:
+        return [ChannelInfo(0, "Height", (cols,), (cols * h["dx"],), "um", "um")], r, h
+    return [ChannelInfo(0, "Height", (rows, cols), (rows * h["dy"], cols * h["dx"]), "um", "um")], r, h
 
 
-def _channels(path):
-    with reading(path, "Sensofar PLU"):
-        r, h = _parse(path)
-        rows, cols = r.unpack("2I", "PLU layer size")
-        if rows == 1:
-            return [ChannelInfo(0, "Height", (cols,), (cols * h["dx"],), "um", "um")]
-        return [ChannelInfo(0, "Height", (rows, cols), (rows * h["dy"], cols * h["dx"]), "um", "um")]
+def _load(path, info, r, h):
+    rows, cols = (1, *info.shape) if len(info.shape) == 1 else info.shape
+    z = r.array("f4", rows * cols, "PLU height data").astype(np.float64)
+    undefined = (z == _UNDEFINED) | ~np.isfinite(z)
+    shape = (rows, cols) if rows > 1 else (cols,)
+    version_ok = h["version"] != 0 and h["version"] <= 0xFB
+    return make_measurement(
+        z.reshape(shape), spacing=(h["dy"], h["dx"]) if rows > 1 else h["dx"], units="um",
+        mask=undefined.reshape(shape), vendor="Sensofar",
+        instrument=_HARDWARE.get(h["hardware"]) if version_ok else None,
+        acquisition_time=parse_time(h["date"], _DATE_FORMAT),
+        objective_code=h["objective"], comment=h["comment"] if h["comment"] not in ("", "(None)") else None,
+        original_units="um")
 
 
-def _read(path, *, channel=None):
-    with reading(path, "Sensofar PLU"):
-        r, h = _parse(path)
-        pick_channel(path, ["Height"], channel)
-        rows, cols = r.unpack("2I", "PLU layer size")
-        z = r.array("f4", rows * cols, "PLU height data").astype(np.float64)
-        undefined = (z == _UNDEFINED) | ~np.isfinite(z)
-        shape = (rows, cols) if rows > 1 else (cols,)
-        version_ok = h["version"] != 0 and h["version"] <= 0xFB
-        return make_measurement(
-            z.reshape(shape), spacing=(h["dy"], h["dx"]) if rows > 1 else h["dx"], units="um",
-            mask=undefined.reshape(shape), vendor="Sensofar",
-            instrument=_HARDWARE.get(h["hardware"]) if version_ok else None,
-            acquisition_time=parse_time(h["date"], _DATE_FORMAT),
-            objective_code=h["objective"], comment=h["comment"] if h["comment"] not in ("", "(None)") else None,
-            original_units="um")
-
-
-FORMAT = register(Format("plu", "Sensofar PLU confocal/interferometric topography", (".plu", ".apx"),
-                         _sniff, _read, _channels, priority=5))
+channel_format("plu", "Sensofar PLU confocal/interferometric topography", (".plu", ".apx"), _sniff, "Sensofar PLU",
+               _parse, _load, priority=5)

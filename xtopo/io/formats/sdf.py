@@ -20,6 +20,7 @@ from ...errors import ReaderError, UnsupportedFormatError
 from .._binary import BinaryReader, read_bytes
 from .._text import header_value, parse_table
 from ..registry import Format, register
+from ._common import sniff_magic
 
 __all__ = ["read_sdf"]
 
@@ -52,24 +53,15 @@ def _dims(path, header):
 
 
 def _read_ascii(path, data: bytes):
-    text = data.decode("latin-1")
-    lines = text.splitlines()
-    header = {}
-    i = 1
-    while i < len(lines) and lines[i].strip() != "*":
-        key, sep, value = lines[i].partition("=")
-        if sep:
-            header[key.strip()] = value.strip()
-        i += 1
+    lines = data.decode("latin-1").splitlines()
+    i, end = ([k for k, ln in enumerate(lines[1:], 1) if ln.strip() == "*"] + [len(lines)] * 2)[:2]  # the two '*'
     if i >= len(lines):
         raise ReaderError(path, "header is not terminated by a '*' line")
+    header = {key.strip(): value.strip() for key, sep, value in (ln.partition("=") for ln in lines[1:i]) if sep}
     npts, nprof = _dims(path, header)
     code = header_value(path, header, "DataType", int) if "DataType" in header else 7
     if code not in _DTYPES:
         raise ReaderError(path, f"unknown DataType {code}")
-    end = i + 1
-    while end < len(lines) and lines[end].strip() != "*":
-        end += 1
     body = " ".join(lines[i + 1:end]).replace("BAD", "nan").split()
     if len(body) != npts * nprof:
         raise ReaderError(path, f"header promises {npts}×{nprof} = {npts * nprof} values, found {len(body)}")
@@ -105,8 +97,5 @@ def read_sdf(path, *, channel=None):
     raise UnsupportedFormatError(path, "not an SDF file (expected aISO-1.0, bISO-1.0, aBCR-1.0 or bBCR-1.0)")
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head[:8] in _MAGICS_ASCII + _MAGICS_BINARY
-
-
-register(Format("sdf", "ISO 25178-71 / Surfstand SDF (ASCII or binary)", (".sdf",), _sniff, read_sdf, priority=20))
+register(Format("sdf", "ISO 25178-71 / Surfstand SDF (ASCII or binary)", (".sdf",),
+                sniff_magic(*_MAGICS_ASCII, *_MAGICS_BINARY), read_sdf, priority=20))

@@ -16,8 +16,7 @@ from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._xml import child_text, local_name, parse_xml
 from .._zip import open_zip, read_member
-from ..registry import Format, register
-from ._common import channel_info, guarded, measurement, parse_time, pick_channel, to_float, to_int
+from ._common import channel_format, channel_info, measurement, parse_time, to_float, to_int
 
 _WHAT = "Sensofar PLUX"
 _MAX_XML = 16 << 20
@@ -27,12 +26,13 @@ def _sniff(head: bytes, path: str) -> bool:
     return head.startswith(b"PK\x03\x04") and b"index.xml" in head and b"main.xml" not in head
 
 
-def _parse(path, zf):
-    try:
-        info = zf.getinfo("index.xml")
-    except KeyError:
-        raise ReaderError(path, "the zip archive has no index.xml, so it is not a Sensofar PLUX file") from None
-    root = parse_xml(read_member(path, zf, info, _WHAT, limit=_MAX_XML), path, "PLUX index.xml")
+def _parse(path):
+    with open_zip(path, _WHAT) as zf:
+        try:
+            info = zf.getinfo("index.xml")
+        except KeyError:
+            raise ReaderError(path, "the zip archive has no index.xml, so it is not a Sensofar PLUX file") from None
+        root = parse_xml(read_member(path, zf, info, _WHAT, limit=_MAX_XML), path, "PLUX index.xml")
     nx = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_X"), "GENERAL/IMAGE_SIZE_X", minimum=1)
     ny = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_Y"), "GENERAL/IMAGE_SIZE_Y", minimum=1)
     if nx * ny > MAX_PIXELS:
@@ -57,31 +57,20 @@ def _parse(path, zf):
     return infos, [m for _n, m in layers], items, child_text(root, "GENERAL", "DATE", default="")
 
 
-@guarded(_WHAT)
-def _channels(path):
+def _load(path, info, members, items, date):
+    ny, nx = info.shape
     with open_zip(path, _WHAT) as zf:
-        return _parse(path, zf)[0]
-
-
-@guarded(_WHAT)
-def _read(path, *, channel=None):
-    with open_zip(path, _WHAT) as zf:
-        infos, members, items, date = _parse(path, zf)
-        i = pick_channel(path, infos, channel)
-        info = infos[i]
-        ny, nx = info.shape
         try:
-            member = zf.getinfo(members[i])
+            member = zf.getinfo(members[info.index])
         except KeyError:
-            raise ReaderError(path, f"the PLUX archive lacks the layer member {members[i]!r}") from None
+            raise ReaderError(path, f"the PLUX archive lacks the layer member {members[info.index]!r}") from None
         raw = read_member(path, zf, member, _WHAT, expected=4 * nx * ny)
     z = np.frombuffer(raw, dtype="<f4").astype(np.float64).reshape(ny, nx)
-    return measurement(path, z, info, size=info.size, lateral_units="um", value_units="um", mask=~np.isfinite(z),
-                       vendor="Sensofar", instrument=items.get("Device"), objective=items.get("Objective"),
-                       technique=items.get("Technique"), comment=items.get("Comment"),
+    return measurement(path, z, info, mask=~np.isfinite(z), vendor="Sensofar", instrument=items.get("Device"),
+                       objective=items.get("Objective"), technique=items.get("Technique"), comment=items.get("Comment"),
                        acquisition_time=parse_time(date, "%Y-%m-%dT%H:%M:%S", "%Y-%m-%d %H:%M:%S",
                                                    "%d/%m/%Y %H:%M:%S", "%a %b %d %H:%M:%S %Y"))
 
 
-register(Format("plux", "Sensofar PLUX (zip with index.xml and float32 layers)", (".plux",), _sniff, _read,
-                _channels, priority=10))
+channel_format("plux", "Sensofar PLUX (zip with index.xml and float32 layers)", (".plux",), _sniff, _WHAT, _parse,
+               _load)

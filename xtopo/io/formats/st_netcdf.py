@@ -39,11 +39,11 @@ from ...errors import ReaderError, UnitsError, UnsupportedFormatError, Validatio
 from .._generic import check_array_bytes, generic_measurement, single_channel
 from ..netcdf import atomic_write, read_engine
 from ...params import Path, checked
-from ..registry import Format, register
+from ..registry import READ_OPTIONS, Format, register
+from ._common import sniff_magic
 
 __all__ = ["read_st_netcdf", "to_surfacetopography_netcdf", "instrument_info", "instrument_attrs"]
 
-_OPTIONS = ("physical_size", "file_units", "height_units")
 _OPEN_ERRORS = (OSError, ValueError, KeyError, RuntimeError, TypeError, IndexError, AttributeError, OverflowError)
 
 
@@ -251,9 +251,5 @@ def to_surfacetopography_netcdf(ds, path: Annotated[str, Path("file path")], *, 
                                                         encoding=encoding))
 
 
-def _sniff(head: bytes, path: str) -> bool:
-    return head[:3] == b"CDF" or head[:8] == b"\x89HDF\r\n\x1a\n"
-
-
-register(Format("st-netcdf", "SurfaceTopography / contact.engineering NetCDF layout", (".nc",), _sniff,
-                read_st_netcdf, priority=1, options=_OPTIONS))
+register(Format("st-netcdf", "SurfaceTopography / contact.engineering NetCDF layout", (".nc",),
+                sniff_magic(b"CDF", b"\x89HDF\r\n\x1a\n"), read_st_netcdf, priority=1, options=READ_OPTIONS))

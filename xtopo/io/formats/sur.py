@@ -15,8 +15,7 @@ import numpy as np
 
 from ...conventions import length_factor, make_measurement, normalize_units
 from .._binary import BinaryReader, read_bytes
-from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, iso_time, pick_channel, reading
+from ._common import ChannelInfo, channel_format, clean_text, iso_time, sniff_magic
 
 _HEADER = ("12s4H30s30s5H8sH2i2iI3f16s16s16s16s16s16s16s16s16s3f3H12s7Hf10s2H128s3f34s")
 _NAMES = ("magic format nobjects version type object_name operator_name material acquisition range "
@@ -26,10 +25,6 @@ _NAMES = ("magic format nobjects version type object_name operator_name material
           "private_size client_zone x_offset y_offset z_offset _r4").split()
 _ACQUISITION = {1: "stylus", 2: "optical", 3: "thermocouple", 5: "stylus with skid", 6: "AFM", 7: "STM",
                 8: "video", 9: "interferometric", 10: "structured light"}
-
-
-def _sniff(head: bytes, path: str) -> bool:
-    return head[:12] == b"DIGITAL SURF"
 
 
 def _unit(raw: bytes) -> str:
@@ -52,57 +47,41 @@ def _parse(path):
         raise r.error(f"unsupported SUR point size {h['bits']} bits (16 or 32 expected)")
     if h["nx"] <= 0 or h["ny"] <= 0:
         raise r.error(f"invalid SUR grid {h['nx']} x {h['ny']}")
-    return r, h
-
-
-def _geometry(path, h):
     zu = _unit(h["dz_unit"])
     fx = length_factor(_unit(h["dx_unit"]), zu)
     fy = length_factor(_unit(h["dy_unit"]), zu) if h["ny"] > 1 else fx
     dx, dy = abs(h["dx"]) * fx, abs(h["dy"]) * fy
-    return zu, dx, dy
+    name = clean_text(h["zname"]) or "Z"
+    if h["ny"] == 1:
+        return [ChannelInfo(0, name, (h["nx"],), (h["nx"] * dx,), zu, zu)], r, h, dx, dy
+    return [ChannelInfo(0, name, (h["ny"], h["nx"]), (h["ny"] * dy, h["nx"] * dx), zu, zu)], r, h, dx, dy
 
 
-def _channels(path):
-    with reading(path, "Digital Surf SUR"):
-        _r, h = _parse(path)
-        zu, dx, dy = _geometry(path, h)
-        if h["ny"] == 1:
-            return [ChannelInfo(0, clean_text(h["zname"]) or "Z", (h["nx"],), (h["nx"] * dx,), zu, zu)]
-        return [ChannelInfo(0, clean_text(h["zname"]) or "Z", (h["ny"], h["nx"]),
-                            (h["ny"] * dy, h["nx"] * dx), zu, zu)]
+def _load(path, info, r, h, dx, dy):
+    zu, nx, ny = info.units, h["nx"], h["ny"]
+    start = 512 + h["comment_size"] + h["private_size"]
+    raw = r.array("i2" if h["bits"] == 16 else "i4", nx * ny, "SUR height data", at=start)
+    undefined = (raw == h["zmin"] - 2) if h["special_points"] == 1 else np.zeros(raw.shape, bool)
+    heights = raw.astype(np.float64) * float(h["dz"]) + float(h["z_offset"])
+    heights[undefined] = np.nan
+    shape = (ny, nx) if ny > 1 else (nx,)
+    heights, undefined = heights.reshape(shape), undefined.reshape(shape)
+    inv = h["inversion"]
+    if inv in (1, 2, 3):
+        heights = -heights
+        if inv == 2:
+            heights, undefined = heights[..., ::-1], undefined[..., ::-1]
+        elif inv == 3 and ny > 1:
+            heights, undefined = heights[::-1], undefined[::-1]
+    comment = clean_text(r.data[512:512 + h["comment_size"]])
+    return make_measurement(
+        heights, spacing=(dy, dx) if ny > 1 else dx, units=zu, mask=undefined,
+        name=clean_text(h["object_name"]) or None, vendor="Digital Surf",
+        instrument=clean_text(h["operator_name"]) or None,
+        acquisition_time=iso_time(h["year"], h["month"], h["day"], h["hour"], h["minute"], h["second"]),
+        acquisition_type=_ACQUISITION.get(h["acquisition"]), comment=comment or None,
+        original_units=f"x {_unit(h['dx_unit'])}, y {_unit(h['dy_unit'])}, z {zu}")
 
 
-def _read(path, *, channel=None):
-    with reading(path, "Digital Surf SUR"):
-        r, h = _parse(path)
-        info = _channels(path)[0]
-        pick_channel(path, [info.name], channel)
-        zu, dx, dy = _geometry(path, h)
-        nx, ny = h["nx"], h["ny"]
-        start = 512 + h["comment_size"] + h["private_size"]
-        raw = r.array("i2" if h["bits"] == 16 else "i4", nx * ny, "SUR height data", at=start)
-        undefined = (raw == h["zmin"] - 2) if h["special_points"] == 1 else np.zeros(raw.shape, bool)
-        heights = raw.astype(np.float64) * float(h["dz"]) + float(h["z_offset"])
-        heights[undefined] = np.nan
-        shape = (ny, nx) if ny > 1 else (nx,)
-        heights, undefined = heights.reshape(shape), undefined.reshape(shape)
-        inv = h["inversion"]
-        if inv in (1, 2, 3):
-            heights = -heights
-            if inv == 2:
-                heights, undefined = heights[..., ::-1], undefined[..., ::-1]
-            elif inv == 3 and ny > 1:
-                heights, undefined = heights[::-1], undefined[::-1]
-        comment = clean_text(r.data[512:512 + h["comment_size"]])
-        return make_measurement(
-            heights, spacing=(dy, dx) if ny > 1 else dx, units=zu, mask=undefined,
-            name=clean_text(h["object_name"]) or None, vendor="Digital Surf",
-            instrument=clean_text(h["operator_name"]) or None,
-            acquisition_time=iso_time(h["year"], h["month"], h["day"], h["hour"], h["minute"], h["second"]),
-            acquisition_type=_ACQUISITION.get(h["acquisition"]), comment=comment or None,
-            original_units=f"x {_unit(h['dx_unit'])}, y {_unit(h['dy_unit'])}, z {zu}")
-
-
-FORMAT = register(Format("sur", "Digital Surf SUR surface/profile", (".sur",), _sniff, _read, _channels,
-                         priority=10))
+channel_format("sur", "Digital Surf SUR surface/profile", (".sur",), sniff_magic(b"DIGITAL SURF"), "Digital Surf SUR",
+               _parse, _load)

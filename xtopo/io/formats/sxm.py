@@ -25,15 +25,10 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, measurement, parse_time, pick_channel, sniff_magic, to_float, to_int,
-                      value_unit)
+from ._common import channel_format, channel_info, measurement, parse_time, sniff_magic, to_float, to_int, value_unit
 
 _END = b":SCANIT_END:"
 _TYPES = {"FLOAT": "f4", "INT": "i4", "UINT": "u4", "DOUBLE": "f8"}
-
-
-_sniff = sniff_magic(b":NANONIS_VERSION:")
 
 
 def _parse(path):
@@ -73,7 +68,7 @@ def _parse(path):
     if not rows or rows[0][:2] != ["Channel", "Name"]:
         raise ReaderError(path, "Nanonis header lacks the DATA_INFO table")
     head = rows[0]
-    infos, images = [], []
+    infos, backward = [], []
     for row in rows[1:]:
         rec = dict(zip(head, (c.strip() for c in row)))
         sig = rec.get("Name", "")
@@ -83,21 +78,13 @@ def _parse(path):
         for d in dirs:
             name = f"{sig} ({d})"
             infos.append(channel_info(len(infos), name, (ny, nx), (ly, lx), "m", unit, hint=sig))
-            images.append(dict(unit=unit, backward=d == "backward"))
-    return dict(data=data, start=mark + 2, dtype=dtype, nx=nx, ny=ny, infos=infos, images=images,
-                one=one, down=one("SCAN_DIR").lower() == "down")
+            backward.append(d == "backward")
+    return infos, dict(data=data, start=mark + 2, dtype=dtype, nx=nx, ny=ny, backward=backward, one=one,
+                       down=one("SCAN_DIR").lower() == "down")
 
 
-@guarded("Nanonis SXM")
-def _channels(path):
-    return _parse(path)["infos"]
-
-
-@guarded("Nanonis SXM")
-def _read(path, *, channel=None):
-    p = _parse(path)
-    i = pick_channel(path, p["infos"], channel)
-    info, img = p["infos"][i], p["images"][i]
+def _load(path, info, p):
+    i = info.index
     nx, ny = p["nx"], p["ny"]
     item = np.dtype(p["dtype"]).itemsize
     at = p["start"] + i * nx * ny * item
@@ -105,7 +92,7 @@ def _read(path, *, channel=None):
         raise ReaderError(path, f"Nanonis channel {info.name!r} starts beyond the end of the file (truncated)")
     values = BinaryReader(p["data"], path).array(p["dtype"], nx * ny, what=f"Nanonis channel {info.name!r}",
                                                  at=at).reshape(ny, nx)
-    if img["backward"]:
+    if p["backward"][i]:
         values = values[:, ::-1]
     if p["down"]:
         values = values[::-1, :]
@@ -119,8 +106,7 @@ def _read(path, *, channel=None):
         comment=one("COMMENT") or None,
     )
     attrs = {k: v for k, v in attrs.items() if not (isinstance(v, float) and np.isnan(v))}
-    return measurement(path, np.ascontiguousarray(values), info, size=info.size, lateral_units="m",
-                       value_units=img["unit"], **attrs)
+    return measurement(path, np.ascontiguousarray(values), info, **attrs)
 
 
-FORMAT = register(Format("sxm", "Nanonis scan (.sxm)", (".sxm",), _sniff, _read, _channels, priority=10))
+channel_format("sxm", "Nanonis scan (.sxm)", (".sxm",), sniff_magic(b":NANONIS_VERSION:"), "Nanonis SXM", _parse, _load)

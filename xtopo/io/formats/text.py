@@ -46,14 +46,13 @@ from ...errors import ReaderError
 from .._generic import generic_measurement, resolve_units, single_channel
 from .._text import (column_precision, header_value, is_number, line_measurement, looks_like_text, parse_quantity,
                      parse_table, read_text, uniform_spacing)
-from ..registry import Format, register
+from ..registry import READ_OPTIONS, Format, register
 from ._common import length_unit as unit_or_none
 
 __all__ = ["read_text_measurement", "read_dhm", "split_header"]
 
 _COMMENT = ("#", "%", "//")
 _NUMBER_START = re.compile(r"^\s*[-+]?(?:\d|\.\d|nan\b|inf\b)", re.IGNORECASE)
-_OPTIONS = ("physical_size", "file_units", "height_units")
 #: names of the one channel of a text file (besides the index 0)
 _CHANNEL_NAMES = ("0", "default", "Default")
 
@@ -118,16 +117,7 @@ def _separator(line: str):
         return ";"
     if "," in line and "." in line or line.count(",") >= 1 and " " not in line.strip():
         return ","
-    if "\t" in line:
-        return "\t"
-    return None
-
-
-def _read_table(path, data_lines):
-    sep = _separator(data_lines[0])
-    if sep == "\t":
-        sep = None
-    return parse_table(path, data_lines, sep=sep), sep
+    return None  # blanks or tabs
 
 
 #: Gwyddion's export keys as its translations spell them (its cs, de, es, fr, it, ko, ru catalogues; ja, pt as
@@ -201,7 +191,8 @@ def read_text_measurement(path, *, channel=None, physical_size=None, file_units=
     data = _drop_count_line(data)
     if not data:
         raise ReaderError(path, "contains no table of numbers")
-    table, sep = _read_table(path, data)
+    sep = _separator(data[0])
+    table = parse_table(path, data, sep=sep)
     found_units = found_hu = None
     sizes = {}
     for key, dim in (("Width", "x"), ("Height", "y")):
@@ -226,9 +217,7 @@ def read_text_measurement(path, *, channel=None, physical_size=None, file_units=
         if xcol is not None:
             return xcol
     if nrows == 1 or ncols == 1:
-        h = table.ravel()
-        size = sizes.get("x")
-        return generic_measurement(path, h, found_size=size, **common)
+        return generic_measurement(path, table.ravel(), found_size=sizes.get("x"), **common)
     found_size = (sizes["y"], sizes["x"]) if "x" in sizes and "y" in sizes else None
     return generic_measurement(path, table, found_size=found_size, **common)
 
@@ -327,10 +316,6 @@ def read_dhm(path, *, channel=None):
                                data_unit=header.get("data unit"), height_conversion_factor=factor)
 
 
-def _sniff_text(head: bytes, path: str) -> bool:
-    return looks_like_text(head)
-
-
 def _sniff_gwyddion(head: bytes, path: str) -> bool:
     if not (looks_like_text(head) and head.lstrip().startswith(b"#")):
         return False
@@ -344,9 +329,9 @@ def _sniff_dhm(head: bytes, path: str) -> bool:
 
 
 register(Format("gwyddion-text", "Gwyddion ASCII matrix export (# Width/Height/Value units header)",
-                (".txt", ".asc"), _sniff_gwyddion, read_text_measurement, priority=5, options=_OPTIONS))
+                (".txt", ".asc"), _sniff_gwyddion, read_text_measurement, priority=5, options=READ_OPTIONS))
 register(Format("dhm-text", "ASCII matrix with h=/w=, pixel size and height conversion factor header (DHM)",
                 (".txt",), _sniff_dhm, read_dhm, priority=5))
 register(Format("text", "plain-text matrix or (x, height) columns, optional key: value header",
-                (".txt", ".asc", ".dat", ".csv", ".xyz"), _sniff_text, read_text_measurement, priority=-10,
-                options=_OPTIONS))
+                (".txt", ".asc", ".dat", ".csv", ".xyz"), lambda head, path: looks_like_text(head),
+                read_text_measurement, priority=-10, options=READ_OPTIONS))

@@ -25,13 +25,14 @@ from __future__ import annotations
 import struct
 
 from ...errors import ReaderError
-from .._binary import BinaryReader, read_bytes
+from .._binary import read_bytes
 from .._tiff import TiffFile, head_tags
-from ..registry import Format, register
-from ._common import channel_info, guarded, measurement, parse_time, pick_channel, value_unit
+from ._common import channel_format, channel_info, measurement, parse_time, value_unit
 
 MAGIC = 0x0E031301
 _DTYPES = {0: "<i2", 1: "<i4", 2: "<f4"}
+#: header fields 0 to 260 (the layout above; ``x``: bytes skipped)
+_HEADER = "<i64s16s16x2i32x2d64x3d16s"
 
 
 def _sniff(head: bytes, path: str) -> bool:
@@ -47,41 +48,22 @@ def _parse(path):
     raw_hdr = tif.raw(0, 50435) if tif.has(0, 50435) else b""
     if len(raw_hdr) < 276:
         raise ReaderError(path, f"Park header (tag 50435) is too short ({len(raw_hdr)} bytes)")
-    h = BinaryReader(raw_hdr, path, "<")
-
-    def wstr(at, n):
-        h.seek(at)
-        return h.read(2 * n, "Park header text").decode("utf-16-le", errors="replace").split("\0", 1)[0].strip()
-
-    if h.unpack("i", at=0) != 0:
+    typ, source, mode, nx, ny, lx, ly, gain, zscale, zoffset, zunit = struct.unpack_from(_HEADER, raw_hdr)
+    if typ != 0:
         raise ReaderError(path, "Park file holds a line profile or spectroscopy, not a 2D image")
-    hdr = dict(
-        source=wstr(4, 32), mode=wstr(68, 8),
-        nx=h.unpack("i", at=100), ny=h.unpack("i", at=104),
-        lx=h.unpack("d", at=140), ly=h.unpack("d", at=148),
-        gain=h.unpack("d", at=220), zscale=h.unpack("d", at=228), zoffset=h.unpack("d", at=236),
-        zunit=value_unit(wstr(244, 8)),
-        dtype=h.unpack("i", at=348) if len(raw_hdr) >= 352 else 0,
-    )
-    if hdr["nx"] < 1 or hdr["ny"] < 1:
-        raise ReaderError(path, f"Park header gives {hdr['nx']}x{hdr['ny']} pixels")
+    source, mode, zunit = (s.decode("utf-16-le", errors="replace").split("\0", 1)[0].strip()
+                           for s in (source, mode, zunit))
+    hdr = dict(mode=mode, nx=nx, ny=ny, gain=gain, zscale=zscale, zoffset=zoffset,
+               dtype=struct.unpack_from("<i", raw_hdr, 348)[0] if len(raw_hdr) >= 352 else 0)
+    if nx < 1 or ny < 1:
+        raise ReaderError(path, f"Park header gives {nx}x{ny} pixels")
     if hdr["dtype"] not in _DTYPES:
         raise ReaderError(path, f"unknown Park data type {hdr['dtype']}")
-    name = hdr["source"] or "Z Height"
-    unit = hdr["zunit"] or "um"
-    info = channel_info(0, name, (hdr["ny"], hdr["nx"]), (hdr["ly"], hdr["lx"]), "um", unit)
-    return tif, hdr, info
+    info = channel_info(0, source or "Z Height", (ny, nx), (ly, lx), "um", value_unit(zunit) or "um")
+    return [info], tif, hdr
 
 
-@guarded("Park TIFF")
-def _channels(path):
-    return [_parse(path)[2]]
-
-
-@guarded("Park TIFF")
-def _read(path, *, channel=None):
-    tif, hdr, info = _parse(path)
-    pick_channel(path, [info], channel)
+def _load(path, info, tif, hdr):
     typ, count, off = tif.ifds[0].get(50434, (None, 0, -1))
     if off < 0:
         raise ReaderError(path, "Park data tag 50434 is missing or points beyond the end of the file")
@@ -96,9 +78,8 @@ def _read(path, *, channel=None):
         imaging_mode=hdr["mode"] or None,
         data_gain=hdr["gain"],
     )
-    return measurement(path, values, info, size=info.size, lateral_units="um",
-                       value_units=info.height_units, height_scale=hdr["gain"], **attrs)
+    return measurement(path, values, info, height_scale=hdr["gain"], **attrs)
 
 
-FORMAT = register(Format("park_tiff", "Park Systems (PSIA) TIFF image", (".tiff", ".tif"),
-                         _sniff, _read, _channels, priority=20))
+channel_format("park_tiff", "Park Systems (PSIA) TIFF image", (".tiff", ".tif"), _sniff, "Park TIFF", _parse, _load,
+               priority=20)

@@ -9,14 +9,10 @@ from __future__ import annotations
 
 from ...conventions import make_measurement
 from .._binary import BinaryReader
-from ..registry import ChannelInfo, Format, register
-from ._common import clean_text, pick_channel, reading, sniff_magic
+from ._common import ChannelInfo, channel_format, clean_text, sniff_magic
 
 _MAGIC = b"Binary TrueMap Data File v2.0"
 _MAX_COMMENT = 4096
-
-
-_sniff = sniff_magic(_MAGIC)
 
 
 def _parse(path):
@@ -30,23 +26,13 @@ def _parse(path):
     nx, ny, lx, ly, x0, y0 = r.unpack("2I4f", "TMD header")
     if nx == 0 or ny == 0 or not (lx > 0 and ly > 0):
         raise r.error(f"invalid TMD grid {nx} x {ny} over {lx} x {ly} mm")
-    return r, dict(nx=nx, ny=ny, lx=lx, ly=ly, x0=x0, y0=y0, comment=comment)
+    return [ChannelInfo(0, "Height", (ny, nx), (ly, lx), "mm", "mm")], r, dict(x0=x0, y0=y0, comment=comment)
 
 
-def _channels(path):
-    with reading(path, "TrueMap TMD"):
-        _r, h = _parse(path)
-        return [ChannelInfo(0, "Height", (h["ny"], h["nx"]), (h["ly"], h["lx"]), "mm", "mm")]
+def _load(path, info, r, h):
+    z = r.array("f4", info.shape[0] * info.shape[1], "TMD height data").reshape(info.shape)
+    return make_measurement(z, size=info.size, units="mm", vendor="TrueGage (TrueMap)", comment=h["comment"] or None,
+                            x_offset=h["x0"], y_offset=h["y0"], original_units="mm")
 
 
-def _read(path, *, channel=None):
-    with reading(path, "TrueMap TMD"):
-        r, h = _parse(path)
-        pick_channel(path, ["Height"], channel)
-        z = r.array("f4", h["nx"] * h["ny"], "TMD height data").reshape(h["ny"], h["nx"])
-        return make_measurement(z, size=(h["ly"], h["lx"]), units="mm", vendor="TrueGage (TrueMap)",
-                                comment=h["comment"] or None, x_offset=h["x0"], y_offset=h["y0"],
-                                original_units="mm")
-
-
-FORMAT = register(Format("tmd", "TrueMap TMD v2.0 surface", (".tmd",), _sniff, _read, _channels, priority=10))
+channel_format("tmd", "TrueMap TMD v2.0 surface", (".tmd",), sniff_magic(_MAGIC), "TrueMap TMD", _parse, _load)

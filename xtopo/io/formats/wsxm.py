@@ -25,8 +25,7 @@ import re
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ..registry import Format, register
-from ._common import (channel_info, guarded, length_unit, measurement, pick_channel, to_float, to_int, unit_factor,
+from ._common import (channel_format, channel_info, length_unit, measurement, to_float, to_int, unit_factor,
                       value_unit)
 
 _DTYPES = {"short": "<i2", "integer": "<i4", "int": "<i4", "float": "<f4", "double": "<f8",
@@ -71,10 +70,11 @@ def _parse(path):
     ny = to_int(path, fields.get("General Info/Number of rows"), "Number of rows", minimum=1)
     lx, ux = _quantity(path, fields.get("Control/X Amplitude"), "X Amplitude")
     ly, uy = _quantity(path, fields.get("Control/Y Amplitude"), "Y Amplitude")
+    for axis, unit in (("X", ux), ("Y", uy)):
+        if length_unit(unit) is None:
+            raise ReaderError(path, f"WSxM {axis} Amplitude unit {unit!r} is not a length")
     lunit = length_unit(ux)
-    if lunit is None:
-        raise ReaderError(path, f"WSxM X Amplitude unit {ux!r} is not a length")
-    ly *= _factor(path, uy, lunit)
+    ly *= unit_factor(length_unit(uy), lunit)
     zamp, zunit = _quantity(path, fields.get("General Info/Z Amplitude"), "Z Amplitude")
     kind = fields.get("General Info/Image Data Type", "short").lower()
     if kind not in _DTYPES:
@@ -89,25 +89,10 @@ def _parse(path):
         if vmax == vmin:
             raise ReaderError(path, "WSxM Maximum equals Minimum: the integer height scale is undefined")
         scale = zamp / (vmax - vmin)
-    return data, start, _DTYPES[kind], info, scale, zunit, lunit, fields
+    return [info], data, start, _DTYPES[kind], scale, fields
 
 
-def _factor(path, unit, to):
-    f = unit_factor(length_unit(unit) or "?", to) if length_unit(unit) else None
-    if f is None:
-        raise ReaderError(path, f"WSxM Y Amplitude unit {unit!r} is not a length")
-    return f
-
-
-@guarded("WSxM")
-def _channels(path):
-    return [_parse(path)[3]]
-
-
-@guarded("WSxM")
-def _read(path, *, channel=None):
-    data, start, dtype, info, scale, zunit, lunit, fields = _parse(path)
-    pick_channel(path, [info], channel)
+def _load(path, info, data, start, dtype, scale, fields):
     ny, nx = info.shape
     raw = BinaryReader(data, path).array(dtype, nx * ny, what="WSxM image data", at=start).reshape(ny, nx)
     raw = raw[:, ::-1]  # rows are stored right to left
@@ -118,9 +103,8 @@ def _read(path, *, channel=None):
         software_version=fields.get("Miscellaneous/Saved with version"),
         comment=fields.get("Miscellaneous/Comments") or None,
     )
-    return measurement(path, raw, info, size=info.size, lateral_units=lunit, value_units=zunit,
-                       height_scale=scale, **attrs)
+    return measurement(path, raw, info, height_scale=scale, **attrs)
 
 
-FORMAT = register(Format("wsxm", "WSxM image (Nanotec Electronica)", (".top", ".stp", ".ch1", ".ch2", ".cur"),
-                         _sniff, _read, _channels, priority=10))
+channel_format("wsxm", "WSxM image (Nanotec Electronica)", (".top", ".stp", ".ch1", ".ch2", ".cur"), _sniff, "WSxM",
+               _parse, _load)

@@ -28,11 +28,10 @@ import numpy as np
 
 from ...conventions import make_measurement
 from ...errors import ReaderError
-from .._binary import MAX_PIXELS, check_count
+from .._binary import MAX_PIXELS
 from .._xml import child, child_text, local_name, parse_xml
-from .._zip import MAX_MEMBER, open_zip, read_member, unsafe_name
-from ..registry import ChannelInfo, Format, register
-from ._common import pick_channel, reading
+from .._zip import open_zip, read_member, unsafe_name
+from ._common import ChannelInfo, channel_format
 
 _DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
 _MAX_MAIN_XML = 16 << 20
@@ -50,28 +49,19 @@ def _sniff(head: bytes, path: str) -> bool:
         return False
 
 
-def _member(path, zf, name):
+def _linked(path, zf, base, rec3, key, expected):
+    """Bytes of the member that ``DataLink/<key>`` names (relative to main.xml), or ``None`` without one."""
+    link = child_text(rec3, "DataLink", key)
+    if link is None:
+        return None
+    if unsafe_name(link):
+        raise ReaderError(path, f"X3P {key} {link!r} leaves the archive (path traversal)")
+    name = posixpath.join(base, link.replace("\\", "/"))
     try:
-        return zf.getinfo(name)
+        info = zf.getinfo(name)
     except KeyError:
         raise ReaderError(path, f"the X3P archive lacks the member {name!r} named in main.xml") from None
-
-
-def _read_member(path, zf, info, expected=None, limit=MAX_MEMBER):
-    """Bytes of ``info``, refusing bombs and size mismatches; decompression is capped."""
-    return read_member(path, zf, info, "X3P", expected=expected, limit=limit, expected_from="main.xml")
-
-
-def _open(path):
-    zf = open_zip(path, "X3P")
-    names = zf.namelist()
-    mains = sorted((n for n in names if posixpath.basename(n) == "main.xml" and not n.startswith("__MACOSX/")),
-                   key=lambda n: (n.count("/"), n))
-    if not mains:
-        zf.close()
-        raise ReaderError(path, "the zip archive has no main.xml, so it is not an X3P file")
-    root = parse_xml(_read_member(path, zf, zf.getinfo(mains[0]), limit=_MAX_MAIN_XML), path, "X3P main.xml")
-    return zf, posixpath.dirname(mains[0]), root
+    return read_member(path, zf, info, "X3P", expected=expected, expected_from="main.xml")
 
 
 def _float(text, default):
@@ -105,14 +95,19 @@ def _header(path, root):
     return axes, nx, ny, rec3
 
 
-def _channels(path):
-    with reading(path, "X3P"):
-        zf, _base, root = _open(path)
-        zf.close()
-        axes, nx, ny, _r = _header(path, root)
-        if ny == 1:
-            return [ChannelInfo(0, "Height", (nx,), (nx * axes["CX"]["inc"],), "m", "m")]
-        return [ChannelInfo(0, "Height", (ny, nx), (ny * axes["CY"]["inc"], nx * axes["CX"]["inc"]), "m", "m")]
+def _parse(path):
+    with open_zip(path, "X3P") as zf:
+        mains = sorted((n for n in zf.namelist() if posixpath.basename(n) == "main.xml"
+                        and not n.startswith("__MACOSX/")), key=lambda n: (n.count("/"), n))
+        if not mains:
+            raise ReaderError(path, "the zip archive has no main.xml, so it is not an X3P file")
+        root = parse_xml(read_member(path, zf, zf.getinfo(mains[0]), "X3P", limit=_MAX_MAIN_XML), path, "X3P main.xml")
+    base = posixpath.dirname(mains[0])
+    axes, nx, ny, rec3 = _header(path, root)
+    if ny == 1:
+        return [ChannelInfo(0, "Height", (nx,), (nx * axes["CX"]["inc"],), "m", "m")], base, root, axes, nx, ny, rec3
+    size = (ny * axes["CY"]["inc"], nx * axes["CX"]["inc"])
+    return [ChannelInfo(0, "Height", (ny, nx), size, "m", "m")], base, root, axes, nx, ny, rec3
 
 
 def _iso(text):
@@ -129,55 +124,38 @@ def _known(text):
     return None if text in (None, "", "unknown", "not available") else text
 
 
-def _read(path, *, channel=None):
-    with reading(path, "X3P"):
-        zf, base, root = _open(path)
-        with zf:
-            axes, nx, ny, rec3 = _header(path, root)
-            pick_channel(path, ["Height"], channel)
-            dtype = np.dtype(_DTYPES[axes["CZ"]["dtype"]])
-            n = nx * ny
-            link = child_text(rec3, "DataLink", "PointDataLink")
-            valid = None
-            if link is not None:
-                if unsafe_name(link):
-                    raise ReaderError(path, f"X3P PointDataLink {link!r} leaves the archive (path traversal)")
-                info = _member(path, zf, posixpath.join(base, link.replace("\\", "/")))
-                check_count(path, n, dtype.itemsize, MAX_MEMBER, "X3P point data")
-                raw = np.frombuffer(_read_member(path, zf, info, expected=n * dtype.itemsize), dtype=dtype)
-                vlink = child_text(rec3, "DataLink", "ValidPointsLink")
-                if vlink is not None:
-                    if unsafe_name(vlink):
-                        raise ReaderError(path, f"X3P ValidPointsLink {vlink!r} leaves the archive")
-                    vinfo = _member(path, zf, posixpath.join(base, vlink.replace("\\", "/")))
-                    bits = np.frombuffer(_read_member(path, zf, vinfo, expected=(n + 7) // 8), dtype=np.uint8)
-                    valid = np.unpackbits(bits, bitorder="little")[:n].astype(bool)
-            else:
-                dlist = child(rec3, "DataList")
-                if dlist is None:
-                    raise ReaderError(path, "X3P Record3 has neither a DataLink nor a DataList")
-                data = [d.text for d in dlist if local_name(d.tag) == "Datum"]
-                if len(data) != n:
-                    raise ReaderError(path, f"X3P DataList has {len(data)} points, expected {nx} x {ny}")
-                raw = np.array([np.nan if not (t or "").strip() else float(t.split(";")[-1]) for t in data])
-            z = raw.astype(np.float64) * axes["CZ"]["inc"] + axes["CZ"]["off"]
-            undefined = ~np.isfinite(z) if valid is None else (~valid | ~np.isfinite(z))
-        rec2 = child(root, "Record2")
-        inst = child(rec2, "Instrument") if rec2 is not None else None
-        manu, model = _known(child_text(inst, "Manufacturer")), _known(child_text(inst, "Model"))
-        shape = (ny, nx) if ny > 1 else (nx,)
-        sp = (axes["CY"]["inc"], axes["CX"]["inc"]) if ny > 1 else axes["CX"]["inc"]
-        return make_measurement(
-            z.reshape(shape), spacing=sp, units="m", mask=undefined.reshape(shape), vendor=manu,
-            instrument=" ".join(t for t in (manu, model) if t) or None,
-            instrument_serial=_known(child_text(inst, "Serial")),
-            instrument_version=_known(child_text(inst, "Version")),
-            acquisition_time=_iso(child_text(rec2, "Date")) if rec2 is not None else None,
-            creator=child_text(rec2, "Creator") if rec2 is not None else None,
-            probing_system=_known(child_text(rec2, "ProbingSystem", "Type")) if rec2 is not None else None,
-            comment=child_text(rec2, "Comment") if rec2 is not None else None,
-            x_offset=axes["CX"]["off"], y_offset=axes["CY"]["off"], original_units="m")
+def _load(path, info, base, root, axes, nx, ny, rec3):
+    with open_zip(path, "X3P") as zf:
+        dtype = np.dtype(_DTYPES[axes["CZ"]["dtype"]])
+        n = nx * ny
+        points = _linked(path, zf, base, rec3, "PointDataLink", n * dtype.itemsize)
+        bits = _linked(path, zf, base, rec3, "ValidPointsLink", (n + 7) // 8) if points is not None else None
+        valid = None if bits is None else np.unpackbits(np.frombuffer(bits, np.uint8), bitorder="little")[:n] != 0
+        if points is not None:
+            raw = np.frombuffer(points, dtype=dtype)
+        else:
+            dlist = child(rec3, "DataList")
+            if dlist is None:
+                raise ReaderError(path, "X3P Record3 has neither a DataLink nor a DataList")
+            data = [d.text for d in dlist if local_name(d.tag) == "Datum"]
+            if len(data) != n:
+                raise ReaderError(path, f"X3P DataList has {len(data)} points, expected {nx} x {ny}")
+            raw = np.array([np.nan if not (t or "").strip() else float(t.split(";")[-1]) for t in data])
+        z = raw.astype(np.float64) * axes["CZ"]["inc"] + axes["CZ"]["off"]
+        undefined = ~np.isfinite(z) if valid is None else (~valid | ~np.isfinite(z))
+    rec2 = child(root, "Record2")
+    inst = child(rec2, "Instrument")
+    manu, model = _known(child_text(inst, "Manufacturer")), _known(child_text(inst, "Model"))
+    shape = (ny, nx) if ny > 1 else (nx,)
+    sp = (axes["CY"]["inc"], axes["CX"]["inc"]) if ny > 1 else axes["CX"]["inc"]
+    return make_measurement(
+        z.reshape(shape), spacing=sp, units="m", mask=undefined.reshape(shape), vendor=manu,
+        instrument=" ".join(t for t in (manu, model) if t) or None,
+        instrument_serial=_known(child_text(inst, "Serial")),
+        instrument_version=_known(child_text(inst, "Version")),
+        acquisition_time=_iso(child_text(rec2, "Date")), creator=child_text(rec2, "Creator"),
+        probing_system=_known(child_text(rec2, "ProbingSystem", "Type")), comment=child_text(rec2, "Comment"),
+        x_offset=axes["CX"]["off"], y_offset=axes["CY"]["off"], original_units="m")
 
 
-FORMAT = register(Format("x3p", "ISO 25178-72 X3P (zip + main.xml)", (".x3p",), _sniff, _read, _channels,
-                         priority=5))
+channel_format("x3p", "ISO 25178-72 X3P (zip + main.xml)", (".x3p",), _sniff, "X3P", _parse, _load, priority=5)

@@ -14,8 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._binary import BinaryReader
-from ..registry import Format, register
-from ._common import channel_info, clean_text, guarded, measurement, pick_channel, sniff_magic
+from ._common import channel_format, channel_info, clean_text, measurement, sniff_magic
 
 _MAGIC = b"Zeta-Instruments"
 _HEADER = 205
@@ -33,23 +32,13 @@ def _parse(path):
     r.seek(_HEADER)
     comment = r.read(comment_size, "ZMG comment").decode("latin-1", errors="replace").strip("\0 ")
     info = channel_info(0, "Height", (ny, nx), (ny * dy, nx * dx), "um", "um", height=True)
-    return r, info, dz, {"recipe": recipe or None, "comment": comment or None}
+    return [info], r, dz, {"recipe": recipe or None, "comment": comment or None}
 
 
-@guarded("KLA Zeta ZMG")
-def _channels(path):
-    return [_parse(path)[1]]
-
-
-@guarded("KLA Zeta ZMG")
-def _read(path, *, channel=None):
-    r, info, dz, meta = _parse(path)
-    pick_channel(path, [info], channel)
+def _load(path, info, r, dz, meta):
     ny, nx = info.shape
     z = r.array("<u2", nx * ny, "ZMG heights").reshape(ny, nx).astype(np.float64)
-    return measurement(path, z, info, size=info.size, lateral_units="um", value_units="um", height_scale=dz,
-                       vendor="KLA", instrument="KLA Zeta optical profiler", **meta)
+    return measurement(path, z, info, height_scale=dz, vendor="KLA", instrument="KLA Zeta optical profiler", **meta)
 
 
-register(Format("zmg", "KLA Zeta optical profiler file", (".zmg",), sniff_magic(_MAGIC), _read, _channels,
-                priority=10))
+channel_format("zmg", "KLA Zeta optical profiler file", (".zmg",), sniff_magic(_MAGIC), "KLA Zeta ZMG", _parse, _load)

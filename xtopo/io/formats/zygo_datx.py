@@ -16,13 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import ReaderError
-from ..registry import Format, register
-from ._common import channel_info, guarded, length_unit, measurement, pick_channel
+from ._common import channel_format, channel_info, length_unit, measurement
 from .hdf5 import open_h5, read_dataset
 
 _MAGIC = b"\x89HDF\r\n\x1a\n"
-#: what h5py raises on a damaged file (reported as a corrupt DATX file)
-_H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
 _MAX_META_ROWS = 100_000
 
 
@@ -89,7 +86,12 @@ def _find_attr(f, dset, key):
     return found[0] if found else None
 
 
-def _parse(path, f):
+def _parse(path):
+    with open_h5(path) as f:
+        return _surface(path, f)
+
+
+def _surface(path, f):
     surface = _surface_path(path, f)
     dset = f[surface]
     if len(dset.shape or ()) != 2 or dset.dtype.kind not in "iuf":
@@ -109,32 +111,16 @@ def _parse(path, f):
     attrs = {"instrument": _find_attr(f, dset, "System Type"), "serial_number": _find_attr(f, dset,
                                                                                            "System Serial Number")}
     no_data = dset.attrs.get("No Data")
-    return dset, info, attrs, None if no_data is None else float(np.ravel(no_data)[0])
+    return [info], surface, attrs, None if no_data is None else float(np.ravel(no_data)[0])
 
 
-@guarded("Zygo DATX")
-def _channels(path):
+def _load(path, info, surface, attrs, no_data):
     with open_h5(path) as f:
-        try:
-            return [_parse(path, f)[1]]
-        except _H5_ERRORS as exc:
-            raise ReaderError(path, f"corrupt DATX file: {exc}") from None
-
-
-@guarded("Zygo DATX")
-def _read(path, *, channel=None):
-    with open_h5(path) as f:
-        try:
-            dset, info, attrs, no_data = _parse(path, f)
-            pick_channel(path, [info], channel)
-            values = read_dataset(path, dset, info.name).astype(np.float64)
-        except _H5_ERRORS as exc:
-            raise ReaderError(path, f"corrupt DATX file: {exc}") from None
+        values = read_dataset(path, f[surface], info.name).astype(np.float64)
     mask = ~np.isfinite(values)
     if no_data is not None:
         mask |= values == no_data
-    return measurement(path, np.where(mask, np.nan, values), info, size=info.size, lateral_units="m",
-                       value_units=info.height_units, mask=mask, vendor="Zygo", **attrs)
+    return measurement(path, np.where(mask, np.nan, values), info, mask=mask, vendor="Zygo", **attrs)
 
 
-register(Format("datx", "Zygo DATX (Mx software, HDF5)", (".datx",), _sniff, _read, _channels, priority=8))
+channel_format("datx", "Zygo DATX (Mx software, HDF5)", (".datx",), _sniff, "Zygo DATX", _parse, _load, priority=8)
