@@ -15,6 +15,7 @@ import xarray as xr
 
 from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
 from ..errors import ContactError, UnitsError, XtopoError
+from ..contact import Scene
 from ..contact.models import scene_models
 from ..contact.solve import ONE_SEQUENCE, control_value, solver_parameters
 from ..params import Flag, LengthUnit, checked
@@ -23,14 +24,6 @@ from ._inputs import Progress, Retries, StorePath, Workers, checked_read_options
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
 
 __all__ = ["contact"]
-
-
-def _require_contact():
-    """Raise an :class:`~xtopo.errors.XtopoError` when the contact solver cannot be imported."""
-    try:
-        from ..contact import Scene  # noqa: F401
-    except ImportError as exc:
-        raise XtopoError(f"the contact solver (xtopo.contact.Scene) is not available: {exc}") from None
 
 
 def _contact_units(units, sources, read_options) -> str:
@@ -101,8 +94,6 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None, requir
         The solves stacked along ``control``, with a ``scan`` variable (``"line"`` or
         ``"area"`` for each) and the input's history plus one line for the contact.
     """
-    from ..contact import Scene
-
     _require_heights(ds)
     ds = _in_batch_units(ds, units)
     sc = Scene(ds, **scene)
@@ -228,7 +219,6 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     # the functions Scene and solve use, once here for every item
     control, values = next((k[:-1], v) for k, v in (("loads", loads), ("mean_pressures", mean_pressures),
                                                     ("penetrations", penetrations)) if v is not None)
-    _require_contact()
     models = scene_models(modulus, hardness)
     # parameters shared by every item are checked here, not N times in the workers
     tol, maxiter = solver_parameters(tol, maxiter)

@@ -8,7 +8,6 @@ item errors in the workers.
 
 from __future__ import annotations
 
-import inspect
 import os
 from typing import Annotated
 
@@ -138,11 +137,6 @@ def checked_read_options(read_options, n: int | None = None) -> dict:
                          f"{type(read_options).__name__}")
     if not read_options:
         return {}
-
-    allowed = [k for k, v in inspect.signature(open_topography).parameters.items() if v.kind is v.KEYWORD_ONLY]
-    unknown = sorted(set(read_options) - set(allowed))
-    if unknown:
-        raise XtopoError(f"read_options {unknown} are not options of xtopo.open_topography ({', '.join(allowed)})")
     for key in PER_FILE:
         values = read_options.get(key)
         if isinstance(values, (list, tuple)) and n is not None and len(values) != n:
