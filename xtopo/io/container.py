@@ -181,16 +181,9 @@ def _described(meta: dict, keys: tuple) -> dict:
 
 
 def _creator(meta: dict) -> dict:
-    who = meta.get("created_by") or meta.get("creator")
-    out = {}
-    if isinstance(who, dict):
-        if _text(who.get("name")):
-            out["creator_name"] = who["name"]
-        if _text(who.get("orcid")):
-            out["creator_orcid"] = who["orcid"]
-    elif _text(who):
-        out["creator_name"] = who
-    return out
+    who = meta.get("created_by") or meta.get("creator")  # a mapping (name, orcid) or a name
+    who = who if isinstance(who, dict) else {"name": who}
+    return {f"creator_{key}": who[key] for key in ("name", "orcid") if _text(who.get(key))}
 
 
 def _surface_attrs(meta: dict, surface: dict, path: str, sha: str) -> dict:
@@ -324,7 +317,6 @@ class _Archive:
             self.zf.close()
             raise
         self.tmp = tempfile.TemporaryDirectory(prefix="xtopo-container-")
-        self.count = 0
 
     def __enter__(self):
         return self
@@ -344,11 +336,8 @@ class _Archive:
                                          f"{self.meta['_file']} is not in the archive") from None
 
     def extract(self, info) -> str:
-        """The member in a fresh directory under its own (sanitised) base name, so its suffix is kept."""
-        self.count += 1
-        directory = os.path.join(self.tmp.name, str(self.count))
-        os.mkdir(directory)
-        target = os.path.join(directory, safe_name(posixpath.basename(info.filename.replace("\\", "/"))))
+        """The member under its own (sanitised) base name, so its suffix is kept; the caller deletes it."""
+        target = os.path.join(self.tmp.name, safe_name(posixpath.basename(info.filename.replace("\\", "/"))))
         copy_member(self.path, self.zf, info, target, "container")
         return target
 
@@ -522,8 +511,8 @@ def _described_meta(attrs, keys: tuple) -> dict:
     """The text entries ``keys`` of ``attrs`` and their creator (``created_by``) as container metadata."""
     out = {key: attrs[key] for key in keys if isinstance(attrs.get(key), str)}
     if attrs.get("creator_name"):
-        out["created_by"] = {"name": str(attrs["creator_name"]),
-                             **({"orcid": str(attrs["creator_orcid"])} if attrs.get("creator_orcid") else {})}
+        out["created_by"] = {key: str(attrs[f"creator_{key}"]) for key in ("name", "orcid")
+                             if attrs.get(f"creator_{key}")}
     return out
 
 
