@@ -20,7 +20,8 @@ from ..contact.models import scene_models
 from ..contact.solve import ONE_SEQUENCE, control_value, solver_parameters
 from ..params import Flag, LengthUnit, checked
 from ._engine import run_batch
-from ._inputs import Progress, Retries, StorePath, Workers, checked_read_options, names_and_sources, run_options
+from ._inputs import (Progress, ReadOptions, Retries, StorePath, Workers, checked_read_options, names_and_sources,
+                      run_options)
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
 
 __all__ = ["contact"]
@@ -154,7 +155,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
             tol: float | None = None, maxiter: int | None = None,
             maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
             workers: Workers = None, store: StorePath = None, progress: Progress = True, fft_threads: Workers = 1,
-            retries: Retries = 1, read_options: dict | None = None, units: Annotated[str | None, LengthUnit()] = None,
+            retries: Retries = 1, read_options: ReadOptions = None, units: Annotated[str | None, LengthUnit()] = None,
             preprocess=None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
@@ -216,18 +217,16 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         floats (1.0/0.0 for True/False, NaN for the failed items), as :func:`run` says.
     """
     # the one control (ONE_SEQUENCE, declared above); modulus, hardness, tol and maxiter are checked below by
-    # the functions Scene and solve use, once here for every item
+    # the functions Scene and solve use, once here for every item, not N times in the workers
     control, values = next((k[:-1], v) for k, v in (("loads", loads), ("mean_pressures", mean_pressures),
                                                     ("penetrations", penetrations)) if v is not None)
     models = scene_models(modulus, hardness)
-    # parameters shared by every item are checked here, not N times in the workers
     tol, maxiter = solver_parameters(tol, maxiter)
-    run_options(_contact_item, control, values)  # values: a 1D, non-empty sequence
-    values = [control_value(control, v, models) for v in np.atleast_1d(np.asarray(values, dtype=object))]
+    values = [control_value(control, v, models) for v in run_options(_contact_item, control, values)]  # 1D, not empty
     scene = {k: v for k, v in (("modulus", modulus), ("hardness", hardness), ("periodic", periodic)) if v is not None}
     solve = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}
     names, sources = names_and_sources(measurements)
-    units = _contact_units(units, sources, checked_read_options(read_options))
+    units = _contact_units(units, sources, checked_read_options(read_options, len(names))[0])
     # the in-memory measurements' kind (line or area scan) is known now; files' only once read
     scan = one_scan(control, names, sources, units)
     func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units,
