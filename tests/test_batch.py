@@ -311,7 +311,7 @@ def test_read_options_open_generic_files_and_key_the_store(tmp_path, counter):
     other = batch.run(fft_work, paths, LOADS, scheduler="sync", store=store, progress=False,
                       read_options={**opts, "physical_size": (2.0, 2.0)})
     assert counter() == before + 2 and other.attrs["chunks_reused"] == 0   # other options: recomputed
-    with pytest.raises(XtopoError, match=r"read_options \['file_unit'\] are not options"):
+    with pytest.raises(XtopoError, match=r"read_options has no option 'file_unit'"):
         batch.run(fft_work, paths, LOADS, scheduler="sync", progress=False, read_options={"file_unit": "um"})
 
 

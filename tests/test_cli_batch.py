@@ -269,12 +269,6 @@ def test_batch_contact_against_separate_dask_scheduler(files, tmp_path, capsys, 
         assert np.isfinite(res.area_fraction.values).all()
 
 
-def test_contact_without_solver_says_so(files, tmp_path, capsys, monkeypatch):
-    monkeypatch.setitem(sys.modules, "xtopo.contact", None)  # import fails as if absent
-    assert main(["contact", files[0], "--loads", "1", "-o", str(tmp_path / "c.nc")]) == 2
-    assert "contact solver" in capsys.readouterr().err
-
-
 def test_bad_worker_count_is_a_usage_error(files, tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["batch", "analyze", files[0], "--workers", "0", "-o", str(tmp_path / "s")])

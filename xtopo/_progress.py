@@ -17,11 +17,6 @@ def _in_notebook() -> bool:
     return "ipykernel" in sys.modules
 
 
-def _interactive() -> bool:
-    stream = sys.stderr
-    return _in_notebook() or bool(getattr(stream, "isatty", lambda: False)())
-
-
 def progress_bar(iterable, *, desc: str, total: int | None = None, unit: str = "it", enabled: bool | None = None):
     """``iterable`` with a progress bar where one is wanted (see the module docstring), else as it is.
 
@@ -39,7 +34,7 @@ def progress_bar(iterable, *, desc: str, total: int | None = None, unit: str = "
         None: on a terminal or in a notebook; True/False: always/never.
     """
     if enabled is None:
-        enabled = _interactive()
+        enabled = _in_notebook() or bool(getattr(sys.stderr, "isatty", lambda: False)())
     if not enabled or importlib.util.find_spec("tqdm") is None:
         return iterable
     if _in_notebook() and importlib.util.find_spec("ipywidgets") is not None:

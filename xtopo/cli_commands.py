@@ -251,11 +251,10 @@ def _control(args) -> tuple[str, list]:
 
 
 def _cmd_contact(args) -> int:
-    from .batch import _contact_item, _require_contact  # deferred: xtopo --help loads no numpy
+    from .batch import _contact_item  # deferred: xtopo --help loads no numpy
     from .io import open_topography
     from .io.netcdf import to_netcdf
 
-    _require_contact()
     control, values = _control(args)
     ds = preprocess(open_topography(args.file, channel=args.channel, **read_options(args)), args)
     res = _contact_item(ds, values, control=control, scene=_scene_kwargs(args), solve=_solve_kwargs(args),
@@ -322,9 +321,8 @@ def _positive_float(value: str) -> float:
 
 
 def _cmd_batch_contact(args) -> int:
-    from .batch import _require_contact, contact  # deferred: xtopo --help loads no numpy
+    from .batch import contact  # deferred: xtopo --help loads no numpy
 
-    _require_contact()
     common = _batch_common(args)
     solve = _solve_kwargs(args)
     scene = _scene_kwargs(args)

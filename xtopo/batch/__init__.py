@@ -36,7 +36,7 @@ from ._engine import open_store, run
 
 # internal names that the CLI, the tests and the benchmarks reach through xtopo.batch
 from ._analyze import _analyze_item  # noqa: F401
-from ._contact import _contact_item, _require_contact  # noqa: F401
+from ._contact import _contact_item  # noqa: F401
 from ._store import chunk_key  # noqa: F401
 
 __all__ = ["run", "contact", "analyze", "open_store"]

@@ -15,22 +15,16 @@ import xarray as xr
 
 from ..conventions import append_history, convert_length, height_of, length_units_of, normalize_units
 from ..errors import ContactError, UnitsError, XtopoError
+from ..contact import Scene
 from ..contact.models import scene_models
 from ..contact.solve import ONE_SEQUENCE, control_value, solver_parameters
 from ..params import Flag, LengthUnit, checked
 from ._engine import run_batch
-from ._inputs import Progress, Retries, StorePath, Workers, checked_read_options, names_and_sources, run_options
+from ._inputs import (Progress, ReadOptions, Retries, StorePath, Workers, checked_read_options, names_and_sources,
+                      run_options)
 from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
 
 __all__ = ["contact"]
-
-
-def _require_contact():
-    """Raise an :class:`~xtopo.errors.XtopoError` when the contact solver cannot be imported."""
-    try:
-        from ..contact import Scene  # noqa: F401
-    except ImportError as exc:
-        raise XtopoError(f"the contact solver (xtopo.contact.Scene) is not available: {exc}") from None
 
 
 def _contact_units(units, sources, read_options) -> str:
@@ -101,8 +95,6 @@ def _contact_item(ds, values, *, control, scene, solve, maps, units=None, requir
         The solves stacked along ``control``, with a ``scan`` variable (``"line"`` or
         ``"area"`` for each) and the input's history plus one line for the contact.
     """
-    from ..contact import Scene
-
     _require_heights(ds)
     ds = _in_batch_units(ds, units)
     sc = Scene(ds, **scene)
@@ -163,7 +155,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
             tol: float | None = None, maxiter: int | None = None,
             maps: Annotated[bool, Flag()] = False, chunks=None, client=None, scheduler=None,
             workers: Workers = None, store: StorePath = None, progress: Progress = True, fft_threads: Workers = 1,
-            retries: Retries = 1, read_options: dict | None = None, units: Annotated[str | None, LengthUnit()] = None,
+            retries: Retries = 1, read_options: ReadOptions = None, units: Annotated[str | None, LengthUnit()] = None,
             preprocess=None) -> xr.Dataset:
     """Contact of many measurements at many loads, as a chunked Dask batch (see :func:`run`).
 
@@ -225,19 +217,16 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
         floats (1.0/0.0 for True/False, NaN for the failed items), as :func:`run` says.
     """
     # the one control (ONE_SEQUENCE, declared above); modulus, hardness, tol and maxiter are checked below by
-    # the functions Scene and solve use, once here for every item
+    # the functions Scene and solve use, once here for every item, not N times in the workers
     control, values = next((k[:-1], v) for k, v in (("loads", loads), ("mean_pressures", mean_pressures),
                                                     ("penetrations", penetrations)) if v is not None)
-    _require_contact()
     models = scene_models(modulus, hardness)
-    # parameters shared by every item are checked here, not N times in the workers
     tol, maxiter = solver_parameters(tol, maxiter)
-    run_options(_contact_item, control, values)  # values: a 1D, non-empty sequence
-    values = [control_value(control, v, models) for v in np.atleast_1d(np.asarray(values, dtype=object))]
+    values = [control_value(control, v, models) for v in run_options(_contact_item, control, values)]  # 1D, not empty
     scene = {k: v for k, v in (("modulus", modulus), ("hardness", hardness), ("periodic", periodic)) if v is not None}
     solve = {k: v for k, v in (("tol", tol), ("maxiter", maxiter)) if v is not None}
     names, sources = names_and_sources(measurements)
-    units = _contact_units(units, sources, checked_read_options(read_options))
+    units = _contact_units(units, sources, checked_read_options(read_options, len(names))[0])
     # the in-memory measurements' kind (line or area scan) is known now; files' only once read
     scan = one_scan(control, names, sources, units)
     func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units,

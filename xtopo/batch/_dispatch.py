@@ -108,13 +108,6 @@ def _client_for(client, scheduler, workers):
         c.close()
 
 
-def _execute_distributed(client, chunks, progress, retries) -> dict:
-    """Run ``chunks`` on ``client``, made the current client meanwhile: distributed's ``as_completed`` and
-    ``progress`` look the client up, and one given as ``client=`` need not be the process's default."""
-    with client.as_current():
-        return _gather_distributed(client, chunks, progress, retries)
-
-
 #: seconds of work a task should carry before small chunks are packed into it (a distributed task costs
 #: 2.5-10 ms of scheduling and transfer on the reference machine: at most a few per cent of this);
 #: ``XTOPO_BATCH_TASK_SECONDS`` overrides it, 0 gives every chunk a task of its own
@@ -129,7 +122,7 @@ def _group_size(seconds: float, remaining: int, workers: int) -> int:
     return max(1, min(want, -(-remaining // (4 * max(workers, 1)))))
 
 
-def _gather_distributed(client, chunks, progress, retries) -> dict:
+def _execute_distributed(client, chunks, progress, retries) -> dict:
     """Run ``chunks`` on the client's workers: first two chunks per worker, timed, then the rest packed
     into tasks of :func:`_group_size` chunks. A chunk whose group failed as a whole (its worker died too
     often, or it raised) runs again in a task of its own."""
@@ -219,5 +212,8 @@ def execute(chunks, *, client, scheduler, workers, progress, retries) -> dict:
     """
     with _client_for(client, scheduler, workers) as c:
         if c is not None:
-            return _execute_distributed(c, chunks, progress, retries)
+            # made the current client: distributed's as_completed and progress look it up, and one given as
+            # client= need not be the process's default
+            with c.as_current():
+                return _execute_distributed(c, chunks, progress, retries)
         return _execute_local(chunks, scheduler, workers, progress)

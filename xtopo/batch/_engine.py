@@ -20,8 +20,8 @@ from ..errors import XtopoError
 from ..preprocess import checked_steps
 from ._dispatch import execute, fft_env
 from ..params import Path, checked
-from ._inputs import Attrs, Progress, Retries, StorePath, Workers, checked_read_options, chunk_sizes, names_and_sources, \
-    per_measurement, run_options
+from ._inputs import Attrs, Progress, ReadOptions, Retries, StorePath, Workers, checked_read_options, chunk_sizes, \
+    names_and_sources, run_options
 from ._results import combine, failed_items, failure_block
 from ._scans import settle_scans
 from ._store import MANIFEST, Store, chunk_key, fingerprint, func_name
@@ -37,7 +37,7 @@ _FINISH = {"settle_scans": settle_scans}
 def run(func, measurements, params=None, *, dim: str = "load", dim_attrs: Attrs = None, chunks=None,
         client=None, scheduler: str | None = None, workers: Workers = None, store: StorePath = None,
         progress: Progress = True,
-        fft_threads: Workers = 1, retries: Retries = 1, read_options: dict | None = None,
+        fft_threads: Workers = 1, retries: Retries = 1, read_options: ReadOptions = None,
         preprocess=None) -> xr.Dataset:
     """Run ``func`` on every measurement (× every parameter value) as chunked Dask tasks.
 
@@ -176,7 +176,7 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
     """
     names, sources = names_and_sources(measurements)
     params = run_options(func, dim, params)
-    read_options = per_measurement(checked_read_options(read_options, len(names)), len(names))
+    read_options = checked_read_options(read_options, len(names))
     steps = checked_steps(preprocess)
     store_obj = Store(store) if store is not None else None
     grid = _plan(func, dim, names, sources, params, chunks, read_options, steps, store_obj, fft_threads)
@@ -198,17 +198,12 @@ def run_batch(func, measurements, params, *, dim, dim_attrs, chunks, client, sch
         outcomes = execute(todo, client=client, scheduler=scheduler, workers=workers, progress=progress,
                            retries=retries)
 
-    blocks = []
-    for row in grid:
-        brow = []
-        for c in row:
-            out = stored.get(c.key, outcomes.get(c.key))
-            if not isinstance(out, xr.Dataset):
-                out = failure_block(c.names, c.sources, c.params, dim,
-                                    f"chunk failed: {error_message(out or XtopoError('no result'))}")
-            brow.append(out)
-        blocks.append(brow)
-    ds = _assemble(blocks, dim, params is not None, dim_attrs, finish)
+    def block(c):
+        out = stored.get(c.key, outcomes.get(c.key))
+        return out if isinstance(out, xr.Dataset) else failure_block(
+            c.names, c.sources, c.params, dim, f"chunk failed: {error_message(out or XtopoError('no result'))}")
+
+    ds = _assemble([[block(c) for c in row] for row in grid], dim, params is not None, dim_attrs, finish)
     failed = failed_items(ds, dim)
     ds.attrs.update({"title": f"xtopo batch: {func_name(func)}", "n_failed": len(failed),
                      "failed_items": json.dumps(failed), "chunks_computed": len(todo), "chunks_reused": len(stored),

@@ -8,7 +8,6 @@ item errors in the workers.
 
 from __future__ import annotations
 
-import inspect
 import os
 from typing import Annotated
 
@@ -21,8 +20,8 @@ from ..io.registry import detect
 from ..params import Count, Dict, Flag, Path, preflight
 from ._results import ERROR, HISTORY, MEASUREMENT, SOURCE
 
-__all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options", "per_measurement",
-           "Workers", "Retries", "Progress", "Attrs", "StorePath"]
+__all__ = ["names_and_sources", "run_options", "chunk_sizes", "checked_read_options",
+           "Workers", "Retries", "Progress", "Attrs", "StorePath", "ReadOptions"]
 
 #: the declared run options of a batch (:func:`xtopo.batch.run`, :func:`xtopo.batch.contact`)
 Workers = Annotated[int | None, Count()]
@@ -30,6 +29,7 @@ Retries = Annotated[int, Count(min=0)]
 Progress = Annotated[bool, Flag()]
 Attrs = Annotated[dict | None, Dict()]
 StorePath = Annotated[str | None, Path("directory path")]
+ReadOptions = Annotated[dict | None, Dict()]
 
 
 def names_and_sources(measurements) -> tuple[list[str], list]:
@@ -117,39 +117,22 @@ def chunk_sizes(chunks, dim, n_meas: int, n_par: int) -> list[int]:
 PER_FILE = ("tip_radius", "resolution")
 
 
-def per_measurement(read_options: dict, n: int) -> list[dict]:
-    """``read_options`` for each of ``n`` measurements: a ``tip_radius``/``resolution`` given as a list or tuple
-    holds one value per measurement (an :class:`~xtopo.errors.XtopoError` when its length is not ``n``)."""
+def checked_read_options(read_options: dict | None, n: int) -> list[dict]:
+    """``read_options`` (a dict, declared; None: {}) for each of ``n`` measurements, checked against
+    :func:`xtopo.open_topography`'s keywords: a ``tip_radius``/``resolution`` given as a list or tuple holds one
+    value per measurement (an :class:`~xtopo.errors.XtopoError` when its length is not ``n``)."""
+    read_options = read_options or {}
     out = [dict(read_options) for _ in range(n)]
     for key in PER_FILE:
         values = read_options.get(key)
         if isinstance(values, (list, tuple)):
+            if len(values) != n:
+                raise XtopoError(f"read_options[{key!r}] holds {len(values)} values for {n} measurements: give one "
+                                 "value for all, or one per measurement")
             for opts, v in zip(out, values):
                 opts[key] = v
-    return out
-
-
-def checked_read_options(read_options, n: int | None = None) -> dict:
-    """``read_options`` checked against :func:`xtopo.open_topography`'s keywords (a copy; {} for None).
-
-    ``tip_radius`` and ``resolution`` may be lists with one value per measurement (``n`` of them)."""
-    if read_options is not None and not isinstance(read_options, dict):
-        raise XtopoError(f"read_options must be a dict of xtopo.open_topography keywords, got "
-                         f"{type(read_options).__name__}")
-    if not read_options:
-        return {}
-
-    allowed = [k for k, v in inspect.signature(open_topography).parameters.items() if v.kind is v.KEYWORD_ONLY]
-    unknown = sorted(set(read_options) - set(allowed))
-    if unknown:
-        raise XtopoError(f"read_options {unknown} are not options of xtopo.open_topography ({', '.join(allowed)})")
-    for key in PER_FILE:
-        values = read_options.get(key)
-        if isinstance(values, (list, tuple)) and n is not None and len(values) != n:
-            raise XtopoError(f"read_options[{key!r}] holds {len(values)} values for {n} measurements: give one "
-                             "value for all, or one per measurement")
-    for opts in per_measurement(read_options, 1 if n is None else n):
+    for opts in out if read_options else ():
         preflight(open_topography, opts, "read_options")
         if opts.get("format") is not None:
             detect("read_options", opts["format"])
-    return dict(read_options)
+    return out

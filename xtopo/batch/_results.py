@@ -130,13 +130,8 @@ def failed_items(ds: xr.Dataset, dim: str) -> list[str]:
     """``"<measurement>: <error>"`` (``"<measurement> [<dim>=<value>]: <error>"``) for every failed item."""
     err = ds[ERROR]
     out = []
-    if err.ndim == 1:
-        for m, e in zip(err[MEASUREMENT].values, err.values):
-            if e:
-                out.append(f"{m}: {e}")
-    else:
-        for i, m in enumerate(err[MEASUREMENT].values):
-            for j, p in enumerate(err[dim].values):
-                if err.values[i, j]:
-                    out.append(f"{m} [{dim}={p}]: {err.values[i, j]}")
+    for (i, *j), e in np.ndenumerate(err.values):  # err's dims: (measurement, dim) or (measurement,)
+        if e:
+            at = f" [{dim}={err[dim].values[j[0]]}]" if j else ""
+            out.append(f"{err[MEASUREMENT].values[i]}{at}: {e}")
     return out

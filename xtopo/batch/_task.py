@@ -12,6 +12,7 @@ becomes an ``error`` entry; the chunk's other items go on.
 from __future__ import annotations
 
 import os
+import time
 from typing import Callable, NamedTuple
 
 import xarray as xr
@@ -175,17 +176,11 @@ def run_chunks(chunks: list) -> list:
     list of tuple
         ``(key, Dataset or the exception, seconds)`` per chunk.
     """
-    import time
-
     out = []
     for chunk in chunks:
         t = time.perf_counter()
         try:
-            ds = None
-            if chunk.store is not None:
-                store = Store(chunk.store)
-                if os.path.exists(store.path(chunk.key)):
-                    ds = store.reusable(chunk.key)
+            ds = None if chunk.store is None else Store(chunk.store).reusable(chunk.key)
             out.append((chunk.key, run_chunk(chunk) if ds is None else ds, time.perf_counter() - t))
         except Exception as exc:
             if len(chunks) == 1:

@@ -26,7 +26,11 @@ def read_bytes(path, limit: int | None = None) -> bytes:
         with open(path, "rb") as f:
             return f.read() if limit is None else f.read(limit)
     except OSError as exc:
-        raise ReaderError(path, f"cannot be read: {exc}") from None
+        raise ReaderError(path, _OS_ERRORS.get(type(exc)) or f"cannot be read: {exc}") from None
+
+
+_OS_ERRORS = {IsADirectoryError: "is a directory, not a file", FileNotFoundError: "no such file",
+              PermissionError: "permission denied"}
 
 
 def check_count(path, count, itemsize: int, available: int, what: str = "data") -> int:

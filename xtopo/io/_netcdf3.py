@@ -11,7 +11,6 @@ the file, so what a reader then allocates is bounded by the file's size.
 from __future__ import annotations
 
 import os
-import struct
 
 from ..errors import ReaderError
 
@@ -37,11 +36,17 @@ class _Header:
         self.pos += size
         return value
 
-    def count(self, what: str, min_bytes: int) -> int:
-        """A list length, refused when its entries (``min_bytes`` each, at least) cannot fit in the file."""
+    def count(self, what: str, min_bytes: int, tag: int | None = None) -> int:
+        """A list length, refused when its entries (``min_bytes`` each, at least) cannot fit in the file.
+
+        ``tag``: the list is tagged (dimensions, attributes, variables): a tag and a length, both 0 when absent.
+        """
+        found = None if tag is None else self.uint()
         n = self.uint()
-        if n > 0x7FFFFFFF or n * min_bytes > len(self.data) - self.pos:
-            self.fail(f"{what} claims {n} entries")
+        if found is not None and (found, n) == (0, 0):
+            return 0
+        if found != tag or n > 0x7FFFFFFF or n * min_bytes > len(self.data) - self.pos:
+            self.fail(f"{what} (tag {found:#x}) claims {n} entries" if tag else f"{what} claims {n} entries")
         return n
 
     def skip(self, n: int, what: str) -> None:
@@ -54,15 +59,7 @@ class _Header:
         self.skip(self.count("a name", 1), "a name")
 
     def attributes(self) -> None:
-        tag = self.uint()
-        n = self.uint()
-        if tag == 0 and n == 0:
-            return
-        if tag != _ATTRIBUTE:
-            self.fail(f"an attribute list has tag {tag:#x}")
-        if n > 0x7FFFFFFF or n * 12 > len(self.data) - self.pos:
-            self.fail(f"an attribute list claims {n} entries")
-        for _ in range(n):
+        for _ in range(self.count("an attribute list", 12, _ATTRIBUTE)):
             self.name()
             size = _SIZES.get(self.uint())
             if size is None:
@@ -86,23 +83,14 @@ def check_netcdf3_header(path) -> None:
     if magic >> 8 != 0x434446 or version not in (1, 2):
         h.fail("no CDF-1/CDF-2 signature")
     numrecs = h.uint()
-    tag, ndims = h.uint(), h.uint()
     dims = []
-    if (tag, ndims) != (0, 0):
-        if tag != _DIMENSION or ndims > 0x7FFFFFFF or ndims * 8 > len(data) - h.pos:
-            h.fail(f"the dimension list (tag {tag:#x}) claims {ndims} entries")
-        for _ in range(ndims):
-            h.name()
-            dims.append(h.uint())
+    for _ in range(h.count("the dimension list", 8, _DIMENSION)):
+        h.name()
+        dims.append(h.uint())
     h.attributes()
-    tag, nvars = h.uint(), h.uint()
-    if (tag, nvars) == (0, 0):
-        return
-    if tag != _VARIABLE or nvars > 0x7FFFFFFF or nvars * 24 > len(data) - h.pos:
-        h.fail(f"the variable list (tag {tag:#x}) claims {nvars} entries")
     record_bytes = 0
     records = []
-    for _ in range(nvars):
+    for _ in range(h.count("the variable list", 24, _VARIABLE)):
         h.name()
         ids = [h.uint() for _ in range(h.count("a variable's dimensions", 4))]
         if any(i >= len(dims) for i in ids):

@@ -15,8 +15,8 @@ from ..conventions import make_measurement, normalize_units
 from ..errors import ReaderError, UnitsError, UnsupportedFormatError
 
 __all__ = [
-    "MAX_TEXT_BYTES", "looks_like_text", "read_text", "split_lines", "parse_table", "parse_quantity",
-    "length_unit", "token_ulp", "column_precision", "uniform_spacing", "line_measurement", "header_value",
+    "MAX_TEXT_BYTES", "looks_like_text", "read_text", "parse_table", "parse_quantity",
+    "length_unit", "column_precision", "uniform_spacing", "line_measurement", "header_value",
     "is_number",
 ]
 
@@ -79,11 +79,6 @@ def read_text(path, limit: int = MAX_TEXT_BYTES) -> str:
         return data.decode("utf-8")
     except UnicodeDecodeError:
         return data.decode("latin-1")
-
-
-def split_lines(text: str) -> list[str]:
-    """Lines of ``text`` without line terminators (``\\n``, ``\\r\\n``, lone ``\\r``)."""
-    return text.splitlines()
 
 
 def parse_table(path, lines, sep: str | None = None, what: str = "data", ncols: int | None = None) -> np.ndarray:
@@ -195,26 +190,12 @@ def header_value(path, header: dict, key: str, kind=float, what: str | None = No
     return val
 
 
-_TOKEN = re.compile(r"^\s*[-+]?(\d*)(?:\.(\d*))?(?:[eE]([-+]?\d+))?\s*$")
-
-
-def token_ulp(tok: str) -> float:
-    """Unit in the last printed place of a number token (``"1.25e-3"`` → ``1e-5``); 0 if unknown."""
-    m = _TOKEN.match(tok)
-    if not m:
-        return 0.0
-    decimals = len(m.group(2) or "")
-    exp = int(m.group(3) or 0)
-    if abs(exp) > 300:
-        return 0.0
-    return 10.0 ** (exp - decimals)
-
-
 _TOKENS = re.compile(r"^\s*[-+]?\d*(?:\.(\d*))?(?:[eE]([-+]?\d+))?\s*$", re.M)
 
 
 def column_precision(tokens) -> float:
-    """The coarsest printed precision among number ``tokens``: the largest :func:`token_ulp`.
+    """The coarsest printed precision among number ``tokens``: the largest unit in the last printed place
+    (``"1.25e-3"`` → ``1e-5``).
 
     Positions printed with different numbers of decimals (``0.5``, ``0.25``) are only as precise
     as the coarsest of them. Tokens that are not plain numbers count as 0 (unknown).

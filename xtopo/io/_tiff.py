@@ -160,9 +160,8 @@ class TiffFile:
         compression = self.value(ifd, 259, 1)
         if compression != 1:
             raise ReaderError(self.path, f"compressed TIFF {what} (compression {compression}) is not supported")
-        offsets = np.atleast_1d(self.value(ifd, 273))
-        counts = np.atleast_1d(self.value(ifd, 279))
-        if offsets is None or counts is None or offsets.size != counts.size or offsets.size == 0:
+        offsets, counts = (np.atleast_1d(self.value(ifd, tag, ())) for tag in (273, 279))  # () where absent
+        if offsets.size != counts.size or offsets.size == 0:
             raise ReaderError(self.path, f"TIFF {what} has no valid strip offsets/byte counts")
         dt = np.dtype(dtype).newbyteorder(self.endian)
         ny, nx = shape

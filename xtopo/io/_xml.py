@@ -22,13 +22,6 @@ MAX_XML_BYTES = 64 << 20
 _FORBIDDEN = re.compile(rb"<!\s*(DOCTYPE|ENTITY|ELEMENT|ATTLIST)", re.IGNORECASE)
 
 
-def _as_utf8(data: bytes) -> bytes:
-    """UTF-16 documents (with BOM) are transcoded so the declaration scan sees ASCII."""
-    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
-        return data.decode("utf-16").encode("utf-8")
-    return data
-
-
 def parse_xml(data: bytes, path, what: str = "XML document") -> ET.Element:
     """Parse ``data`` into an element tree, refusing DTDs and entity declarations.
 
@@ -48,7 +41,9 @@ def parse_xml(data: bytes, path, what: str = "XML document") -> ET.Element:
     """
     if len(data) > MAX_XML_BYTES:
         raise ReaderError(path, f"{what} is {len(data)} bytes, more than the {MAX_XML_BYTES} accepted")
-    data = _as_utf8(bytes(data))
+    data = bytes(data)
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):  # UTF-16 (with BOM): transcoded so the declaration scan sees ASCII
+        data = data.decode("utf-16").encode("utf-8")
     if _FORBIDDEN.search(data):
         raise ReaderError(path, f"{what} contains a DTD or entity declaration (<!DOCTYPE/<!ENTITY); refused "
                                 "because such declarations enable external-entity and expansion attacks")

@@ -29,8 +29,6 @@ class XtopoBackendEntrypoint(BackendEntrypoint):
 
     description = "Surface topography files (AFM, profilometers, X3P, ...) via xtopo"
     url = "https://github.com/xtopo/xtopo"
-    open_dataset_parameters = ("filename_or_obj", "drop_variables", "channel", "units", "periodic", "format",
-                               "physical_size", "file_units", "height_units")
 
     def open_dataset(self, filename_or_obj, *, drop_variables=None, channel=None, units="m", periodic=None,
                      format=None, physical_size=None, file_units=None, height_units=None):

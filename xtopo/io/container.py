@@ -64,7 +64,7 @@ from ..preprocess import detrend, fill_missing
 from .formats.st_netcdf import instrument_attrs, instrument_info, to_surfacetopography_netcdf
 from .netcdf import atomic_write
 from .open import open_topography, sha256
-from ._zip import MAX_MEMBER, check_declared, copy_member, read_member, unsafe_name
+from ._zip import MAX_MEMBER, check_declared, copy_member, open_zip, read_member, unsafe_name
 
 __all__ = ["open_container", "container_twin", "to_container", "is_container", "DETREND_MODES"]
 
@@ -181,16 +181,9 @@ def _described(meta: dict, keys: tuple) -> dict:
 
 
 def _creator(meta: dict) -> dict:
-    who = meta.get("created_by") or meta.get("creator")
-    out = {}
-    if isinstance(who, dict):
-        if _text(who.get("name")):
-            out["creator_name"] = who["name"]
-        if _text(who.get("orcid")):
-            out["creator_orcid"] = who["orcid"]
-    elif _text(who):
-        out["creator_name"] = who
-    return out
+    who = meta.get("created_by") or meta.get("creator")  # a mapping (name, orcid) or a name
+    who = who if isinstance(who, dict) else {"name": who}
+    return {f"creator_{key}": who[key] for key in ("name", "orcid") if _text(who.get(key))}
 
 
 def _surface_attrs(meta: dict, surface: dict, path: str, sha: str) -> dict:
@@ -211,33 +204,28 @@ def _surface_attrs(meta: dict, surface: dict, path: str, sha: str) -> dict:
 
 # --- one measurement --------------------------------------------------------------------------
 
-def _size(meta: dict, where: str, path) -> tuple | None:
-    size = meta.get("size")
-    if size is None:
-        return None
-    ok = isinstance(size, list) and len(size) in (1, 2) and all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 for v in size)
-    if not ok:
-        raise ReaderError(path, f"{where}: 'size' must be a list of one or two positive lengths, got {size!r}")
-    return tuple(float(v) for v in size[::-1])  # contact.engineering: [Lx, Ly]; xtopo: (Ly, Lx)
+def _size_and_unit(meta: dict, where: str, path) -> tuple:
+    """The measurement's ``size`` (as ``(Ly, Lx)``) and ``unit`` in the metadata, None where absent."""
+    size, unit = meta.get("size"), meta.get("unit")
+    if size is not None:
+        ok = isinstance(size, list) and len(size) in (1, 2) and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0 for v in size)
+        if not ok:
+            raise ReaderError(path, f"{where}: 'size' must be a list of one or two positive lengths, got {size!r}")
+        size = tuple(float(v) for v in size[::-1])  # contact.engineering: [Lx, Ly]; xtopo: (Ly, Lx)
+    if unit is not None:
+        try:
+            unit = normalize_units(unit)
+        except (UnitsError, TypeError) as exc:
+            raise ReaderError(path, f"{where}: 'unit' {unit!r} is not a length unit ({exc})") from None
+    return size, unit
 
 
-def _unit(meta: dict, where: str, path) -> str | None:
-    unit = meta.get("unit")
-    if unit is None:
-        return None
-    try:
-        return normalize_units(unit)
-    except (UnitsError, TypeError) as exc:
-        raise ReaderError(path, f"{where}: 'unit' {unit!r} is not a length unit ({exc})") from None
-
-
-def _read_file(file: str, meta: dict, where: str, path):
+def _read_file(file: str, meta: dict, size, unit):
     """open_topography on an extracted data file; the container's unit/size where the file states none."""
     channel = meta.get("data_source")
     channel = channel if isinstance(channel, int) and not isinstance(channel, bool) else None
     periodic = bool(meta.get("is_periodic", False))
-    size, unit = _size(meta, where, path), _unit(meta, where, path)
     # as SurfaceTopography: what the file states wins; the container's unit and size fill in what it lacks
     attempts = [{}, {"file_units": unit}, {"file_units": unit, "physical_size": size}, {"physical_size": size}]
     tried = []
@@ -255,9 +243,8 @@ def _read_file(file: str, meta: dict, where: str, path):
     raise error
 
 
-def _check_size(ds, meta: dict, where: str, path) -> None:
+def _check_size(ds, size, unit, where: str, path) -> None:
     """Warn (as SurfaceTopography does) when the file's size differs from the container's."""
-    size, unit = _size(meta, where, path), _unit(meta, where, path)
     if size is None or unit is None or is_nonuniform(ds):
         return
     dims = lateral_dims(ds["height"])
@@ -319,25 +306,17 @@ class _Archive:
 
     def __init__(self, path):
         self.path = path
-        try:
-            self.zf = zipfile.ZipFile(path)
-        except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError, EOFError) as exc:
-            raise ReaderError(path, f"not a readable ZIP archive: {exc}") from None
+        self.zf = open_zip(path, "container")
         try:
             infos = self.zf.infolist()
             if len(infos) > MAX_MEMBERS:
                 raise ReaderError(path, f"the archive has {len(infos)} members, more than {MAX_MEMBERS}")
-            bad = [i.filename for i in infos if unsafe_name(i.filename)]
-            if bad:
-                raise ReaderError(path, f"archive member name {bad[0]!r} is absolute or leaves the archive "
-                                        "(path traversal); refused")
             self.infos = {i.filename: i for i in infos}
             self.meta = _metadata(path, self.zf)
         except BaseException:
             self.zf.close()
             raise
         self.tmp = tempfile.TemporaryDirectory(prefix="xtopo-container-")
-        self.count = 0
 
     def __enter__(self):
         return self
@@ -357,11 +336,8 @@ class _Archive:
                                          f"{self.meta['_file']} is not in the archive") from None
 
     def extract(self, info) -> str:
-        """The member in a fresh directory under its own (sanitised) base name, so its suffix is kept."""
-        self.count += 1
-        directory = os.path.join(self.tmp.name, str(self.count))
-        os.mkdir(directory)
-        target = os.path.join(directory, safe_name(posixpath.basename(info.filename.replace("\\", "/"))))
+        """The member under its own (sanitised) base name, so its suffix is kept; the caller deletes it."""
+        target = os.path.join(self.tmp.name, safe_name(posixpath.basename(info.filename.replace("\\", "/"))))
         copy_member(self.path, self.zf, info, target, "container")
         return target
 
@@ -380,10 +356,11 @@ def _measurement(archive: _Archive, meta: dict, where: str):
     if why:
         notes.append(f"the squeezed NetCDF is used: xtopo cannot apply {why}")
         keys = ["squeezed-netcdf"]
+    size, unit = _size_and_unit(meta, where, path)
     for n, key in enumerate(keys):
         file = archive.extract(infos[key])
         try:
-            ds, given = _read_file(file, meta, where, path)
+            ds, given = _read_file(file, meta, size, unit)
             ds = ds.load()  # before its file goes
             break
         except XtopoError as exc:
@@ -399,7 +376,7 @@ def _measurement(archive: _Archive, meta: dict, where: str):
         ds = append_history(ds, f"{given} from the contact.engineering metadata (the data file states none)")
     for note in notes:
         ds = append_history(ds, note)
-    _check_size(ds, meta, where, path)
+    _check_size(ds, size, unit, where, path)
     if key == "original":
         ds = _pipeline(ds, meta, where, path)
     else:
@@ -530,6 +507,15 @@ def _date(value) -> str | None:
         return None
 
 
+def _described_meta(attrs, keys: tuple) -> dict:
+    """The text entries ``keys`` of ``attrs`` and their creator (``created_by``) as container metadata."""
+    out = {key: attrs[key] for key in keys if isinstance(attrs.get(key), str)}
+    if attrs.get("creator_name"):
+        out["created_by"] = {key: str(attrs[f"creator_{key}"]) for key in ("name", "orcid")
+                             if attrs.get(f"creator_{key}")}
+    return out
+
+
 def _topography_meta(name: str, ds: xr.Dataset, member: str) -> dict:
     h = height_of(ds)
     unit = h.attrs["units"]
@@ -539,13 +525,8 @@ def _topography_meta(name: str, ds: xr.Dataset, member: str) -> dict:
         meta["size"] = [physical_size(ds, d) for d in dims[::-1]]  # contact.engineering: [Lx, Ly]
     meta.update({"unit": unit, "is_periodic": bool(is_periodic(ds)), "data_source": 0,
                  "has_undefined_data": bool(np.any(~np.isfinite(h.values)))})
-    if isinstance(ds.attrs.get("description"), str):
-        meta["description"] = ds.attrs["description"]
-    if isinstance(ds.attrs.get("measurement_kind"), str):  # xtopo's own key (parallel profiles, ...): ST ignores it
-        meta["measurement_kind"] = ds.attrs["measurement_kind"]
-    if ds.attrs.get("creator_name"):
-        meta["created_by"] = {"name": str(ds.attrs["creator_name"]),
-                              **({"orcid": str(ds.attrs["creator_orcid"])} if ds.attrs.get("creator_orcid") else {})}
+    # measurement_kind: xtopo's own key (parallel profiles, ...); SurfaceTopography ignores it
+    meta.update(_described_meta(ds.attrs, ("description", "measurement_kind")))
     date = _date(ds.attrs.get("acquisition_time", ""))
     if date:
         meta["measurement_date"] = date
@@ -616,13 +597,8 @@ def to_container(twins, path: Annotated[str, _FILE]) -> str:
                 topographies.append(_topography_meta(name, ds, member))
             if not topographies:
                 raise ValidationError(f"surface {sname!r} has no measurements")
-            surface = {"name": sname, "topographies": topographies}
-            for key in ("description", "category"):
-                if isinstance(tree.attrs.get(key), str):
-                    surface[key] = tree.attrs[key]
-            if tree.attrs.get("creator_name"):
-                surface["created_by"] = {"name": str(tree.attrs["creator_name"])}
-            surfaces.append(surface)
+            surfaces.append({"name": sname, "topographies": topographies,
+                             **_described_meta(tree.attrs, ("description", "category"))})
         meta = {"versions": {"xtopo": __version__}, "surfaces": surfaces,
                 "created_at": _dt.datetime.now(_dt.timezone.utc).isoformat()}
 

@@ -8,6 +8,7 @@ so a write that fails midway never destroys an existing file.
 from __future__ import annotations
 
 import datetime as _dt
+import importlib.util
 import json
 import os
 import tempfile
@@ -106,18 +107,9 @@ def prepare_for_netcdf(ds: xr.Dataset, *, provenance: bool = True) -> xr.Dataset
 
 def check_engine(engine: str | None) -> str:
     """The engine to use (default ``netcdf4`` if installed); raise for unknown ones."""
-    if engine is None:
-        return _default_engine()
-    return Choice(*ENGINES).check(engine, "engine")
-
-
-def _default_engine() -> str:
-    try:
-        import netCDF4  # noqa: F401
-
-        return "netcdf4"
-    except ImportError:
-        return "h5netcdf"
+    if engine is not None:
+        return Choice(*ENGINES).check(engine, "engine")
+    return "netcdf4" if importlib.util.find_spec("netCDF4") is not None else "h5netcdf"
 
 
 def _file_mode(path) -> int:

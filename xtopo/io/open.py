@@ -13,7 +13,7 @@ from ..conventions import append_history, convert_length, lateral_dims, validate
 from ..conventions import physical_size as _physical_size
 from ..errors import ReaderError, UnsupportedFormatError, XtopoError
 from ..params import Flag, Lengths, LengthUnit, Positive, checked
-from .registry import READ_OPTIONS, ChannelInfo, detect
+from .registry import ChannelInfo, detect
 
 __all__ = ["open_topography", "channels", "sha256"]
 
@@ -145,9 +145,6 @@ def _first_success(path, format, method: str, channel=None, **options):
     not-this-format one) is raised; when every candidate said "not this format", their reasons are
     listed. Non-xtopo exceptions of a reader become :class:`ReaderError`.
     """
-    unknown = set(options) - set(READ_OPTIONS)
-    if unknown:
-        raise XtopoError(f"unknown reader option(s): {sorted(unknown)}")
     candidates = detect(path, format)
     errors = []
     for fmt in candidates:

@@ -14,6 +14,7 @@ import pkgutil
 from typing import Callable
 
 from ..errors import ReaderError, UnsupportedFormatError
+from ._binary import read_bytes
 
 __all__ = ["Format", "ChannelInfo", "register", "formats", "detect", "HEADER_BYTES", "READ_OPTIONS"]
 
@@ -105,20 +106,6 @@ def formats() -> dict[str, Format]:
     return dict(_REGISTRY)
 
 
-def read_head(path, n: int = HEADER_BYTES) -> bytes:
-    try:
-        with open(path, "rb") as f:
-            return f.read(n)
-    except IsADirectoryError:
-        raise ReaderError(path, "is a directory, not a file") from None
-    except FileNotFoundError:
-        raise ReaderError(path, "no such file") from None
-    except PermissionError:
-        raise ReaderError(path, "permission denied") from None
-    except OSError as exc:
-        raise ReaderError(path, f"cannot be read: {exc}") from None
-
-
 def detect(path, format: str | None = None) -> list[Format]:
     """Candidate formats for ``path``, best first.
 
@@ -132,7 +119,7 @@ def detect(path, format: str | None = None) -> list[Format]:
         if not isinstance(format, str) or format not in fmts:
             raise UnsupportedFormatError(path, f"unknown format {format!r}; known: {', '.join(sorted(fmts))}")
         return [fmts[format]]
-    head = read_head(path)
+    head = read_bytes(path, HEADER_BYTES)
     if not head:
         raise ReaderError(path, "the file is empty")
     suffix = os.path.splitext(str(path))[1].lower()
