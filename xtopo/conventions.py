@@ -39,7 +39,6 @@ __all__ = [
     "lateral_dims", "height_of", "make_measurement", "validate", "append_history", "length_units_of",
     "shared_length_unit",
     "PROVENANCE_ATTRS", "provenance_of", "periodic_flag",
-    "with_units",
 ]
 
 HEIGHT = "height"
@@ -55,13 +54,6 @@ LENGTH_ATTRS = ("tip_radius", "resolution")
 MEASUREMENT_ATTRS = ("periodic", "tip_radius", "resolution", "grid", "instrument")
 
 _LONG_NAMES = {X: "position x", Y: "position y", HEIGHT: "height"}
-
-def with_units(da: xr.DataArray, units: str, long_name: str, **attrs) -> xr.DataArray:
-    """Return ``da`` with ``units`` and ``long_name`` (and further ``attrs``) set."""
-    da = da.copy(deep=False)
-    da.attrs = {**da.attrs, "units": units, "long_name": long_name, **attrs}
-    return da
-
 
 #: attributes of a coordinate or a length variable that hold lengths in its ``units`` (converted with it)
 _LENGTH_VALUED = ("valid_min", "valid_max", "actual_range", "spacing")
