@@ -60,12 +60,8 @@ _LENGTH_VALUED = ("valid_min", "valid_max", "actual_range", "spacing")
 
 
 def _scale_attr_units(attrs: dict, factor_units: str, to: str) -> dict:
-    """``attrs`` of a length variable in ``factor_units`` moved to ``to``: ``units`` and every length-valued attr.
-
-    ``spacing`` (the step of a coordinate, read by :func:`spacing` for a single-pixel axis) was left in
-    the file's unit while the positions were converted: di-3 read in m had spacing 0.039 (µm) against
-    positions 3.9e-8 apart.
-    """
+    """``attrs`` of a length variable in ``factor_units`` moved to ``to``: ``units`` and every length-valued attr
+    (``spacing`` too: left in the file's unit, di-3 read in m had spacing 0.039 against positions 3.9e-8 apart)."""
     out = dict(attrs)
     for key in _LENGTH_VALUED:
         if key in out:
@@ -166,11 +162,7 @@ def length_units_of(obj) -> str:
 
 
 def _one_unit_hint(height_units, coord_units) -> str:
-    """How to make heights in ``height_units`` and coordinates in ``coord_units`` share one unit.
-
-    :func:`convert_length` (``.topo.to_units``) converts each length from its own unit, so it
-    brings both to one; a coordinate without a length unit must be labelled first.
-    """
+    """How to make heights in ``height_units`` and coordinates in ``coord_units`` share one unit (advice)."""
     try:
         coord_units = normalize_units(coord_units)
     except UnitsError:
@@ -352,13 +344,7 @@ def length_attr(obj, key: str):
 
 
 def _check_height_values(h: xr.DataArray) -> xr.DataArray:
-    """``h`` if it holds at least one real number per point (integers or floats; not complex, text or bool).
-
-    Raises
-    ------
-    ValidationError
-        Otherwise (complex heights would lose their imaginary part in the analyses, text fails deep inside).
-    """
+    """``h`` if it holds real numbers (not complex, text or bool) and at least one point, else a ValidationError."""
     if h.dtype.kind not in "iuf":
         raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
     if h.size == 0:
@@ -518,12 +504,9 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
     ds_attrs = {"Conventions": CONVENTIONS, "periodic": int(periodic), **grid_attrs}
     if name is not None:
         ds_attrs["title"] = str(name)
-    if tip_radius is not None:
-        ds_attrs["tip_radius"] = tip_radius
-        ds_attrs["tip_radius_units"] = units
-    if resolution is not None:
-        ds_attrs["resolution"] = resolution
-        ds_attrs["resolution_units"] = units
+    for key, value in (("tip_radius", tip_radius), ("resolution", resolution)):
+        if value is not None:
+            ds_attrs.update({key: value, f"{key}_units": units})
     ds_attrs.update({k: v for k, v in attrs.items() if v is not None})
     return xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
 

@@ -12,7 +12,7 @@ from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is
                            lateral_dims, provenance_of, shared_length_unit, spacing)
 from ..errors import GridError
 
-__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance"]
+__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance", "split_parameters"]
 
 #: default density of logarithmic bins/collocation points
 POINTS_PER_DECADE = 10
@@ -116,6 +116,11 @@ def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepar
     da.name = name
     da.attrs = {"units": units, "long_name": long_name, "analysis": analysis, **prep.attrs(**attrs)}
     return da
+
+
+def split_parameters(out: xr.DataArray, attrs: dict) -> dict:
+    """One variable per entry of ``attrs`` (name → its attrs), in order along the ``parameter`` dim of ``out``."""
+    return {name: out.isel(parameter=i, drop=True).assign_attrs(a) for i, (name, a) in enumerate(attrs.items())}
 
 
 def _param(value) -> str:

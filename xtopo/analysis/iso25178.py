@@ -20,7 +20,7 @@ from .._kernels import material_ratio as _mr
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import GridError, XtopoError
 from ..params import Count, Interval, Numbers, Real, checked
-from ._scale import provenance
+from ._scale import provenance, split_parameters
 
 __all__ = ["iso25178", "material_ratio", "areal_material_ratio", "material_volume", "void_volume", "PARAMETERS"]
 
@@ -166,14 +166,8 @@ def iso25178(obj, parameters=None, *, s: Annotated[float, Real(0.0, 1.0, closed=
             "Sxp": {"p": sxp[0], "q": sxp[1]}, "Sdc": {"p": sdc[0], "q": sdc[1]},
             "Vmp": {"p": p}, "Vmc": {"p": p, "q": q}, "Vvv": {"q": q}, "Vvc": {"p": p, "q": q},
             **{name: {"pruning": pruning} for name in _k.GROUPS["feature"]}}
-    data = {}
-    for i, name in enumerate(names):
-        long_name, kind = _META[name]
-        da = out.isel(parameter=i, drop=True)
-        da.attrs = {"units": _units(kind, units), "long_name": long_name, "standard": "ISO 25178-2",
-                    **args.get(name, {})}
-        data[name] = da.rename(name)
-    ds = xr.Dataset(data)
+    ds = xr.Dataset(split_parameters(out, {name: {"units": _units(_META[name][1], units), "long_name": _META[name][0],
+                                                  "standard": "ISO 25178-2", **args.get(name, {})} for name in names}))
     ds.attrs = {"title": "ISO 25178-2 areal field parameters", "periodic": int(periodic)}
     return provenance(ds, obj, "iso25178", parameters=list(names), s=s, p=p, q=q, c=c, mr=mr, sxp=list(sxp),
                       sdc=list(sdc), pruning=pruning)
