@@ -132,15 +132,6 @@ def iso_cutoffs(ra: float, units: str) -> tuple[float, float]:
     return _LAMBDA_S_UM[k] * length_factor("um", units), CUTOFFS_MM[k] * _mm(units)
 
 
-def _filter_dims(h, dim):
-    lat = lateral_dims(h)
-    if dim is None:
-        return lat
-    if dim not in lat:
-        raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {lat})")
-    return (dim,)
-
-
 def _lowpass(h, dims, cutoff, periodic, end="normalized"):
     """The Gaussian low-pass of ``h`` over ``dims`` (lazy on dask)."""
     return apply_lateral(_gauss.gaussian_lowpass, h, core_dims=dims, output_core_dims=[dims], what="filter",
@@ -258,7 +249,10 @@ def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
     if is_nonuniform(h) or (isinstance(obj, xr.Dataset) and is_nonuniform(obj)):
         raise GridError("filter needs a uniform grid; this is a nonuniform line scan (interpolate it first)")
     units = shared_length_unit(h, "filter")
-    dims = _filter_dims(h, dim)
+    lat = lateral_dims(h)
+    if dim is not None and dim not in lat:
+        raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {lat})")
+    dims = lat if dim is None else (dim,)
     ls, lc = _length(lambda_s, units), _length(lambda_c, units)
     degree = _degree(form)
     periodic = is_periodic(obj)

@@ -111,10 +111,10 @@ def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
     return out
 
 
-def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepared, analysis: str, **attrs):
-    """Name and annotate a result."""
+def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepared, **attrs):
+    """Name and annotate a result of the analysis ``name``."""
     da.name = name
-    da.attrs = {"units": units, "long_name": long_name, "analysis": analysis, **prep.attrs(**attrs)}
+    da.attrs = {"units": units, "long_name": long_name, "analysis": name, **prep.attrs(**attrs)}
     return da
 
 

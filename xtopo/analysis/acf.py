@@ -74,8 +74,7 @@ def acf(obj, kind: Annotated[str, Choice("1d", "iso")] = "1d", *, dim: str = X,
         out = out.assign_coords(distance=length_coord("distance", np.arange(k) * dx, u, "distance"))
         if nb_points is not None:
             out = log_bin(out, "distance", nb_points)
-        out = finish(out, "acf", f"{u}2", "height-difference autocorrelation function", prep, "acf",
-                     kind="1d", direction=dim)
+        out = finish(out, "acf", f"{u}2", "height-difference autocorrelation function", prep, kind="1d", direction=dim)
     else:
         prep.check_iso("acf")
         ny, nx = h.sizes[Y], h.sizes[X]
@@ -86,6 +85,6 @@ def acf(obj, kind: Annotated[str, Choice("1d", "iso")] = "1d", *, dim: str = X,
                             height_power=(2,), what="acf")
         out = out.assign_coords(distance=length_coord("distance", plan.centers, u, "distance"))
         out = finish(out, "acf", f"{u}2", "radially averaged height-difference autocorrelation function", prep,
-                     "acf", kind="iso")
+                     kind="iso")
     out = apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
     return provenance(out, obj, "acf", kind=kind, dim=dim, nb_points=nb_points, reliable=reliable)

@@ -82,8 +82,7 @@ def curvature_kurtosis(obj, *, dim: str = X, distances: Annotated[np.ndarray | N
                         kwargs=dict(etas=distances / (2 * dx), periodic=prep.periodic, rows=len(other)),
                         height_power=(0,), what="curvature_kurtosis")
     out = out.assign_coords(distance=length_coord("distance", distances, u, "stencil length"))
-    out = finish(out, "curvature_kurtosis", "1", "kurtosis of the scale-dependent curvature", prep,
-                 "curvature_kurtosis", direction=dim)
+    out = finish(out, "curvature_kurtosis", "1", "kurtosis of the scale-dependent curvature", prep, direction=dim)
     if out.chunks is None and bool(np.isnan(out.values).all(axis=-1).any()):
         warn("curvature_kurtosis: the curvature is zero at every scale (a flat or linear profile); its "
              "kurtosis is undefined (NaN)", UndefinedValueWarning)

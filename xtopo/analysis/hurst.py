@@ -177,7 +177,6 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
         length_units = _length_units(da)
         lengths = None
     else:
-
         prep = prepare(obj)
         length_units = prep.units
         lengths = [prep.size(d) for d in prep.lat] + [prep.spacing(d) for d in prep.lat]

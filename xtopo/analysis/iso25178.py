@@ -78,20 +78,12 @@ def _area(obj, what: str):
 def _names(parameters) -> tuple:
     if parameters is None:
         return _k.PARAMETERS
-    items = [parameters] if isinstance(parameters, str) else parameters
-    try:
-        items = list(items)
-    except TypeError:
-        items = [parameters]
-    names = []
+    items = list(parameters) if np.iterable(parameters) and not isinstance(parameters, str) else [parameters]
     for item in items:
-        if isinstance(item, str) and item in _k.GROUPS:
-            names.extend(_k.GROUPS[item])
-        elif isinstance(item, str) and item in _k.PARAMETERS:
-            names.append(item)
-        else:
+        if not (isinstance(item, str) and (item in _k.GROUPS or item in _k.PARAMETERS)):
             raise XtopoError(f"parameters: unknown name {item!r}; use ISO symbols {_k.PARAMETERS} or groups "
                              f"{tuple(_k.GROUPS)}")
+    names = {name for item in items for name in _k.GROUPS.get(item, (item,))}
     return tuple(n for n in _k.PARAMETERS if n in names)
 
 

@@ -111,7 +111,7 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         out = out.assign_coords(q=length_coord("q", q, qunits, "angular wavevector"))
         if nb_points is not None:
             out = log_bin(out, "q", nb_points)
-        out = finish(out, "psd", f"{u}3", "1D power spectral density C1D", prep, "psd", direction=dim, **params)
+        out = finish(out, "psd", f"{u}3", "1D power spectral density C1D", prep, direction=dim, **params)
     elif kind == "2d":
         ny, nx = h.sizes[Y], h.sizes[X]
         dy, dx = prep.spacing(Y), prep.spacing(X)
@@ -123,7 +123,7 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
                                 q_x=length_coord("q_x", qx, qunits, "angular wavevector x"))
         if convention == "persson":
             out = out / (4 * np.pi**2)
-        out = finish(out, "psd", f"{u}4", "2D power spectral density C2D", prep, "psd", **params)
+        out = finish(out, "psd", f"{u}4", "2D power spectral density C2D", prep, **params)
     else:
         ny, nx = h.sizes[Y], h.sizes[X]
         dy, dx = prep.spacing(Y), prep.spacing(X)
@@ -133,12 +133,12 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         out = out.assign_coords(q=length_coord("q", plan.centers, qunits, "magnitude of the angular wavevector"))
         if equivalent_1d:
             out = out * (out["q"] / np.pi)
-            out = finish(out, "psd", f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)", prep, "psd",
+            out = finish(out, "psd", f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)", prep,
                          equivalent_1d=1, **params)
         else:
             if convention == "persson":
                 out = out / (4 * np.pi**2)
-            out = finish(out, "psd", f"{u}4", "radially averaged 2D power spectral density Ciso", prep, "psd",
+            out = finish(out, "psd", f"{u}4", "radially averaged 2D power spectral density Ciso", prep,
                          equivalent_1d=0, **params)
     if kind == "2d":
         out.attrs.update(reliable=0, reliability_note="2D maps are not cut; use kind='iso' or '1d'")

@@ -42,15 +42,13 @@ def _attr_length(obj, key, units):
 def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarray:
     """Largest distance at which ``curv > threshold``, refined by log-log interpolation to the next point."""
     bad = curv > threshold
-    lead = curv.shape[:-1]
-    out = np.zeros(lead)
+    out = np.zeros(curv.shape[:-1])
     flat_c = curv.reshape(-1, curv.shape[-1])
     flat_b = bad.reshape(-1, curv.shape[-1])
     res = out.reshape(-1)
     for i in range(flat_c.shape[0]):  # loop over the batch only
         idx = np.flatnonzero(flat_b[i])
-        if idx.size == 0:
-            res[i] = 0.0
+        if idx.size == 0:  # 0: the tip limits no scale
             continue
         j = idx[-1]
         if j + 1 >= dist.size or not np.isfinite(flat_c[i, j + 1]) or flat_c[i, j + 1] <= 0:
@@ -86,7 +84,6 @@ def _tip_cutoff_block(values: np.ndarray, *, batch, lat, **kw) -> np.ndarray:
     return _tip_cutoff(xr.DataArray(values, dims=batch + tuple(lat)), lat=lat, **kw).transpose(*batch).values
 
 
-
 @checked
 def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> xr.DataArray:
     """Shortest reliable length scale of a measurement (paper §4.9).
@@ -118,14 +115,13 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
     """
     prep = prepare(obj)
     units = prep.units
+    attrs = {"units": units, "long_name": "short reliability cutoff"}
     res = _attr_length(obj, "resolution", units)
     if res is not None:
-        return xr.DataArray(res, name="reliability_cutoff",
-                            attrs={"units": units, "long_name": "short reliability cutoff", "method": "resolution"})
+        return xr.DataArray(res, name="reliability_cutoff", attrs=dict(attrs, method="resolution"))
     tip = _attr_length(obj, "tip_radius", units)
     if tip is None:
-        return xr.DataArray(np.nan, name="reliability_cutoff",
-                            attrs={"units": units, "long_name": "short reliability cutoff", "method": "none"})
+        return xr.DataArray(np.nan, name="reliability_cutoff", attrs=dict(attrs, method="none"))
     threshold = c / tip
     h = prep.h
     dims = [dim for dim in prep.lat if (h.sizes[dim] - 1) / 2 >= 1]
@@ -144,8 +140,7 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
                              dask="parallelized", output_dtypes=[float])
     cut = cut.drop_vars([v for v in cut.coords if v == "_eta"], errors="ignore")
     cut.name = "reliability_cutoff"
-    cut.attrs = {"units": units, "long_name": "short reliability cutoff", "method": "tip_radius",
-                 "tip_radius": tip, "tip_factor": c}
+    cut.attrs = dict(attrs, method="tip_radius", tip_radius=tip, tip_factor=c)
     return cut
 
 

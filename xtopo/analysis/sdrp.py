@@ -85,8 +85,8 @@ def sdrp(obj, order: Annotated[int, Choice(1, 2)] = 1, *, dim: str = X,
                         height_power=(1,), what="sdrp")
     out = out.assign_coords(distance=length_coord("distance", distances, u, "stencil length"))
     if order == 1:
-        out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, "sdrp", order=1, direction=dim)
+        out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, order=1, direction=dim)
     else:
-        out = finish(out, "sdrp", f"{u}-1", "scale-dependent RMS curvature", prep, "sdrp", order=2, direction=dim)
+        out = finish(out, "sdrp", f"{u}-1", "scale-dependent RMS curvature", prep, order=2, direction=dim)
     out = apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
     return provenance(out, obj, "sdrp", order=order, dim=dim, distances=given, reliable=reliable)
