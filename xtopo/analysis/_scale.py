@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from .._apply import apply_lateral
 from .._checks import bin_count
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is_nonuniform, is_periodic,
@@ -49,6 +50,15 @@ class Prepared:
         if not isinstance(dim, str) or dim not in self.lat:
             raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {self.lat})")
         return dim
+
+    def along(self, kernel, dim: str, coord: xr.Variable, height_power, what: str, **kwargs) -> xr.DataArray:
+        """``kernel`` over the profiles along ``dim`` (the other lateral dim as its ``rows``), onto ``coord``."""
+        other = tuple(d for d in self.lat if d != dim)
+        name = coord.dims[0]
+        out = apply_lateral(kernel, self.h, core_dims=other + (dim,), output_core_dims=[[name]],
+                            output_sizes={name: coord.size}, kwargs=dict(kwargs, rows=len(other)),
+                            height_power=(height_power,), what=what)
+        return out.assign_coords({name: coord})
 
     def attrs(self, **extra) -> dict:
         a = {"periodic": int(self.periodic)}

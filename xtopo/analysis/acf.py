@@ -65,13 +65,10 @@ def acf(obj, kind: Annotated[str, Choice("1d", "iso")] = "1d", *, dim: str = X,
     h, u = prep.h, prep.units
     if kind == "1d":
         prep.check_dim(dim)
-        other = [d for d in prep.lat if d != dim]
         n, dx = h.sizes[dim], prep.spacing(dim)
         k = n // 2 + 1 if prep.periodic else n
-        out = apply_lateral(_k.acf_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
-                            output_sizes={"distance": k},
-                            kwargs=dict(dx=dx, periodic=prep.periodic, rows=len(other)), height_power=(2,), what="acf")
-        out = out.assign_coords(distance=length_coord("distance", np.arange(k) * dx, u, "distance"))
+        out = prep.along(_k.acf_profiles, dim, length_coord("distance", np.arange(k) * dx, u, "distance"), 2, "acf",
+                         dx=dx, periodic=prep.periodic)
         if nb_points is not None:
             out = log_bin(out, "distance", nb_points)
         out = finish(out, "acf", f"{u}2", "height-difference autocorrelation function", prep, kind="1d", direction=dim)

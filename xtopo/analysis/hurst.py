@@ -173,13 +173,12 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
     """
     if isinstance(obj, xr.DataArray) and obj.attrs.get("analysis") in _METHODS:
         da = obj
-        units = obj.attrs.get("units", "1")
         length_units = _length_units(da)
-        lengths = None
+        size = None
     else:
         prep = prepare(obj)
         length_units = prep.units
-        lengths = [prep.size(d) for d in prep.lat] + [prep.spacing(d) for d in prep.lat]
+        size, pixel = min(prep.size(d) for d in prep.lat), max(prep.spacing(d) for d in prep.lat)
         if method == "psd":
             da = psd(obj, kind, dim=dim, nb_points=None if kind == "1d" else _bins(prep, dim), reliable=reliable)
         elif method == "acf":
@@ -188,13 +187,13 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
             da = vbm(obj, reliable=reliable)
         else:
             da = sdrp(obj, 1, dim=dim, reliable=reliable)
-        units = da.attrs["units"]
+    units = da.attrs.get("units", "1")
     xdim, is_q, to_h, pref_power = _exponent_map(da)
     x = np.asarray(da[xdim].values, dtype=float)
     with np.errstate(divide="ignore"):
         scale = np.where(x > 0, 2 * np.pi / np.where(x > 0, x, 1.0), np.inf) if is_q else x
     if scale_range is None:
-        if lengths is None:
+        if size is None:
             pos = x[(x > 0) & _reliable(da, x, is_q)]
             if not pos.size:
                 raise XtopoError(f"the {da.attrs['analysis']} result has no reliable point at a positive {xdim}: "
@@ -202,8 +201,6 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
             sc = 2 * np.pi / pos if is_q else pos
             lo, hi = sc.min() * (2 if is_q else 4), sc.max() / (2 if is_q else 8)
         else:
-            n_dims = len(lengths) // 2
-            size, pixel = min(lengths[:n_dims]), max(lengths[n_dims:])
             method_ = da.attrs["analysis"]
             # the ends of each curve carry known biases: VBM blocks of a few pixels
             # (tilt removal), ACF at ℓ ≳ L/50 (finite size), PSD near 2π/L (few modes)
@@ -236,7 +233,7 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
     })
     ds.attrs = {"analysis": da.attrs["analysis"], "fit_scale_min": float(lo), "fit_scale_max": float(hi),
                 "fit_scale_units": length_units, "abscissa": xdim}
-    if lengths is None:  # fitted to a given result: its own history says how it was computed
+    if size is None:  # fitted to a given result: its own history says how it was computed
         return provenance(ds, obj, "hurst", scale_range=scale_range)
     return provenance(ds, obj, "hurst", method=method, kind=kind, dim=dim, scale_range=scale_range, reliable=reliable)
 

@@ -102,13 +102,10 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         if convention == "persson" or equivalent_1d:
             raise XtopoError("convention='persson' and equivalent_1d apply to 2D/iso spectra only")
         prep.check_dim(dim)
-        other = [d for d in prep.lat if d != dim]
         n, dx = h.sizes[dim], prep.spacing(dim)
-        out = apply_lateral(_k.psd_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["q"]],
-                            output_sizes={"q": n // 2 + 1}, kwargs=dict(dx=dx, window=win, rows=len(other), prewhiten=prewhiten),
-                            height_power=(2,), what="psd")
         q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
-        out = out.assign_coords(q=length_coord("q", q, qunits, "angular wavevector"))
+        out = prep.along(_k.psd_profiles, dim, length_coord("q", q, qunits, "angular wavevector"), 2, "psd", dx=dx,
+                         window=win, prewhiten=prewhiten)
         if nb_points is not None:
             out = log_bin(out, "q", nb_points)
         out = finish(out, "psd", f"{u}3", "1D power spectral density C1D", prep, direction=dim, **params)
