@@ -13,7 +13,8 @@ from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is
                            lateral_dims, provenance_of, shared_length_unit, spacing)
 from ..errors import GridError
 
-__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance", "split_parameters"]
+__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance", "split_parameters",
+           "log_plan"]
 
 #: default density of logarithmic bins/collocation points
 POINTS_PER_DECADE = 10
@@ -97,6 +98,13 @@ def per_decade(lo: float, hi: float, nb_points=None, *, samples: int) -> int:
     return max(1, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))))
 
 
+def log_plan(values: np.ndarray, lo: float, hi: float, nb_points=None, weights=None) -> BinPlan:
+    """Logarithmic bins from ``lo`` to ``hi`` of the positive ``values`` (each weighted by ``weights``)."""
+    pos = values > 0
+    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(pos)))
+    return BinPlan(np.where(pos, values, -1.0), log_edges(lo, hi, bins), weights)
+
+
 def length_coord(name: str, values, units: str, long_name: str, **attrs) -> xr.Variable:
     return xr.Variable((name,), np.asarray(values, dtype=float), {"units": units, "long_name": long_name, **attrs})
 
@@ -112,7 +120,7 @@ def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
     if not pos.any():
         raise GridError(f"no positive {dim!r} values to bin")
     lo, hi = x[pos].min(), x[pos].max()
-    plan = BinPlan(np.where(pos, x, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points, samples=int(pos.sum()))))
+    plan = log_plan(x, lo, hi, nb_points)
     out = xr.apply_ufunc(plan.mean, da, input_core_dims=[[dim]], output_core_dims=[["_bin"]],
                          exclude_dims={dim}, dask="parallelized", output_dtypes=[float],
                          dask_gufunc_kwargs={"output_sizes": {"_bin": len(plan)}, "allow_rechunk": False},

@@ -10,10 +10,9 @@ import xarray as xr
 
 from .._apply import apply_lateral
 from .._kernels import correlation as _k
-from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
 from ..params import Choice, Count, Flag, checked
-from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
+from ._scale import finish, length_coord, log_bin, log_plan, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["acf"]
@@ -22,11 +21,7 @@ __all__ = ["acf"]
 @functools.lru_cache(maxsize=4)
 def _iso_plan(ny, nx, dy, dx, periodic, nb_points):
     r = _k.acf_offsets(ny, nx, dy, dx, periodic=periodic)
-    w = _k.acf_weights(ny, nx, periodic=periodic)
-    lo = min(dx, dy)
-    hi = float(r.max())
-    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(r > 0)))
-    return BinPlan(np.where(r > 0, r, -1.0), log_edges(lo, hi, bins), w)
+    return log_plan(r, min(dx, dy), float(r.max()), nb_points, _k.acf_weights(ny, nx, periodic=periodic))
 
 
 def _acf_iso_kernel(h, *, periodic, plan):

@@ -15,11 +15,10 @@ import xarray as xr
 
 from .._apply import apply_lateral
 from .._kernels import spectra as _k
-from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
 from ..errors import GridError, XtopoError
 from ..params import Choice, Count, Flag, checked
-from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
+from ._scale import finish, length_coord, log_bin, log_plan, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["psd"]
@@ -33,10 +32,7 @@ WINDOWS = Choice("auto", "hann", "none", None, False)
 def _iso_plan(ny, nx, dy, dx, nb_points):
     q = _k.rfft_abs_q(ny, nx, dy, dx)
     lo = min(2 * np.pi / (ny * dy) if ny > 1 else np.inf, 2 * np.pi / (nx * dx))
-    hi = float(q.max())
-    mult = np.broadcast_to(_k.rfft_multiplicity(ny, nx), q.shape)
-    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(q > 0)))
-    return BinPlan(np.where(q > 0, q, -1.0), log_edges(lo, hi, bins), mult)
+    return log_plan(q, lo, float(q.max()), nb_points, _k.rfft_multiplicity(ny, nx))
 
 
 @checked

@@ -19,6 +19,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral, check_core_chunks
+from .._kernels.collocation import collocation_points
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import length_attr, length_factor
 from ..errors import GridError
@@ -67,8 +68,7 @@ def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) ->
         other = [d for d in lat if d != dim]
         dx = spacings[dim]
         emax = (h.sizes[dim] - 1) / 2
-        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(emax))) + 1)
-        etas = np.unique(np.geomspace(1.0, emax, nb))
+        etas = np.unique(collocation_points(1.0, emax, POINTS_PER_DECADE))
         curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
                              output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
                              kwargs=dict(dx=dx, etas=etas, periodic=periodic, rows=len(other)),
@@ -164,22 +164,21 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
         result.attrs.update(reliable=0)
         return result
     cut = reliability_cutoff(obj)
-    method = cut.attrs["method"]
-    units = cut.attrs["units"]
-    attrs = dict(result.attrs, reliable=1, reliability_method=method, reliability_cutoff_units=units)
-    if method == "none":
+    attrs = dict(result.attrs, reliable=1, reliability_method=cut.attrs["method"],
+                 reliability_cutoff_units=cut.attrs["units"])
+    if cut.attrs["method"] == "none":
         attrs["reliability_cutoff"] = np.nan
         result.attrs = attrs
         return result
     x = result[coord]
-    if cut.ndim == 0 and not _is_lazy(cut):
+    if cut.ndim == 0 and cut.chunks is None:
         value = float(cut)
         attrs["reliability_cutoff"] = value
         out = result.sel({coord: reliable_scales(x, value, kind).values})
         out.attrs = attrs
         return out
     out = result.where(reliable_scales(x, cut, kind))
-    if not _is_lazy(out):
+    if out.chunks is None:
         valid = out.notnull()
         other = [d for d in out.dims if d != coord]
         out = out.sel({coord: valid.any(other).values if other else valid.values})
@@ -187,7 +186,3 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
     out = out.assign_coords(reliability_cutoff=cut.variable.copy(deep=False))
     out.attrs = attrs
     return out
-
-
-def _is_lazy(da) -> bool:
-    return da.chunks is not None

@@ -7,6 +7,7 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
+from .._kernels.collocation import collocation_points
 from .._kernels.scaled import sdrp_rms
 from ..conventions import X
 from ..errors import GridError, XtopoError
@@ -32,8 +33,7 @@ def stencils(obj, dim: str, distances, order: int, what: str):
         lo, hi = order * dx, n * dx / 2
         if hi < lo:
             raise GridError(f"the scan is too short for {what} ({n} points along {dim!r})")
-        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
-        distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
+        distances = np.unique(np.round(collocation_points(1.0, hi / lo, POINTS_PER_DECADE))) * lo
     elif np.any(distances > n * dx):
         raise XtopoError(f"distances must be positive finite lengths of at most {n * dx:g} {prep.units} (the size "
                          f"of the measurement), got {distances[distances > n * dx].tolist()}")

@@ -13,6 +13,7 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
+from .._kernels.collocation import collocation_points
 from .._kernels.estimator_error import mean_square_relative_error, variogram_from_samples
 from ..conventions import X
 from ..errors import XtopoError
@@ -182,8 +183,7 @@ def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
     lags = np.asarray(curve["distance"].values, dtype=float)
     # evaluate on at most 10 points per decade and interpolate log-log (the error varies slowly with ℓ)
     pos = lengths[lengths > 0]
-    nodes = np.geomspace(pos.min(), pos.max(), max(2, int(np.ceil(10 * np.log10(pos.max() / pos.min()))) + 1)) \
-        if pos.size > 32 and pos.max() > pos.min() else lengths
+    nodes = collocation_points(pos.min(), pos.max(), 10) if pos.size > 32 and pos.max() > pos.min() else lengths
 
     def kernel(values):
         flat = values.reshape(-1, values.shape[-1])
