@@ -19,7 +19,7 @@ from .._kernels import iso_areal as _k
 from .._kernels import material_ratio as _mr
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import GridError, XtopoError
-from ..params import Count, Interval, Numbers, Real, checked
+from ..params import Count, Interval, Names, Numbers, Real, checked
 from ._scale import provenance, split_parameters
 
 __all__ = ["iso25178", "material_ratio", "areal_material_ratio", "material_volume", "void_volume", "PARAMETERS"]
@@ -75,27 +75,16 @@ def _area(obj, what: str):
     return h, shared_length_unit(h, what), is_periodic(h) or is_periodic(obj)
 
 
-def _names(parameters) -> tuple:
-    if parameters is None:
-        return _k.PARAMETERS
-    items = list(parameters) if np.iterable(parameters) and not isinstance(parameters, str) else [parameters]
-    for item in items:
-        if not (isinstance(item, str) and (item in _k.GROUPS or item in _k.PARAMETERS)):
-            raise XtopoError(f"parameters: unknown name {item!r}; use ISO symbols {_k.PARAMETERS} or groups "
-                             f"{tuple(_k.GROUPS)}")
-    names = {name for item in items for name in _k.GROUPS.get(item, (item,))}
-    return tuple(n for n in _k.PARAMETERS if n in names)
-
-
 _RATIO = Real(0.0, 100.0)
 _RATIOS = Interval(0.0, 100.0, what="material ratios in %")
 
 
 @checked
-def iso25178(obj, parameters=None, *, s: Annotated[float, Real(0.0, 1.0, closed=False)] = 0.2,
-             p: Annotated[float, _RATIO] = 10.0, q: Annotated[float, _RATIO] = 80.0, c: Annotated[float, Real()] = 0.0,
-             mr: Annotated[float, _RATIO] = 10.0, sxp: Annotated[tuple, _RATIOS] = (2.5, 50.0),
-             sdc: Annotated[tuple, _RATIOS] = (10.0, 80.0), pruning: Annotated[float, _RATIO] = 5.0) -> xr.Dataset:
+def iso25178(obj, parameters: Annotated[tuple | None, Names(*_k.PARAMETERS, *_k.GROUPS)] = None, *,
+             s: Annotated[float, Real(0.0, 1.0, closed=False)] = 0.2, p: Annotated[float, _RATIO] = 10.0,
+             q: Annotated[float, _RATIO] = 80.0, c: Annotated[float, Real()] = 0.0, mr: Annotated[float, _RATIO] = 10.0,
+             sxp: Annotated[tuple, _RATIOS] = (2.5, 50.0), sdc: Annotated[tuple, _RATIOS] = (10.0, 80.0),
+             pruning: Annotated[float, _RATIO] = 5.0) -> xr.Dataset:
     """ISO 25178-2 field parameters of an area scan, one variable per ISO symbol.
 
     Height (Sa, Sq, Sp, Sv, Sz, Ssk, Sku), hybrid (Sdq, Sdr), spatial (Sal, Str, Std),
@@ -145,7 +134,8 @@ def iso25178(obj, parameters=None, *, s: Annotated[float, Real(0.0, 1.0, closed=
     within the map in some direction, Sal when it does not fall in any; the feature parameters
     of a map with missing data, Spc/S5p/S5v when no complete significant hill or dale is found.
     """
-    names = _names(parameters)
+    chosen = _k.PARAMETERS if parameters is None else {n for item in parameters for n in _k.GROUPS.get(item, (item,))}
+    names = tuple(n for n in _k.PARAMETERS if n in chosen)
     if not p < q:
         raise XtopoError(f"(p, q) must be two material ratios in % with p < q, got {(p, q)!r}")
     h, units, periodic = _area(obj, "iso25178")

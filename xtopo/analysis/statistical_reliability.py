@@ -36,14 +36,6 @@ _STENCILS = {"acf": ((0.0, 1.0), (-1.0, 1.0)), "slope": ((0.0, 1.0), (-1.0, 1.0)
              "curvature": ((-0.5, 0.0, 0.5), (1.0, -2.0, 1.0))}
 
 
-def _extent(prep, dim):
-    """Number of profiles and the lengths along and across ``dim`` of a measurement."""
-    other = [d for d in prep.lat if d != dim]
-    if not other:
-        return 1, prep.size(dim), 0.0
-    return prep.h.sizes[other[0]], prep.size(dim), prep.size(other[0])
-
-
 def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
     """How many statistically independent samples a measurement holds at each scale (long-scale reliability).
 
@@ -75,7 +67,9 @@ def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
         Independent samples per value (0 for ``q = 0`` or lengths beyond the measurement).
     """
     prep = prepare(obj)
-    rows, length, width = _extent(prep, dim)
+    other = [d for d in prep.lat if d != dim]  # the profiles of an area scan lie side by side along it
+    rows, width = (prep.h.sizes[other[0]], prep.size(other[0])) if other else (1, 0.0)
+    length = prep.size(dim)
     v = np.abs(np.asarray(values, dtype=float))
     if coord == "q":
         k = v * length / (2 * np.pi)
