@@ -407,9 +407,9 @@ def append_history(obj, line: str):
     return obj
 
 
-def _coord(values, name, units):
-    return xr.Variable((name,), np.asarray(values, dtype=float),
-                       {"units": units, "long_name": _LONG_NAMES[name], "axis": name.upper()})
+def length_coord(name: str, values, units: str, long_name: str, **attrs) -> xr.Variable:
+    """The coordinate variable ``name`` of ``values`` (float) with ``units``, ``long_name`` and further ``attrs``."""
+    return xr.Variable((name,), np.asarray(values, dtype=float), {"units": units, "long_name": long_name, **attrs})
 
 
 _ATTR_LENGTH = Positive(error=ValidationError)
@@ -475,7 +475,7 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
             raise GridError(f"x has shape {xv.shape} but height has shape {h.shape}")
         if not np.all(np.isfinite(xv)) or np.any(np.diff(xv) <= 0):
             raise GridError("x positions must be finite and strictly increasing")
-        coords[X] = _coord(xv, X, units)
+        coords[X] = length_coord(X, xv, units, _LONG_NAMES[X], axis="X")
         if not is_uniform(xv):
             grid_attrs["grid"] = "nonuniform"
     else:
@@ -487,7 +487,7 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
         else:
             sp = per_axis(size, h.ndim, "size") / np.asarray(n, dtype=float)
         for dim, ni, d in zip(dims, n, sp):
-            c = _coord(np.arange(ni) * d, dim, units)
+            c = length_coord(dim, np.arange(ni) * d, units, _LONG_NAMES[dim], axis=dim.upper())
             c.attrs["spacing"] = float(d)
             coords[dim] = c
     missing = ~np.isfinite(h)

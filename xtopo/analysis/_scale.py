@@ -10,7 +10,7 @@ from .._apply import apply_lateral
 from .._checks import bin_count
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is_nonuniform, is_periodic,
-                           lateral_dims, provenance_of, shared_length_unit, spacing)
+                           lateral_dims, length_coord, provenance_of, shared_length_unit, spacing)
 from ..errors import GridError
 
 __all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance", "split_parameters",
@@ -103,10 +103,6 @@ def log_plan(values: np.ndarray, lo: float, hi: float, nb_points=None, weights=N
     pos = values > 0
     bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(pos)))
     return BinPlan(np.where(pos, values, -1.0), log_edges(lo, hi, bins), weights)
-
-
-def length_coord(name: str, values, units: str, long_name: str, **attrs) -> xr.Variable:
-    return xr.Variable((name,), np.asarray(values, dtype=float), {"units": units, "long_name": long_name, **attrs})
 
 
 def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
