@@ -168,8 +168,7 @@ def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
     prep.check_dim(dim)
     n, dx = prep.h.sizes[dim], prep.spacing(dim)
     other = [d for d in prep.lat if d != dim]
-    rows = prep.h.sizes[other[0]] if other else 1
-    dy = prep.spacing(other[0]) if other else 0.0
+    rows, dy = (prep.h.sizes[other[0]], prep.spacing(other[0])) if other else (1, 0.0)
     # lengths beyond the scan: NaN (the stencil does not fit)
     curve = acf(obj, kind="1d", dim=dim, reliable=False)
     keep = max(3, int(np.ceil(fraction * n)))
