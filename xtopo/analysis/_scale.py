@@ -14,7 +14,7 @@ from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is
 from ..errors import GridError
 
 __all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance", "split_parameters",
-           "log_plan"]
+           "log_plan", "unit_of"]
 
 #: default density of logarithmic bins/collocation points
 POINTS_PER_DECADE = 10
@@ -130,6 +130,12 @@ def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepar
     da.name = name
     da.attrs = {"units": units, "long_name": long_name, "analysis": name, **prep.attrs(**attrs)}
     return da
+
+
+def unit_of(kind: str, length: str) -> str:
+    """The unit a parameter table names by ``kind``: "L" the length unit ``length``, "V" a volume per area, "L-1"
+    and "L-2" inverse lengths and areas; any other kind ("1", "%", "degree") is the unit itself."""
+    return {"L": length, "V": f"{length}3 {length}-2", "L-1": f"{length}-1", "L-2": f"{length}-2"}.get(kind, kind)
 
 
 def split_parameters(out: xr.DataArray, attrs: dict) -> dict:

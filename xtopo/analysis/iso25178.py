@@ -20,14 +20,14 @@ from .._kernels import material_ratio as _mr
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import GridError, XtopoError
 from ..params import Count, Interval, Names, Numbers, Real, checked
-from ._scale import provenance, split_parameters
+from ._scale import provenance, split_parameters, unit_of
 
 __all__ = ["iso25178", "material_ratio", "areal_material_ratio", "material_volume", "void_volume", "PARAMETERS"]
 
 #: the parameters :func:`iso25178` computes, by group
 PARAMETERS = _k.GROUPS
 
-# long names and units: "L" the length unit, "V" volume per area
+# long names and units (kinds of _scale.unit_of: "L" the length unit, "V" volume per area)
 _META = {
     "Sa": ("arithmetic mean height", "L"),
     "Sq": ("root mean square height", "L"),
@@ -60,10 +60,6 @@ _META = {
     "S5p": ("five point peak height", "L"),
     "S5v": ("five point pit depth", "L"),
 }
-
-
-def _units(kind: str, length: str) -> str:
-    return {"L": length, "V": f"{length}3 {length}-2", "L-1": f"{length}-1", "L-2": f"{length}-2"}.get(kind, kind)
 
 
 def _area(obj, what: str):
@@ -148,7 +144,7 @@ def iso25178(obj, parameters: Annotated[tuple | None, Names(*_k.PARAMETERS, *_k.
             "Sxp": {"p": sxp[0], "q": sxp[1]}, "Sdc": {"p": sdc[0], "q": sdc[1]},
             "Vmp": {"p": p}, "Vmc": {"p": p, "q": q}, "Vvv": {"q": q}, "Vvc": {"p": p, "q": q},
             **{name: {"pruning": pruning} for name in _k.GROUPS["feature"]}}
-    ds = xr.Dataset(split_parameters(out, {name: {"units": _units(_META[name][1], units), "long_name": _META[name][0],
+    ds = xr.Dataset(split_parameters(out, {name: {"units": unit_of(_META[name][1], units), "long_name": _META[name][0],
                                                   "standard": "ISO 25178-2", **args.get(name, {})} for name in names}))
     ds.attrs = {"title": "ISO 25178-2 areal field parameters", "periodic": int(periodic)}
     return provenance(ds, obj, "iso25178", parameters=list(names), s=s, p=p, q=q, c=c, mr=mr, sxp=list(sxp),

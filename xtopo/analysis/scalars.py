@@ -8,36 +8,31 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._kernels import scalars as _k
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
-from ._scale import provenance, split_parameters
+from ._scale import provenance, split_parameters, unit_of
 
 __all__ = ["scalars"]
 
+#: name → (long name, unit kind of _scale.unit_of)
 _META = {
-    "Sq": ("root mean square height", 1),
-    "Sdq": ("root mean square gradient", 0),
-    "Sddq": ("root mean square curvature", -1),
-    "Sa": ("arithmetic mean height", 1),
-    "Sz": ("maximum height (peak to valley)", 1),
-    "Ssk": ("skewness of the height distribution", None),
-    "Sku": ("kurtosis of the height distribution", None),
-    "Rq": ("root mean square height of profiles", 1),
-    "Rdq": ("root mean square slope of profiles", 0),
-    "Rddq": ("root mean square curvature of profiles", -1),
-    "Ra": ("arithmetic mean height of profiles", 1),
-    "Rz": ("maximum height of profiles (mean peak to valley)", 1),
-    "Rsk": ("skewness of profiles", None),
-    "Rku": ("kurtosis of profiles", None),
+    "Sq": ("root mean square height", "L"),
+    "Sdq": ("root mean square gradient", "1"),
+    "Sddq": ("root mean square curvature", "L-1"),
+    "Sa": ("arithmetic mean height", "L"),
+    "Sz": ("maximum height (peak to valley)", "L"),
+    "Ssk": ("skewness of the height distribution", "1"),
+    "Sku": ("kurtosis of the height distribution", "1"),
+    "Rq": ("root mean square height of profiles", "L"),
+    "Rdq": ("root mean square slope of profiles", "1"),
+    "Rddq": ("root mean square curvature of profiles", "L-1"),
+    "Ra": ("arithmetic mean height of profiles", "L"),
+    "Rz": ("maximum height of profiles (mean peak to valley)", "L"),
+    "Rsk": ("skewness of profiles", "1"),
+    "Rku": ("kurtosis of profiles", "1"),
 }
 
 
-def _units(length_units: str, power) -> str:
-    if power is None or power == 0:
-        return "1"
-    return length_units if power == 1 else f"{length_units}-1"
-
-
 def _attrs(names, length_units) -> dict:
-    return {name: {"units": _units(length_units, _META[name][1]), "long_name": _META[name][0]} for name in names}
+    return {name: {"units": unit_of(_META[name][1], length_units), "long_name": _META[name][0]} for name in names}
 
 
 def scalars(obj) -> xr.Dataset:
