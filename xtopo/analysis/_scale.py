@@ -40,11 +40,11 @@ class Prepared:
     def size(self, dim: str) -> float:
         return self.h.sizes[dim] * spacing(self.h, dim)
 
-    def check_iso(self, what: str) -> None:
-        """Raise :class:`GridError` unless the data are an area scan with more than one pixel."""
+    def check_iso(self, what: str, kind: str = "iso") -> None:
+        """Raise :class:`GridError` unless the data are an area scan (for ``kind="iso"``: of more than one pixel)."""
         if not self.is_area:
-            raise GridError(f"{what}(kind='iso') needs an area scan; use kind='1d' for line scans")
-        if self.h.sizes[X] * self.h.sizes[Y] < 2:
+            raise GridError(f"{what}(kind={kind!r}) needs an area scan; use kind='1d' for line scans")
+        if kind == "iso" and self.h.sizes[X] * self.h.sizes[Y] < 2:
             raise GridError(f"{what}(kind='iso') needs at least 2 pixels along 'x' or 'y'; this map is 1×1")
 
     def check_dim(self, dim: str) -> str:

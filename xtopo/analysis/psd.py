@@ -16,7 +16,7 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._kernels import spectra as _k
 from ..conventions import X, Y
-from ..errors import GridError, XtopoError
+from ..errors import XtopoError
 from ..params import Choice, Count, Flag, checked
 from ._scale import finish, length_coord, log_bin, log_plan, prepare, provenance
 from .reliability import apply_reliability
@@ -90,10 +90,8 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
     prewhiten = prewhiten and win  # without a window the heights' spectrum has no main-lobe bias to remove
     if prewhiten:
         params["prewhiten"] = 1
-    if kind == "2d" and not prep.is_area:
-        raise GridError(f"psd(kind={kind!r}) needs an area scan; use kind='1d' for line scans")
-    if kind == "iso":
-        prep.check_iso("psd")
+    if kind != "1d":
+        prep.check_iso("psd", kind)
     if kind == "1d":
         if convention == "persson" or equivalent_1d:
             raise XtopoError("convention='persson' and equivalent_1d apply to 2D/iso spectra only")
