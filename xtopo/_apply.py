@@ -81,22 +81,9 @@ def rescaled(out, e: int, power, what: str) -> np.ndarray:
     return scaled
 
 
-def _declared(kernel, dtypes, height_power=None, what: str = "this analysis", heights_out: bool = False):
-    """``kernel`` with its output(s) cast to ``dtypes`` (a float32 FFT would otherwise give float32),
-    computed in scaled units when ``height_power`` (one entry per output) says how each output scales.
-
-    ``heights_out``: the outputs are heights on the input's scale after a fit (detrend): a value below
-    float64's rounding of the largest input height is rounding noise (the residual of a flat line),
-    and is 0 rather than refused when it would underflow on the way back.
-
-    A partial of a module-level function, not a closure: dask tokenizes the function of every lazy
-    analysis, and a closure is pickled by value for it (cloudpickle), which cost a twin of a thousand
-    measurements seconds of graph building."""
-    return functools.partial(_run_declared, kernel, tuple(dtypes), height_power, what, heights_out)
-
-
 def _run_declared(kernel, dtypes, height_power, what, heights_out, h, *args, **kwargs):
-    """The body of :func:`_declared`'s function."""
+    """``kernel`` with its output(s) cast to ``dtypes`` (a float32 FFT would otherwise give float32), computed in
+    scaled units when ``height_power`` (one entry per output) says how each output scales (:func:`apply_lateral`)."""
     e = scale_exponent(h) if height_power is not None else 0
     hs = np.ldexp(h, -e) if e else h
     try:
@@ -143,8 +130,10 @@ def apply_lateral(kernel, da: xr.DataArray, *, output_core_dims=((),), output_si
     core = tuple(core_dims) if core_dims is not None else lateral_dims(da)
     check_core_chunks(da, core, what)
     dtypes = list(output_dtypes or [float] * len(output_core_dims))
+    # a partial of a module-level function, not a closure: dask tokenizes the function of every lazy analysis, and
+    # a closure is pickled by value for it (cloudpickle), which cost a twin of a thousand measurements seconds
     return xr.apply_ufunc(
-        _declared(kernel, dtypes, height_power, what, heights_out), da,
+        functools.partial(_run_declared, kernel, tuple(dtypes), height_power, what, heights_out), da,
         input_core_dims=[list(core)],
         output_core_dims=[list(c) for c in output_core_dims],
         exclude_dims=set(exclude_dims),

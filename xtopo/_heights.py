@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .conventions import append_history
+from .conventions import HEIGHT, append_history
 from .errors import GridError
 
 __all__ = ["fit_positions", "replace_heights"]
@@ -23,14 +23,15 @@ def fit_positions(h, dim):
     return v
 
 
-def replace_heights(obj, h_in, result, line: str, *, nonperiodic: bool = False):
+def replace_heights(obj, result, line: str, *, nonperiodic: bool = False):
     """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``.
 
     ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0.
     """
+    h_in = obj[HEIGHT] if isinstance(obj, xr.Dataset) else obj
     # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
     result = h_in.copy(data=result.transpose(*h_in.dims).data)
-    result.attrs = dict(obj[h_in.name].attrs if isinstance(obj, xr.Dataset) else obj.attrs)
+    result.attrs = dict(h_in.attrs)
     if nonperiodic and "periodic" in result.attrs:
         result.attrs["periodic"] = 0
     if isinstance(obj, xr.Dataset):

@@ -39,7 +39,6 @@ __all__ = [
     "lateral_dims", "height_of", "make_measurement", "validate", "append_history", "length_units_of",
     "shared_length_unit",
     "PROVENANCE_ATTRS", "provenance_of", "periodic_flag",
-    "with_units",
 ]
 
 HEIGHT = "height"
@@ -56,24 +55,13 @@ MEASUREMENT_ATTRS = ("periodic", "tip_radius", "resolution", "grid", "instrument
 
 _LONG_NAMES = {X: "position x", Y: "position y", HEIGHT: "height"}
 
-def with_units(da: xr.DataArray, units: str, long_name: str, **attrs) -> xr.DataArray:
-    """Return ``da`` with ``units`` and ``long_name`` (and further ``attrs``) set."""
-    da = da.copy(deep=False)
-    da.attrs = {**da.attrs, "units": units, "long_name": long_name, **attrs}
-    return da
-
-
 #: attributes of a coordinate or a length variable that hold lengths in its ``units`` (converted with it)
 _LENGTH_VALUED = ("valid_min", "valid_max", "actual_range", "spacing")
 
 
 def _scale_attr_units(attrs: dict, factor_units: str, to: str) -> dict:
-    """``attrs`` of a length variable in ``factor_units`` moved to ``to``: ``units`` and every length-valued attr.
-
-    ``spacing`` (the step of a coordinate, read by :func:`spacing` for a single-pixel axis) was left in
-    the file's unit while the positions were converted: di-3 read in m had spacing 0.039 (µm) against
-    positions 3.9e-8 apart.
-    """
+    """``attrs`` of a length variable in ``factor_units`` moved to ``to``: ``units`` and every length-valued attr
+    (``spacing`` too: left in the file's unit, di-3 read in m had spacing 0.039 against positions 3.9e-8 apart)."""
     out = dict(attrs)
     for key in _LENGTH_VALUED:
         if key in out:
@@ -174,11 +162,7 @@ def length_units_of(obj) -> str:
 
 
 def _one_unit_hint(height_units, coord_units) -> str:
-    """How to make heights in ``height_units`` and coordinates in ``coord_units`` share one unit.
-
-    :func:`convert_length` (``.topo.to_units``) converts each length from its own unit, so it
-    brings both to one; a coordinate without a length unit must be labelled first.
-    """
+    """How to make heights in ``height_units`` and coordinates in ``coord_units`` share one unit (advice)."""
     try:
         coord_units = normalize_units(coord_units)
     except UnitsError:
@@ -360,13 +344,7 @@ def length_attr(obj, key: str):
 
 
 def _check_height_values(h: xr.DataArray) -> xr.DataArray:
-    """``h`` if it holds at least one real number per point (integers or floats; not complex, text or bool).
-
-    Raises
-    ------
-    ValidationError
-        Otherwise (complex heights would lose their imaginary part in the analyses, text fails deep inside).
-    """
+    """``h`` if it holds real numbers (not complex, text or bool) and at least one point, else a ValidationError."""
     if h.dtype.kind not in "iuf":
         raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
     if h.size == 0:
@@ -429,9 +407,9 @@ def append_history(obj, line: str):
     return obj
 
 
-def _coord(values, name, units):
-    return xr.Variable((name,), np.asarray(values, dtype=float),
-                       {"units": units, "long_name": _LONG_NAMES[name], "axis": name.upper()})
+def length_coord(name: str, values, units: str, long_name: str, **attrs) -> xr.Variable:
+    """The coordinate variable ``name`` of ``values`` (float) with ``units``, ``long_name`` and further ``attrs``."""
+    return xr.Variable((name,), np.asarray(values, dtype=float), {"units": units, "long_name": long_name, **attrs})
 
 
 _ATTR_LENGTH = Positive(error=ValidationError)
@@ -497,7 +475,7 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
             raise GridError(f"x has shape {xv.shape} but height has shape {h.shape}")
         if not np.all(np.isfinite(xv)) or np.any(np.diff(xv) <= 0):
             raise GridError("x positions must be finite and strictly increasing")
-        coords[X] = _coord(xv, X, units)
+        coords[X] = length_coord(X, xv, units, _LONG_NAMES[X], axis="X")
         if not is_uniform(xv):
             grid_attrs["grid"] = "nonuniform"
     else:
@@ -509,7 +487,7 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
         else:
             sp = per_axis(size, h.ndim, "size") / np.asarray(n, dtype=float)
         for dim, ni, d in zip(dims, n, sp):
-            c = _coord(np.arange(ni) * d, dim, units)
+            c = length_coord(dim, np.arange(ni) * d, units, _LONG_NAMES[dim], axis=dim.upper())
             c.attrs["spacing"] = float(d)
             coords[dim] = c
     missing = ~np.isfinite(h)
@@ -526,12 +504,9 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
     ds_attrs = {"Conventions": CONVENTIONS, "periodic": int(periodic), **grid_attrs}
     if name is not None:
         ds_attrs["title"] = str(name)
-    if tip_radius is not None:
-        ds_attrs["tip_radius"] = tip_radius
-        ds_attrs["tip_radius_units"] = units
-    if resolution is not None:
-        ds_attrs["resolution"] = resolution
-        ds_attrs["resolution_units"] = units
+    for key, value in (("tip_radius", tip_radius), ("resolution", resolution)):
+        if value is not None:
+            ds_attrs.update({key: value, f"{key}_units": units})
     ds_attrs.update({k: v for k, v in attrs.items() if v is not None})
     return xr.Dataset(data_vars, coords=coords, attrs=ds_attrs)
 

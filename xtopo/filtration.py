@@ -102,15 +102,6 @@ def _length(value, units: str):
     return value
 
 
-def _degree(form) -> int | None:
-    return _FORMS[form] if isinstance(form, str) else None if form is None else int(form)
-
-
-def _mm(units: str) -> float:
-    """How many ``units`` make a millimetre."""
-    return length_factor("mm", units)
-
-
 def iso_cutoffs(ra: float, units: str) -> tuple[float, float]:
     """``(λs, λc)`` of ISO 4288 / ISO 3274 (also ISO 21920-3) for a nonperiodic profile of mean height ``ra``.
 
@@ -129,16 +120,7 @@ def iso_cutoffs(ra: float, units: str) -> tuple[float, float]:
     """
     ra_um = ra * length_factor(units, "um")
     k = int(np.searchsorted(_RA_UPPER_UM, ra_um, side="left"))
-    return _LAMBDA_S_UM[k] * length_factor("um", units), CUTOFFS_MM[k] * _mm(units)
-
-
-def _filter_dims(h, dim):
-    lat = lateral_dims(h)
-    if dim is None:
-        return lat
-    if dim not in lat:
-        raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {lat})")
-    return (dim,)
+    return _LAMBDA_S_UM[k] * length_factor("um", units), CUTOFFS_MM[k] * length_factor("mm", units)
 
 
 def _lowpass(h, dims, cutoff, periodic, end="normalized"):
@@ -149,19 +131,17 @@ def _lowpass(h, dims, cutoff, periodic, end="normalized"):
 
 
 def _form_removed(h, dims, degree):
-
     if len(dims) == 2:
-        out = apply_lateral(_poly.subtract_polynomial_2d, h, core_dims=dims, output_core_dims=[dims], what="filter",
-                            kwargs={"y": fit_positions(h, Y), "x": fit_positions(h, X), "degree": degree})
+        kernel, kwargs = _poly.subtract_polynomial_2d, {"y": fit_positions(h, Y), "x": fit_positions(h, X)}
     else:
-        out = apply_lateral(_poly.subtract_polynomial_1d, h, core_dims=dims, output_core_dims=[dims], what="filter",
-                            kwargs={"x": fit_positions(h, dims[0]), "degree": degree})
-    return out.transpose(*h.dims)
+        kernel, kwargs = _poly.subtract_polynomial_1d, {"x": fit_positions(h, dims[0])}
+    return apply_lateral(kernel, h, core_dims=dims, output_core_dims=[dims], what="filter",
+                         kwargs=dict(kwargs, degree=degree)).transpose(*h.dims)
 
 
 def _auto_lambda_c(h, dims, degree, units, periodic):
     """λc by the ISO 4288 procedure: Ra measured with a trial cut-off (0.8 mm first), then the table's class."""
-    lc = CUTOFFS_MM[2] * _mm(units)
+    lc = CUTOFFS_MM[2] * length_factor("mm", units)
     tried = []
     base = _form_removed(h, dims, degree) if degree is not None else h
     longest = min(h.sizes[d] * spacing(h, d) for d in dims)
@@ -171,9 +151,9 @@ def _auto_lambda_c(h, dims, degree, units, periodic):
         ra = float(np.abs(r).mean())
         new = iso_cutoffs(ra, units)[1]
         if new in tried:
-            return new, ra
+            return new
         lc = new
-    return lc, ra
+    return lc
 
 
 def _auto_lambda_s(lc, units: str) -> float:
@@ -184,7 +164,7 @@ def _auto_lambda_s(lc, units: str) -> float:
     """
     if lc is None:
         return _LAMBDA_S_UM[0] * length_factor("um", units)
-    series = np.array(CUTOFFS_MM) * _mm(units)
+    series = np.array(CUTOFFS_MM) * length_factor("mm", units)
     k = int(np.argmin(np.abs(np.log(series / lc))))
     return lc * _LAMBDA_S_UM[k] * length_factor("um", units) / series[k]
 
@@ -258,9 +238,12 @@ def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
     if is_nonuniform(h) or (isinstance(obj, xr.Dataset) and is_nonuniform(obj)):
         raise GridError("filter needs a uniform grid; this is a nonuniform line scan (interpolate it first)")
     units = shared_length_unit(h, "filter")
-    dims = _filter_dims(h, dim)
+    lat = lateral_dims(h)
+    if dim is not None and dim not in lat:
+        raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {lat})")
+    dims = lat if dim is None else (dim,)
     ls, lc = _length(lambda_s, units), _length(lambda_c, units)
-    degree = _degree(form)
+    degree = _FORMS[form] if isinstance(form, str) else None if form is None else int(form)
     periodic = is_periodic(obj)
     if component == "primary" and lc not in (None, "auto"):
         raise XtopoError("component='primary' is the S-F surface, which has no L-filter; give lambda_c=None")
@@ -269,7 +252,7 @@ def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
     elif lc is None:
         raise XtopoError(f"component={component!r} needs the L-filter; give lambda_c (or 'auto')")
     elif lc == "auto":
-        lc, _ = _auto_lambda_c(h, dims, degree, units, periodic and degree in (None, 0))
+        lc = _auto_lambda_c(h, dims, degree, units, periodic and degree in (None, 0))
     if ls == "auto":
         ls = _auto_lambda_s(lc, units)
     longest = min(h.sizes[d] * spacing(h, d) for d in dims)
@@ -293,7 +276,7 @@ def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
     nonperiodic = breaks and periodic
     if nonperiodic:
         line += "; periodic set to 0"
-    res = replace_heights(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out, line, nonperiodic=nonperiodic)
+    res = replace_heights(obj, out, line, nonperiodic=nonperiodic)
     res.attrs.update(lambda_s=float("nan") if ls is None else ls, lambda_c=float("nan") if lc is None else lc)
     return res
 

@@ -61,17 +61,16 @@ def detrend(obj, mode: Annotated[str, Choice(*_poly.DEGREES)] = "plane", per_lin
     dims = lateral_dims(h)
     breaks_periodicity = degree > 0 and is_periodic(h)
     if dims == (Y, X):
-        out = apply_lateral(_poly.subtract_polynomial_2d, h, output_core_dims=[dims], height_power=(1,), heights_out=True, what="detrend",
-                            kwargs={"y": _positions(h, Y), "x": _positions(h, X), "degree": degree,
-                                    "per_line": bool(per_line)})
+        kernel = _poly.subtract_polynomial_2d
+        kwargs = {"y": _positions(h, Y), "x": _positions(h, X), "degree": degree, "per_line": bool(per_line)}
     else:
-        out = apply_lateral(_poly.subtract_polynomial_1d, h, output_core_dims=[dims], height_power=(1,), heights_out=True, what="detrend",
-                            kwargs={"x": _positions(h, X), "degree": degree})
+        kernel, kwargs = _poly.subtract_polynomial_1d, {"x": _positions(h, X), "degree": degree}
+    out = apply_lateral(kernel, h, output_core_dims=[dims], height_power=(1,), heights_out=True, what="detrend",
+                        kwargs=kwargs)
     line = f"detrend(mode={mode!r}, per_line={bool(per_line)})"
     if breaks_periodicity:
         line += "; periodic set to 0"
-    return _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out, line,
-                   nonperiodic=breaks_periodicity)
+    return _finish(obj, out, line, nonperiodic=breaks_periodicity)
 
 
 def fill_missing(obj):
@@ -108,17 +107,13 @@ def fill_missing(obj):
 
     if dims == (Y, X):
         dy, dx = _fill_spacings(h)
-        kwargs = {"periodic": periodic, "dy": dy, "dx": dx}
-        out = apply_lateral(_checked(_fill.harmonic_fill_2d), h, output_core_dims=[dims], kwargs=kwargs,
-                            height_power=(1,), what="fill_missing")
+        kernel, kwargs = _fill.harmonic_fill_2d, {"periodic": periodic, "dy": dy, "dx": dx}
     else:
-        period = None
-        if periodic and not is_nonuniform(obj):
-            period = h.sizes[X] * spacing(h, X)
-        out = apply_lateral(_checked(_fill.linear_fill_1d), h, output_core_dims=[dims], height_power=(1,), what="fill_missing",
-                            kwargs={"x": _positions(h, X), "periodic": period is not None, "period": period})
-    res = _finish(obj, obj[h.name] if isinstance(obj, xr.Dataset) else obj, out,
-                  "fill_missing(harmonic)" if dims == (Y, X) else "fill_missing(linear)")
+        period = h.sizes[X] * spacing(h, X) if periodic and not is_nonuniform(obj) else None
+        kernel, kwargs = _fill.linear_fill_1d, {"x": _positions(h, X), "periodic": period is not None, "period": period}
+    out = apply_lateral(_checked(kernel), h, output_core_dims=[dims], kwargs=kwargs, height_power=(1,),
+                        what="fill_missing")
+    res = _finish(obj, out, "fill_missing(harmonic)" if dims == (Y, X) else "fill_missing(linear)")
     if isinstance(obj, xr.Dataset):
         filled = ~np.isfinite(h)  # what the kernels fill: NaN and ±inf
         if _FILLED in obj.data_vars:  # filled before: keep that record too

@@ -17,19 +17,25 @@ from .errors import GridError, ValidationError
 
 __all__ = ["summary_table", "format_table", "format_percent", "table_rows", "text_table"]
 
-_COLUMNS = (
-    ("kind", "kind", None),
-    ("size", "size", "m"),
-    ("grid", "grid", None),
-    ("tip_radius", "tip radius", "m"),
-    ("missing", "missing", "%"),
-    ("Sq", "Sq / Rq", "m"),
-    ("Sdq", "SΔq / RΔq", "1"),
-    ("Sddq", "SΔ²q / RΔ²q", "m-1"),
-)
+
+#: the variables of :func:`summary_table` and their attrs, in order
+_VARIABLES = {
+    "kind": {"long_name": "kind of scan"},
+    "instrument": {"long_name": "instrument"},
+    "size_x": {"units": "m", "long_name": "physical size in x"},
+    "size_y": {"units": "m", "long_name": "physical size in y"},
+    "nx": {"units": "1", "long_name": "points in x"},
+    "ny": {"units": "1", "long_name": "points in y"},
+    "tip_radius": {"units": "m", "long_name": "tip radius"},
+    "missing_percent": {"units": "%", "long_name": "missing data"},
+    "rms_height": {"units": "m", "long_name": "root mean square height (Sq areas, Rq lines)"},
+    "rms_slope": {"units": "1", "long_name": "root mean square gradient (SΔq areas, RΔq lines)"},
+    "rms_curvature": {"units": "m-1", "long_name": "root mean square curvature (SΔ²q areas, RΔ²q lines)"},
+}
 
 
 def _row(name: str, ds: xr.Dataset) -> dict:
+    """The :data:`_VARIABLES` of one measurement."""
     extra = [d for d in ds[HEIGHT].dims if d not in lateral_dims(ds[HEIGHT])]
     if extra:
         raise GridError(f"measurement {name!r} has extra dims {tuple(extra)}: a summary row is one measurement; "
@@ -38,18 +44,14 @@ def _row(name: str, ds: xr.Dataset) -> dict:
     h = ds[HEIGHT]
     s = scalars(ds)
     area = h.ndim == 2
-    row = {"measurement": name}
-    row["kind"] = "area" if area else ("line (nonuniform)" if is_nonuniform(ds) else "line")
-    row["size"] = (physical_size(ds, "y"), physical_size(ds, "x")) if area else (physical_size(ds, "x"),)
-    row["grid"] = tuple(int(n) for n in h.shape)
-    row["tip_radius"] = float(ds.attrs["tip_radius"]) if "tip_radius" in ds.attrs else np.nan
-    row["missing"] = 100 * float((~np.isfinite(height_of(ds))).mean())  # masked, NaN or inf
-    if area:
-        row.update(Sq=float(s.Sq), Sdq=float(s.Sdq), Sddq=float(s.Sddq))
-    else:
-        r = s.sel(direction="x")
-        row.update(Sq=float(r.Rq), Sdq=float(r.Rdq), Sddq=float(r.Rddq))
-    row["instrument"] = str(ds.attrs.get("instrument", ""))
+    row = {"kind": "area" if area else ("line (nonuniform)" if is_nonuniform(ds) else "line"),
+           "size_y": physical_size(ds, "y") if area else np.nan, "size_x": physical_size(ds, "x"),
+           "nx": int(h.shape[-1]), "ny": int(h.shape[0]) if area else 1,
+           "tip_radius": float(ds.attrs["tip_radius"]) if "tip_radius" in ds.attrs else np.nan,
+           "missing_percent": 100 * float((~np.isfinite(height_of(ds))).mean())}  # masked, NaN or inf
+    r = s if area else s.sel(direction="x")
+    row.update(rms_height=float(r.Sq if area else r.Rq), rms_slope=float(r.Sdq if area else r.Rdq),
+               rms_curvature=float(r.Sddq if area else r.Rddq), instrument=str(ds.attrs.get("instrument", "")))
     return row
 
 
@@ -103,28 +105,10 @@ def summary_table(measurements) -> xr.Dataset:
     GridError
         If a measurement has dims other than ``y``/``x`` (a batch).
     """
-    rows = [_row(name, ds) for name, ds in _named(measurements).items()]
-    names = [r["measurement"] for r in rows]
-    coords = {"measurement": ("measurement", names, {"long_name": "measurement"})}
-    data = {
-        "kind": ("measurement", [r["kind"] for r in rows], {"long_name": "kind of scan"}),
-        "instrument": ("measurement", [r["instrument"] for r in rows], {"long_name": "instrument"}),
-        "size_x": ("measurement", [r["size"][-1] for r in rows], {"units": "m", "long_name": "physical size in x"}),
-        "size_y": ("measurement", [r["size"][0] if len(r["size"]) == 2 else np.nan for r in rows],
-                   {"units": "m", "long_name": "physical size in y"}),
-        "nx": ("measurement", [r["grid"][-1] for r in rows], {"units": "1", "long_name": "points in x"}),
-        "ny": ("measurement", [r["grid"][0] if len(r["grid"]) == 2 else 1 for r in rows],
-               {"units": "1", "long_name": "points in y"}),
-        "tip_radius": ("measurement", [r["tip_radius"] for r in rows], {"units": "m", "long_name": "tip radius"}),
-        "missing_percent": ("measurement", [r["missing"] for r in rows],
-                            {"units": "%", "long_name": "missing data"}),
-        "rms_height": ("measurement", [r["Sq"] for r in rows],
-                       {"units": "m", "long_name": "root mean square height (Sq areas, Rq lines)"}),
-        "rms_slope": ("measurement", [r["Sdq"] for r in rows],
-                      {"units": "1", "long_name": "root mean square gradient (SΔq areas, RΔq lines)"}),
-        "rms_curvature": ("measurement", [r["Sddq"] for r in rows],
-                          {"units": "m-1", "long_name": "root mean square curvature (SΔ²q areas, RΔ²q lines)"}),
-    }
+    named = _named(measurements)
+    rows = [_row(name, ds) for name, ds in named.items()]
+    data = {k: ("measurement", [r[k] for r in rows], attrs) for k, attrs in _VARIABLES.items()}
+    coords = {"measurement": ("measurement", list(named), {"long_name": "measurement"})}
     return xr.Dataset(data, coords=coords, attrs={"title": "measurement summary"})
 
 

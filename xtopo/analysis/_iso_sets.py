@@ -95,10 +95,8 @@ def iso_table(measurements: dict, *, lambda_s=None, lambda_c=None) -> tuple[xr.D
                 columns[iso].update(dict.fromkeys(parts[-1].data_vars))
             except XtopoError as exc:
                 errors[name] = f"{errors[name]}; {exc}" if name in errors else str(exc)
-        rows[name] = xr.merge(parts, combine_attrs="drop") if parts else xr.Dataset()
-        for part in parts:  # merge keeps variable attrs, but be explicit: units and long_name travel
-            for v in part.data_vars:
-                rows[name][v].attrs = part[v].attrs
+        # each variable stands in one part, whose attrs (units, long_name) it keeps; the parts have no attrs of their own
+        rows[name] = xr.merge(parts, combine_attrs="override") if parts else xr.Dataset()
     names = list(rows)
     table = xr.concat([rows[n].expand_dims(measurement=[n]) for n in names], dim="measurement", join="outer",
                       combine_attrs="drop") if names else xr.Dataset()

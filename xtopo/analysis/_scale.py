@@ -6,13 +6,15 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from .._apply import apply_lateral
 from .._checks import bin_count
 from .._kernels.binning import BinPlan, log_edges
 from ..conventions import (PROVENANCE_ATTRS, X, Y, append_history, height_of, is_nonuniform, is_periodic,
-                           lateral_dims, provenance_of, shared_length_unit, spacing)
+                           lateral_dims, length_coord, provenance_of, shared_length_unit, spacing)
 from ..errors import GridError
 
-__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance"]
+__all__ = ["Prepared", "prepare", "log_bin", "per_decade", "length_coord", "finish", "provenance", "split_parameters",
+           "log_plan", "unit_of"]
 
 #: default density of logarithmic bins/collocation points
 POINTS_PER_DECADE = 10
@@ -38,17 +40,26 @@ class Prepared:
     def size(self, dim: str) -> float:
         return self.h.sizes[dim] * spacing(self.h, dim)
 
-    def check_iso(self, what: str) -> None:
-        """Raise :class:`GridError` unless the data are an area scan with more than one pixel."""
+    def check_iso(self, what: str, kind: str = "iso") -> None:
+        """Raise :class:`GridError` unless the data are an area scan (for ``kind="iso"``: of more than one pixel)."""
         if not self.is_area:
-            raise GridError(f"{what}(kind='iso') needs an area scan; use kind='1d' for line scans")
-        if self.h.sizes[X] * self.h.sizes[Y] < 2:
+            raise GridError(f"{what}(kind={kind!r}) needs an area scan; use kind='1d' for line scans")
+        if kind == "iso" and self.h.sizes[X] * self.h.sizes[Y] < 2:
             raise GridError(f"{what}(kind='iso') needs at least 2 pixels along 'x' or 'y'; this map is 1×1")
 
     def check_dim(self, dim: str) -> str:
         if not isinstance(dim, str) or dim not in self.lat:
             raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {self.lat})")
         return dim
+
+    def along(self, kernel, dim: str, coord: xr.Variable, height_power, what: str, **kwargs) -> xr.DataArray:
+        """``kernel`` over the profiles along ``dim`` (the other lateral dim as its ``rows``), onto ``coord``."""
+        other = tuple(d for d in self.lat if d != dim)
+        name = coord.dims[0]
+        out = apply_lateral(kernel, self.h, core_dims=other + (dim,), output_core_dims=[[name]],
+                            output_sizes={name: coord.size}, kwargs=dict(kwargs, rows=len(other)),
+                            height_power=(height_power,), what=what)
+        return out.assign_coords({name: coord})
 
     def attrs(self, **extra) -> dict:
         a = {"periodic": int(self.periodic)}
@@ -87,8 +98,11 @@ def per_decade(lo: float, hi: float, nb_points=None, *, samples: int) -> int:
     return max(1, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))))
 
 
-def length_coord(name: str, values, units: str, long_name: str, **attrs) -> xr.Variable:
-    return xr.Variable((name,), np.asarray(values, dtype=float), {"units": units, "long_name": long_name, **attrs})
+def log_plan(values: np.ndarray, lo: float, hi: float, nb_points=None, weights=None) -> BinPlan:
+    """Logarithmic bins from ``lo`` to ``hi`` of the positive ``values`` (each weighted by ``weights``)."""
+    pos = values > 0
+    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(pos)))
+    return BinPlan(np.where(pos, values, -1.0), log_edges(lo, hi, bins), weights)
 
 
 def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
@@ -102,7 +116,7 @@ def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
     if not pos.any():
         raise GridError(f"no positive {dim!r} values to bin")
     lo, hi = x[pos].min(), x[pos].max()
-    plan = BinPlan(np.where(pos, x, -1.0), log_edges(lo, hi, per_decade(lo, hi, nb_points, samples=int(pos.sum()))))
+    plan = log_plan(x, lo, hi, nb_points)
     out = xr.apply_ufunc(plan.mean, da, input_core_dims=[[dim]], output_core_dims=[["_bin"]],
                          exclude_dims={dim}, dask="parallelized", output_dtypes=[float],
                          dask_gufunc_kwargs={"output_sizes": {"_bin": len(plan)}, "allow_rechunk": False},
@@ -111,11 +125,22 @@ def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
     return out
 
 
-def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepared, analysis: str, **attrs):
-    """Name and annotate a result."""
+def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepared, **attrs):
+    """Name and annotate a result of the analysis ``name``."""
     da.name = name
-    da.attrs = {"units": units, "long_name": long_name, "analysis": analysis, **prep.attrs(**attrs)}
+    da.attrs = {"units": units, "long_name": long_name, "analysis": name, **prep.attrs(**attrs)}
     return da
+
+
+def unit_of(kind: str, length: str) -> str:
+    """The unit a parameter table names by ``kind``: "L" the length unit ``length``, "V" a volume per area, "L-1"
+    and "L-2" inverse lengths and areas; any other kind ("1", "%", "degree") is the unit itself."""
+    return {"L": length, "V": f"{length}3 {length}-2", "L-1": f"{length}-1", "L-2": f"{length}-2"}.get(kind, kind)
+
+
+def split_parameters(out: xr.DataArray, attrs: dict) -> dict:
+    """One variable per entry of ``attrs`` (name → its attrs), in order along the ``parameter`` dim of ``out``."""
+    return {name: out.isel(parameter=i, drop=True).assign_attrs(a) for i, (name, a) in enumerate(attrs.items())}
 
 
 def _param(value) -> str:

@@ -10,10 +10,9 @@ import xarray as xr
 
 from .._apply import apply_lateral
 from .._kernels import correlation as _k
-from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
 from ..params import Choice, Count, Flag, checked
-from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
+from ._scale import finish, length_coord, log_bin, log_plan, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["acf"]
@@ -22,11 +21,7 @@ __all__ = ["acf"]
 @functools.lru_cache(maxsize=4)
 def _iso_plan(ny, nx, dy, dx, periodic, nb_points):
     r = _k.acf_offsets(ny, nx, dy, dx, periodic=periodic)
-    w = _k.acf_weights(ny, nx, periodic=periodic)
-    lo = min(dx, dy)
-    hi = float(r.max())
-    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(r > 0)))
-    return BinPlan(np.where(r > 0, r, -1.0), log_edges(lo, hi, bins), w)
+    return log_plan(r, min(dx, dy), float(r.max()), nb_points, _k.acf_weights(ny, nx, periodic=periodic))
 
 
 def _acf_iso_kernel(h, *, periodic, plan):
@@ -65,17 +60,13 @@ def acf(obj, kind: Annotated[str, Choice("1d", "iso")] = "1d", *, dim: str = X,
     h, u = prep.h, prep.units
     if kind == "1d":
         prep.check_dim(dim)
-        other = [d for d in prep.lat if d != dim]
         n, dx = h.sizes[dim], prep.spacing(dim)
         k = n // 2 + 1 if prep.periodic else n
-        out = apply_lateral(_k.acf_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
-                            output_sizes={"distance": k},
-                            kwargs=dict(dx=dx, periodic=prep.periodic, rows=len(other)), height_power=(2,), what="acf")
-        out = out.assign_coords(distance=length_coord("distance", np.arange(k) * dx, u, "distance"))
+        out = prep.along(_k.acf_profiles, dim, length_coord("distance", np.arange(k) * dx, u, "distance"), 2, "acf",
+                         dx=dx, periodic=prep.periodic)
         if nb_points is not None:
             out = log_bin(out, "distance", nb_points)
-        out = finish(out, "acf", f"{u}2", "height-difference autocorrelation function", prep, "acf",
-                     kind="1d", direction=dim)
+        out = finish(out, "acf", f"{u}2", "height-difference autocorrelation function", prep, kind="1d", direction=dim)
     else:
         prep.check_iso("acf")
         ny, nx = h.sizes[Y], h.sizes[X]
@@ -86,6 +77,6 @@ def acf(obj, kind: Annotated[str, Choice("1d", "iso")] = "1d", *, dim: str = X,
                             height_power=(2,), what="acf")
         out = out.assign_coords(distance=length_coord("distance", plan.centers, u, "distance"))
         out = finish(out, "acf", f"{u}2", "radially averaged height-difference autocorrelation function", prep,
-                     "acf", kind="iso")
+                     kind="iso")
     out = apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
     return provenance(out, obj, "acf", kind=kind, dim=dim, nb_points=nb_points, reliable=reliable)

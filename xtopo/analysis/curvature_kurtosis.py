@@ -16,7 +16,6 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
-from .._apply import apply_lateral
 from .._kernels.scaled import scaled_difference
 from .._kernels.spectra import check_finite
 from ..conventions import X
@@ -75,15 +74,10 @@ def curvature_kurtosis(obj, *, dim: str = X, distances: Annotated[np.ndarray | N
         everywhere (a flat or linear profile).
     """
     given = distances
-    prep, other, dx, distances = stencils(obj, dim, distances, 2, "curvature_kurtosis")
-    h, u = prep.h, prep.units
-    out = apply_lateral(_kurtosis, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
-                        output_sizes={"distance": distances.size},
-                        kwargs=dict(etas=distances / (2 * dx), periodic=prep.periodic, rows=len(other)),
-                        height_power=(0,), what="curvature_kurtosis")
-    out = out.assign_coords(distance=length_coord("distance", distances, u, "stencil length"))
-    out = finish(out, "curvature_kurtosis", "1", "kurtosis of the scale-dependent curvature", prep,
-                 "curvature_kurtosis", direction=dim)
+    prep, dx, distances = stencils(obj, dim, distances, 2, "curvature_kurtosis")
+    out = prep.along(_kurtosis, dim, length_coord("distance", distances, prep.units, "stencil length"), 0,
+                     "curvature_kurtosis", etas=distances / (2 * dx), periodic=prep.periodic)
+    out = finish(out, "curvature_kurtosis", "1", "kurtosis of the scale-dependent curvature", prep, direction=dim)
     if out.chunks is None and bool(np.isnan(out.values).all(axis=-1).any()):
         warn("curvature_kurtosis: the curvature is zero at every scale (a flat or linear profile); its "
              "kurtosis is undefined (NaN)", UndefinedValueWarning)

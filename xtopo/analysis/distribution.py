@@ -17,19 +17,13 @@ from ._scale import provenance
 
 __all__ = ["distribution"]
 
-_KINDS = {"height": ("height", 1), "slope": ("slope", 0), "curvature": ("curvature", -1)}
-
-
-def _field(h, kind, dx, axis, periodic):
-    if kind == "height":
-        return h
-    if kind == "slope":
-        return forward_difference(h, dx, periodic=periodic, axis=axis)
-    return second_difference(h, dx, periodic=periodic, axis=axis)
+#: quantity → its power of length
+_KINDS = {"height": 1, "slope": 0, "curvature": -1}
+_DIFFERENCES = {"slope": forward_difference, "curvature": second_difference}
 
 
 def _histogram(h, *, kind, bins, dx, axis, periodic, ndim):
-    v = _field(h, kind, dx, axis, periodic)
+    v = h if kind == "height" else _DIFFERENCES[kind](h, dx, periodic=periodic, axis=axis)
     flat = v.reshape(v.shape[: v.ndim - ndim] + (-1,))
     out_d = np.empty(flat.shape[:-1] + (bins,))
     out_c = np.empty(flat.shape[:-1] + (bins,))
@@ -79,17 +73,16 @@ def distribution(obj, kind: Annotated[str, Choice(*_KINDS)] = "height", *, dim: 
     if not isinstance(dim, str) or dim not in lat:
         raise XtopoError(f"dim {dim!r} is not a lateral dim of this measurement ({lat})")
     units = shared_length_unit(h, "distribution")
-    long_name, power = _KINDS[kind]
-    qunits = {1: units, 0: "1", -1: f"{units}-1"}[power]
-    dunits = {1: f"{units}-1", 0: "1", -1: units}[power]
+    qunits = {1: units, 0: "1", -1: f"{units}-1"}[_KINDS[kind]]
+    dunits = {1: f"{units}-1", 0: "1", -1: units}[_KINDS[kind]]
     axis = -1 if dim == lat[-1] else -2
     dx = spacing(h, dim) if kind != "height" else 1.0
     dens, centers = apply_lateral(
         _histogram, h, output_core_dims=[["bin"], ["bin"]], output_sizes={"bin": bins},
         kwargs=dict(kind=kind, bins=bins, dx=dx, axis=axis, periodic=is_periodic(h), ndim=len(lat)),
         height_power=(-1, 1), what="distribution")
-    dens.attrs = {"units": dunits, "long_name": f"probability density of {long_name}"}
-    centers.attrs = {"units": qunits, "long_name": f"{long_name} (bin centre)"}
+    dens.attrs = {"units": dunits, "long_name": f"probability density of {kind}"}
+    centers.attrs = {"units": qunits, "long_name": f"{kind} (bin centre)"}
     ds = xr.Dataset({"probability_density": dens}, coords={"bin_center": centers})
-    ds.attrs = {"title": f"{long_name} distribution", "kind": kind, "direction": dim if kind != "height" else ""}
+    ds.attrs = {"title": f"{kind} distribution", "kind": kind, "direction": dim if kind != "height" else ""}
     return provenance(ds, obj, "distribution", kind=kind, dim=dim, bins=bins)

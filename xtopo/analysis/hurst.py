@@ -173,14 +173,12 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
     """
     if isinstance(obj, xr.DataArray) and obj.attrs.get("analysis") in _METHODS:
         da = obj
-        units = obj.attrs.get("units", "1")
         length_units = _length_units(da)
-        lengths = None
+        size = None
     else:
-
         prep = prepare(obj)
         length_units = prep.units
-        lengths = [prep.size(d) for d in prep.lat] + [prep.spacing(d) for d in prep.lat]
+        size, pixel = min(prep.size(d) for d in prep.lat), max(prep.spacing(d) for d in prep.lat)
         if method == "psd":
             da = psd(obj, kind, dim=dim, nb_points=None if kind == "1d" else _bins(prep, dim), reliable=reliable)
         elif method == "acf":
@@ -189,39 +187,36 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
             da = vbm(obj, reliable=reliable)
         else:
             da = sdrp(obj, 1, dim=dim, reliable=reliable)
-        units = da.attrs["units"]
+    units = da.attrs.get("units", "1")
+    analysis = da.attrs["analysis"]
     xdim, is_q, to_h, pref_power = _exponent_map(da)
     x = np.asarray(da[xdim].values, dtype=float)
     with np.errstate(divide="ignore"):
         scale = np.where(x > 0, 2 * np.pi / np.where(x > 0, x, 1.0), np.inf) if is_q else x
     if scale_range is None:
-        if lengths is None:
+        if size is None:
             pos = x[(x > 0) & _reliable(da, x, is_q)]
             if not pos.size:
-                raise XtopoError(f"the {da.attrs['analysis']} result has no reliable point at a positive {xdim}: "
+                raise XtopoError(f"the {analysis} result has no reliable point at a positive {xdim}: "
                                  "nothing to fit")
             sc = 2 * np.pi / pos if is_q else pos
             lo, hi = sc.min() * (2 if is_q else 4), sc.max() / (2 if is_q else 8)
         else:
-            n_dims = len(lengths) // 2
-            size, pixel = min(lengths[:n_dims]), max(lengths[n_dims:])
-            method_ = da.attrs["analysis"]
             # the ends of each curve carry known biases: VBM blocks of a few pixels
             # (tilt removal), ACF at ℓ ≳ L/50 (finite size), PSD near 2π/L (few modes)
-            lo = (16 if method_ == "vbm" else 4) * pixel
-            hi = {"acf": max(size / 64, 32 * pixel), "vbm": size / 4}.get(method_, size / 8)
+            lo = (16 if analysis == "vbm" else 4) * pixel
+            hi = {"acf": max(size / 64, 32 * pixel), "vbm": size / 4}.get(analysis, size / 8)
     else:
         lo, hi = scale_range
     sel = (scale >= lo) & (scale <= hi)
     if sel.sum() < 3:
         if scale_range is None:
             what = "is empty" if lo >= hi else f"({lo:g} to {hi:g} {length_units}) holds fewer than 3 points"
-            raise XtopoError(f"the scan is too short for a default fit: the range of scales "
-                             f"method={da.attrs['analysis']!r} "
+            raise XtopoError(f"the scan is too short for a default fit: the range of scales method={analysis!r} "
                              f"trusts {what}; give scale_range=(lo, hi) explicitly, or use a longer scan")
         raise XtopoError(f"fewer than 3 points between the scales {lo:g} and {hi:g} {length_units}; widen scale_range")
     sub = da.isel({xdim: np.flatnonzero(sel)})
-    fit = fit_power_law_whittle if da.attrs["analysis"] == "psd" else fit_power_law
+    fit = fit_power_law_whittle if analysis == "psd" else fit_power_law
     slope, intercept, stderr, npts = xr.apply_ufunc(
         fit, sub[xdim], sub, input_core_dims=[[xdim], [xdim]], output_core_dims=[[], [], [], []],
         dask="parallelized", output_dtypes=[float, float, float, int])
@@ -232,12 +227,12 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
         "hurst_stderr": (stderr * factor).assign_attrs(units="1", long_name="standard error of the Hurst exponent"),
         "prefactor": np.exp(intercept).assign_attrs(
             units=f"{length_units}^({pref_power})",
-            long_name=f"power-law prefactor of {da.attrs['analysis']} ({units} at unit abscissa)"),
+            long_name=f"power-law prefactor of {analysis} ({units} at unit abscissa)"),
         "npoints": npts.assign_attrs(units="1", long_name="number of points in the fit"),
     })
-    ds.attrs = {"analysis": da.attrs["analysis"], "fit_scale_min": float(lo), "fit_scale_max": float(hi),
+    ds.attrs = {"analysis": analysis, "fit_scale_min": float(lo), "fit_scale_max": float(hi),
                 "fit_scale_units": length_units, "abscissa": xdim}
-    if lengths is None:  # fitted to a given result: its own history says how it was computed
+    if size is None:  # fitted to a given result: its own history says how it was computed
         return provenance(ds, obj, "hurst", scale_range=scale_range)
     return provenance(ds, obj, "hurst", method=method, kind=kind, dim=dim, scale_range=scale_range, reliable=reliable)
 

@@ -13,7 +13,7 @@ from ..errors import GridError
 from ..filtration import END_CORRECTIONS, Cutoff, Form
 from ..filtration import filter as _filter
 from ..params import Choice, Count, Real, checked
-from ._scale import prepare, provenance
+from ._scale import prepare, provenance, split_parameters
 
 __all__ = ["iso21920", "PARAMETERS"]
 
@@ -104,8 +104,7 @@ def iso21920(obj, dim: Annotated[str, Choice("x", "y", error=GridError)] = "x",
     """
     prepared = prepare(obj)  # a nonuniform line scan interpolated onto a uniform grid of as many points
     h, units = prepared.h, prepared.units
-    if dim not in prepared.lat:
-        raise GridError(f"dim={dim!r} is not a lateral dimension of these data (they have {prepared.lat})")
+    prepared.check_dim(dim)
     filtered = _filter(h if prepared.resampled else obj, lambda_s=lambda_s, lambda_c=lambda_c, form=form, dim=dim,
                        component="primary" if lambda_c is None else "roughness", end=end)
     profile = height_of(filtered)
@@ -124,12 +123,8 @@ def iso21920(obj, dim: Annotated[str, Choice("x", "y", error=GridError)] = "x",
                         output_sizes={"parameter": len(_k.PARAMETERS)}, what="iso21920",
                         kwargs={"dx": dx, "sections": sections, "c": c, "convention": convention,
                                 "center": lc != lc})
-    out = {}
-    for i, name in enumerate(_k.PARAMETERS):
-        long_name, kind = PARAMETERS[name]
-        out[name] = res.isel(parameter=i, drop=True).assign_attrs(
-            units=units if kind == "length" else kind, long_name=long_name)
-    ds = xr.Dataset(out)
+    ds = xr.Dataset(split_parameters(res, {name: {"units": units if kind == "length" else kind, "long_name": long_name}
+                                           for name, (long_name, kind) in PARAMETERS.items()}))  # _k.PARAMETERS' order
     ds.attrs = prepared.attrs(title="ISO 21920-2 profile parameters", direction=dim, lambda_s=ls, lambda_c=lc,
                               sampling_length=per * dx, evaluation_length=per * sections * dx, sections=sections,
                               c=c, convention=convention, length_units=units, form=str(form), end=end)

@@ -19,15 +19,15 @@ from .._kernels import iso_areal as _k
 from .._kernels import material_ratio as _mr
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import GridError, XtopoError
-from ..params import Count, Interval, Numbers, Real, checked
-from ._scale import provenance
+from ..params import Count, Interval, Names, Numbers, Real, checked
+from ._scale import provenance, split_parameters, unit_of
 
 __all__ = ["iso25178", "material_ratio", "areal_material_ratio", "material_volume", "void_volume", "PARAMETERS"]
 
 #: the parameters :func:`iso25178` computes, by group
 PARAMETERS = _k.GROUPS
 
-# long names and units: "L" the length unit, "V" volume per area
+# long names and units (kinds of _scale.unit_of: "L" the length unit, "V" volume per area)
 _META = {
     "Sa": ("arithmetic mean height", "L"),
     "Sq": ("root mean square height", "L"),
@@ -62,10 +62,6 @@ _META = {
 }
 
 
-def _units(kind: str, length: str) -> str:
-    return {"L": length, "V": f"{length}3 {length}-2", "L-1": f"{length}-1", "L-2": f"{length}-2"}.get(kind, kind)
-
-
 def _area(obj, what: str):
     """Heights, their length unit and periodicity, after the checks every function here shares."""
     h = height_of(obj)
@@ -75,35 +71,16 @@ def _area(obj, what: str):
     return h, shared_length_unit(h, what), is_periodic(h) or is_periodic(obj)
 
 
-def _names(parameters) -> tuple:
-    if parameters is None:
-        return _k.PARAMETERS
-    items = [parameters] if isinstance(parameters, str) else parameters
-    try:
-        items = list(items)
-    except TypeError:
-        items = [parameters]
-    names = []
-    for item in items:
-        if isinstance(item, str) and item in _k.GROUPS:
-            names.extend(_k.GROUPS[item])
-        elif isinstance(item, str) and item in _k.PARAMETERS:
-            names.append(item)
-        else:
-            raise XtopoError(f"parameters: unknown name {item!r}; use ISO symbols {_k.PARAMETERS} or groups "
-                             f"{tuple(_k.GROUPS)}")
-    return tuple(n for n in _k.PARAMETERS if n in names)
-
-
 _RATIO = Real(0.0, 100.0)
 _RATIOS = Interval(0.0, 100.0, what="material ratios in %")
 
 
 @checked
-def iso25178(obj, parameters=None, *, s: Annotated[float, Real(0.0, 1.0, closed=False)] = 0.2,
-             p: Annotated[float, _RATIO] = 10.0, q: Annotated[float, _RATIO] = 80.0, c: Annotated[float, Real()] = 0.0,
-             mr: Annotated[float, _RATIO] = 10.0, sxp: Annotated[tuple, _RATIOS] = (2.5, 50.0),
-             sdc: Annotated[tuple, _RATIOS] = (10.0, 80.0), pruning: Annotated[float, _RATIO] = 5.0) -> xr.Dataset:
+def iso25178(obj, parameters: Annotated[tuple | None, Names(*_k.PARAMETERS, *_k.GROUPS)] = None, *,
+             s: Annotated[float, Real(0.0, 1.0, closed=False)] = 0.2, p: Annotated[float, _RATIO] = 10.0,
+             q: Annotated[float, _RATIO] = 80.0, c: Annotated[float, Real()] = 0.0, mr: Annotated[float, _RATIO] = 10.0,
+             sxp: Annotated[tuple, _RATIOS] = (2.5, 50.0), sdc: Annotated[tuple, _RATIOS] = (10.0, 80.0),
+             pruning: Annotated[float, _RATIO] = 5.0) -> xr.Dataset:
     """ISO 25178-2 field parameters of an area scan, one variable per ISO symbol.
 
     Height (Sa, Sq, Sp, Sv, Sz, Ssk, Sku), hybrid (Sdq, Sdr), spatial (Sal, Str, Std),
@@ -153,7 +130,8 @@ def iso25178(obj, parameters=None, *, s: Annotated[float, Real(0.0, 1.0, closed=
     within the map in some direction, Sal when it does not fall in any; the feature parameters
     of a map with missing data, Spc/S5p/S5v when no complete significant hill or dale is found.
     """
-    names = _names(parameters)
+    chosen = _k.PARAMETERS if parameters is None else {n for item in parameters for n in _k.GROUPS.get(item, (item,))}
+    names = tuple(n for n in _k.PARAMETERS if n in chosen)
     if not p < q:
         raise XtopoError(f"(p, q) must be two material ratios in % with p < q, got {(p, q)!r}")
     h, units, periodic = _area(obj, "iso25178")
@@ -166,14 +144,8 @@ def iso25178(obj, parameters=None, *, s: Annotated[float, Real(0.0, 1.0, closed=
             "Sxp": {"p": sxp[0], "q": sxp[1]}, "Sdc": {"p": sdc[0], "q": sdc[1]},
             "Vmp": {"p": p}, "Vmc": {"p": p, "q": q}, "Vvv": {"q": q}, "Vvc": {"p": p, "q": q},
             **{name: {"pruning": pruning} for name in _k.GROUPS["feature"]}}
-    data = {}
-    for i, name in enumerate(names):
-        long_name, kind = _META[name]
-        da = out.isel(parameter=i, drop=True)
-        da.attrs = {"units": _units(kind, units), "long_name": long_name, "standard": "ISO 25178-2",
-                    **args.get(name, {})}
-        data[name] = da.rename(name)
-    ds = xr.Dataset(data)
+    ds = xr.Dataset(split_parameters(out, {name: {"units": unit_of(_META[name][1], units), "long_name": _META[name][0],
+                                                  "standard": "ISO 25178-2", **args.get(name, {})} for name in names}))
     ds.attrs = {"title": "ISO 25178-2 areal field parameters", "periodic": int(periodic)}
     return provenance(ds, obj, "iso25178", parameters=list(names), s=s, p=p, q=q, c=c, mr=mr, sxp=list(sxp),
                       sdc=list(sdc), pruning=pruning)

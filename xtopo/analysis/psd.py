@@ -15,11 +15,10 @@ import xarray as xr
 
 from .._apply import apply_lateral
 from .._kernels import spectra as _k
-from .._kernels.binning import BinPlan, log_edges
 from ..conventions import X, Y
-from ..errors import GridError, XtopoError
+from ..errors import XtopoError
 from ..params import Choice, Count, Flag, checked
-from ._scale import finish, length_coord, log_bin, per_decade, prepare, provenance
+from ._scale import finish, length_coord, log_bin, log_plan, prepare, provenance
 from .reliability import apply_reliability
 
 __all__ = ["psd"]
@@ -33,10 +32,7 @@ WINDOWS = Choice("auto", "hann", "none", None, False)
 def _iso_plan(ny, nx, dy, dx, nb_points):
     q = _k.rfft_abs_q(ny, nx, dy, dx)
     lo = min(2 * np.pi / (ny * dy) if ny > 1 else np.inf, 2 * np.pi / (nx * dx))
-    hi = float(q.max())
-    mult = np.broadcast_to(_k.rfft_multiplicity(ny, nx), q.shape)
-    bins = per_decade(lo, hi, nb_points, samples=int(np.count_nonzero(q > 0)))
-    return BinPlan(np.where(q > 0, q, -1.0), log_edges(lo, hi, bins), mult)
+    return log_plan(q, lo, float(q.max()), nb_points, _k.rfft_multiplicity(ny, nx))
 
 
 @checked
@@ -94,24 +90,19 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
     prewhiten = prewhiten and win  # without a window the heights' spectrum has no main-lobe bias to remove
     if prewhiten:
         params["prewhiten"] = 1
-    if kind == "2d" and not prep.is_area:
-        raise GridError(f"psd(kind={kind!r}) needs an area scan; use kind='1d' for line scans")
-    if kind == "iso":
-        prep.check_iso("psd")
+    if kind != "1d":
+        prep.check_iso("psd", kind)
     if kind == "1d":
         if convention == "persson" or equivalent_1d:
             raise XtopoError("convention='persson' and equivalent_1d apply to 2D/iso spectra only")
         prep.check_dim(dim)
-        other = [d for d in prep.lat if d != dim]
         n, dx = h.sizes[dim], prep.spacing(dim)
-        out = apply_lateral(_k.psd_profiles, h, core_dims=tuple(other) + (dim,), output_core_dims=[["q"]],
-                            output_sizes={"q": n // 2 + 1}, kwargs=dict(dx=dx, window=win, rows=len(other), prewhiten=prewhiten),
-                            height_power=(2,), what="psd")
         q = 2 * np.pi * np.arange(n // 2 + 1) / (n * dx)
-        out = out.assign_coords(q=length_coord("q", q, qunits, "angular wavevector"))
+        out = prep.along(_k.psd_profiles, dim, length_coord("q", q, qunits, "angular wavevector"), 2, "psd", dx=dx,
+                         window=win, prewhiten=prewhiten)
         if nb_points is not None:
             out = log_bin(out, "q", nb_points)
-        out = finish(out, "psd", f"{u}3", "1D power spectral density C1D", prep, "psd", direction=dim, **params)
+        out = finish(out, "psd", f"{u}3", "1D power spectral density C1D", prep, direction=dim, **params)
     elif kind == "2d":
         ny, nx = h.sizes[Y], h.sizes[X]
         dy, dx = prep.spacing(Y), prep.spacing(X)
@@ -123,7 +114,7 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
                                 q_x=length_coord("q_x", qx, qunits, "angular wavevector x"))
         if convention == "persson":
             out = out / (4 * np.pi**2)
-        out = finish(out, "psd", f"{u}4", "2D power spectral density C2D", prep, "psd", **params)
+        out = finish(out, "psd", f"{u}4", "2D power spectral density C2D", prep, **params)
     else:
         ny, nx = h.sizes[Y], h.sizes[X]
         dy, dx = prep.spacing(Y), prep.spacing(X)
@@ -133,12 +124,12 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         out = out.assign_coords(q=length_coord("q", plan.centers, qunits, "magnitude of the angular wavevector"))
         if equivalent_1d:
             out = out * (out["q"] / np.pi)
-            out = finish(out, "psd", f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)", prep, "psd",
+            out = finish(out, "psd", f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)", prep,
                          equivalent_1d=1, **params)
         else:
             if convention == "persson":
                 out = out / (4 * np.pi**2)
-            out = finish(out, "psd", f"{u}4", "radially averaged 2D power spectral density Ciso", prep, "psd",
+            out = finish(out, "psd", f"{u}4", "radially averaged 2D power spectral density Ciso", prep,
                          equivalent_1d=0, **params)
     if kind == "2d":
         out.attrs.update(reliable=0, reliability_note="2D maps are not cut; use kind='iso' or '1d'")

@@ -19,6 +19,7 @@ import numpy as np
 import xarray as xr
 
 from .._apply import apply_lateral, check_core_chunks
+from .._kernels.collocation import collocation_points
 from .._kernels.scaled import max_negative_curvature
 from ..conventions import length_attr, length_factor
 from ..errors import GridError
@@ -42,15 +43,13 @@ def _attr_length(obj, key, units):
 def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarray:
     """Largest distance at which ``curv > threshold``, refined by log-log interpolation to the next point."""
     bad = curv > threshold
-    lead = curv.shape[:-1]
-    out = np.zeros(lead)
+    out = np.zeros(curv.shape[:-1])
     flat_c = curv.reshape(-1, curv.shape[-1])
     flat_b = bad.reshape(-1, curv.shape[-1])
     res = out.reshape(-1)
     for i in range(flat_c.shape[0]):  # loop over the batch only
         idx = np.flatnonzero(flat_b[i])
-        if idx.size == 0:
-            res[i] = 0.0
+        if idx.size == 0:  # 0: the tip limits no scale
             continue
         j = idx[-1]
         if j + 1 >= dist.size or not np.isfinite(flat_c[i, j + 1]) or flat_c[i, j + 1] <= 0:
@@ -69,8 +68,7 @@ def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) ->
         other = [d for d in lat if d != dim]
         dx = spacings[dim]
         emax = (h.sizes[dim] - 1) / 2
-        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(emax))) + 1)
-        etas = np.unique(np.geomspace(1.0, emax, nb))
+        etas = np.unique(collocation_points(1.0, emax, POINTS_PER_DECADE))
         curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
                              output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
                              kwargs=dict(dx=dx, etas=etas, periodic=periodic, rows=len(other)),
@@ -84,7 +82,6 @@ def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) ->
 def _tip_cutoff_block(values: np.ndarray, *, batch, lat, **kw) -> np.ndarray:
     """:func:`_tip_cutoff` of one block of heights (lateral dims last), as numpy."""
     return _tip_cutoff(xr.DataArray(values, dims=batch + tuple(lat)), lat=lat, **kw).transpose(*batch).values
-
 
 
 @checked
@@ -118,14 +115,13 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
     """
     prep = prepare(obj)
     units = prep.units
+    attrs = {"units": units, "long_name": "short reliability cutoff"}
     res = _attr_length(obj, "resolution", units)
     if res is not None:
-        return xr.DataArray(res, name="reliability_cutoff",
-                            attrs={"units": units, "long_name": "short reliability cutoff", "method": "resolution"})
+        return xr.DataArray(res, name="reliability_cutoff", attrs=dict(attrs, method="resolution"))
     tip = _attr_length(obj, "tip_radius", units)
     if tip is None:
-        return xr.DataArray(np.nan, name="reliability_cutoff",
-                            attrs={"units": units, "long_name": "short reliability cutoff", "method": "none"})
+        return xr.DataArray(np.nan, name="reliability_cutoff", attrs=dict(attrs, method="none"))
     threshold = c / tip
     h = prep.h
     dims = [dim for dim in prep.lat if (h.sizes[dim] - 1) / 2 >= 1]
@@ -144,8 +140,7 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
                              dask="parallelized", output_dtypes=[float])
     cut = cut.drop_vars([v for v in cut.coords if v == "_eta"], errors="ignore")
     cut.name = "reliability_cutoff"
-    cut.attrs = {"units": units, "long_name": "short reliability cutoff", "method": "tip_radius",
-                 "tip_radius": tip, "tip_factor": c}
+    cut.attrs = dict(attrs, method="tip_radius", tip_radius=tip, tip_factor=c)
     return cut
 
 
@@ -169,22 +164,21 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
         result.attrs.update(reliable=0)
         return result
     cut = reliability_cutoff(obj)
-    method = cut.attrs["method"]
-    units = cut.attrs["units"]
-    attrs = dict(result.attrs, reliable=1, reliability_method=method, reliability_cutoff_units=units)
-    if method == "none":
+    attrs = dict(result.attrs, reliable=1, reliability_method=cut.attrs["method"],
+                 reliability_cutoff_units=cut.attrs["units"])
+    if cut.attrs["method"] == "none":
         attrs["reliability_cutoff"] = np.nan
         result.attrs = attrs
         return result
     x = result[coord]
-    if cut.ndim == 0 and not _is_lazy(cut):
+    if cut.ndim == 0 and cut.chunks is None:
         value = float(cut)
         attrs["reliability_cutoff"] = value
         out = result.sel({coord: reliable_scales(x, value, kind).values})
         out.attrs = attrs
         return out
     out = result.where(reliable_scales(x, cut, kind))
-    if not _is_lazy(out):
+    if out.chunks is None:
         valid = out.notnull()
         other = [d for d in out.dims if d != coord]
         out = out.sel({coord: valid.any(other).values if other else valid.values})
@@ -192,7 +186,3 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
     out = out.assign_coords(reliability_cutoff=cut.variable.copy(deep=False))
     out.attrs = attrs
     return out
-
-
-def _is_lazy(da) -> bool:
-    return da.chunks is not None

@@ -8,38 +8,31 @@ import xarray as xr
 from .._apply import apply_lateral
 from .._kernels import scalars as _k
 from ..conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, shared_length_unit, spacing
-from ._scale import provenance
+from ._scale import provenance, split_parameters, unit_of
 
 __all__ = ["scalars"]
 
+#: name → (long name, unit kind of _scale.unit_of)
 _META = {
-    "Sq": ("root mean square height", 1),
-    "Sdq": ("root mean square gradient", 0),
-    "Sddq": ("root mean square curvature", -1),
-    "Sa": ("arithmetic mean height", 1),
-    "Sz": ("maximum height (peak to valley)", 1),
-    "Ssk": ("skewness of the height distribution", None),
-    "Sku": ("kurtosis of the height distribution", None),
-    "Rq": ("root mean square height of profiles", 1),
-    "Rdq": ("root mean square slope of profiles", 0),
-    "Rddq": ("root mean square curvature of profiles", -1),
-    "Ra": ("arithmetic mean height of profiles", 1),
-    "Rz": ("maximum height of profiles (mean peak to valley)", 1),
-    "Rsk": ("skewness of profiles", None),
-    "Rku": ("kurtosis of profiles", None),
+    "Sq": ("root mean square height", "L"),
+    "Sdq": ("root mean square gradient", "1"),
+    "Sddq": ("root mean square curvature", "L-1"),
+    "Sa": ("arithmetic mean height", "L"),
+    "Sz": ("maximum height (peak to valley)", "L"),
+    "Ssk": ("skewness of the height distribution", "1"),
+    "Sku": ("kurtosis of the height distribution", "1"),
+    "Rq": ("root mean square height of profiles", "L"),
+    "Rdq": ("root mean square slope of profiles", "1"),
+    "Rddq": ("root mean square curvature of profiles", "L-1"),
+    "Ra": ("arithmetic mean height of profiles", "L"),
+    "Rz": ("maximum height of profiles (mean peak to valley)", "L"),
+    "Rsk": ("skewness of profiles", "1"),
+    "Rku": ("kurtosis of profiles", "1"),
 }
 
 
-def _units(length_units: str, power) -> str:
-    if power is None or power == 0:
-        return "1"
-    return length_units if power == 1 else f"{length_units}-1"
-
-
-def _annotate(name, da, length_units):
-    long_name, power = _META[name]
-    da.attrs = {"units": _units(length_units, power), "long_name": long_name}
-    return da.rename(name)
+def _attrs(names, length_units) -> dict:
+    return {name: {"units": unit_of(_META[name][1], length_units), "long_name": _META[name][0]} for name in names}
 
 
 def scalars(obj) -> xr.Dataset:
@@ -84,35 +77,26 @@ def scalars(obj) -> xr.Dataset:
     units = shared_length_unit(h, "scalars")
     periodic = is_periodic(h)
     out = {}
+
+    def run(kernel, core_dims=None, **kwargs):
+        return apply_lateral(kernel, h, core_dims=core_dims, output_core_dims=[["parameter"]],
+                             output_sizes={"parameter": len(_k.LINE_PARAMETERS)}, kwargs=kwargs,
+                             height_power=(_k.HEIGHT_POWERS,), what="scalars")
+
     if lat == (Y, X):
         dy, dx = spacing(h, Y), spacing(h, X)
-        s = apply_lateral(_k.area_parameters, h, output_core_dims=[["parameter"]],
-                          output_sizes={"parameter": len(_k.AREA_PARAMETERS)},
-                          kwargs=dict(dy=dy, dx=dx, periodic=periodic), height_power=(_k.HEIGHT_POWERS,), what="scalars")
-        for i, name in enumerate(_k.AREA_PARAMETERS):
-            out[name] = _annotate(name, s.isel(parameter=i, drop=True), units)
-        rx = apply_lateral(_k.profile_parameters, h, output_core_dims=[["parameter"]],
-                           output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
-                           kwargs=dict(dx=dx, periodic=periodic, rows=1), height_power=(_k.HEIGHT_POWERS,), what="scalars")
-        ry = apply_lateral(_k.profile_parameters, h, core_dims=(X, Y), output_core_dims=[["parameter"]],
-                           output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
-                           kwargs=dict(dx=dy, periodic=periodic, rows=1), height_power=(_k.HEIGHT_POWERS,), what="scalars")
-        r = xr.concat([rx, ry], dim="direction")
+        out.update(split_parameters(run(_k.area_parameters, dy=dy, dx=dx, periodic=periodic),
+                                    _attrs(_k.AREA_PARAMETERS, units)))
+        r = xr.concat([run(_k.profile_parameters, dx=dx, periodic=periodic, rows=1),
+                       run(_k.profile_parameters, (X, Y), dx=dy, periodic=periodic, rows=1)], dim="direction")
     elif is_nonuniform(h):
-        xv = np.asarray(h[X].values, dtype=float)
-        r = apply_lateral(_k.nonuniform_parameters, h, output_core_dims=[["parameter"]],
-                          output_sizes={"parameter": len(_k.LINE_PARAMETERS)}, kwargs=dict(x=xv), height_power=(_k.HEIGHT_POWERS,), what="scalars")
-        r = r.expand_dims("direction")
+        r = run(_k.nonuniform_parameters, x=np.asarray(h[X].values, dtype=float)).expand_dims("direction")
     else:
-        r = apply_lateral(_k.profile_parameters, h, output_core_dims=[["parameter"]],
-                          output_sizes={"parameter": len(_k.LINE_PARAMETERS)},
-                          kwargs=dict(dx=spacing(h, X), periodic=periodic, rows=0), height_power=(_k.HEIGHT_POWERS,), what="scalars")
-        r = r.expand_dims("direction")
+        r = run(_k.profile_parameters, dx=spacing(h, X), periodic=periodic, rows=0).expand_dims("direction")
     # a fixed-width unicode label for line and area scans alike (expand_dims would make it an object array)
     r = r.assign_coords(direction=("direction", np.array([X, Y][: r.sizes["direction"]]),
                                    {"long_name": "direction of the profiles"}))
-    for i, name in enumerate(_k.LINE_PARAMETERS):
-        out[name] = _annotate(name, r.isel(parameter=i, drop=True), units)
+    out.update(split_parameters(r, _attrs(_k.LINE_PARAMETERS, units)))
     ds = xr.Dataset(out)
     ds.attrs = {"title": "scalar roughness parameters", "periodic": int(periodic)}
     return provenance(ds, obj, "scalars")

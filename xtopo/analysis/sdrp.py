@@ -7,7 +7,7 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
-from .._apply import apply_lateral
+from .._kernels.collocation import collocation_points
 from .._kernels.scaled import sdrp_rms
 from ..conventions import X
 from ..errors import GridError, XtopoError
@@ -20,7 +20,7 @@ __all__ = ["sdrp", "stencils"]
 
 def stencils(obj, dim: str, distances, order: int, what: str):
     """What a scale-dependent derivative of ``order`` along ``dim`` needs: the prepared measurement, the
-    other lateral dims, the spacing and the stencil lengths ``ℓ = order·η·Δx`` (at most the scan length).
+    spacing and the stencil lengths ``ℓ = order·η·Δx`` (at most the scan length).
 
     Default lengths: 10 per decade from ``order·Δx`` to ``L/2`` at integer ``η`` (no interpolation, which
     biases the slope low at fractional η: benchmarks/tradeoffs.py gives half the error, and faster;
@@ -28,18 +28,16 @@ def stencils(obj, dim: str, distances, order: int, what: str):
     """
     prep = prepare(obj)
     prep.check_dim(dim)
-    other = [d for d in prep.lat if d != dim]
     n, dx = prep.h.sizes[dim], prep.spacing(dim)
     if distances is None:
         lo, hi = order * dx, n * dx / 2
         if hi < lo:
             raise GridError(f"the scan is too short for {what} ({n} points along {dim!r})")
-        nb = max(2, int(np.ceil(POINTS_PER_DECADE * np.log10(hi / lo))) + 1)
-        distances = np.unique(np.round(np.geomspace(1.0, hi / lo, nb))) * lo
+        distances = np.unique(np.round(collocation_points(1.0, hi / lo, POINTS_PER_DECADE))) * lo
     elif np.any(distances > n * dx):
         raise XtopoError(f"distances must be positive finite lengths of at most {n * dx:g} {prep.units} (the size "
                          f"of the measurement), got {distances[distances > n * dx].tolist()}")
-    return prep, other, dx, distances
+    return prep, dx, distances
 
 
 @checked
@@ -76,17 +74,13 @@ def sdrp(obj, order: Annotated[int, Choice(1, 2)] = 1, *, dim: str = X,
         ``distance``; at ``ℓ = Δx`` (order 1) it equals RΔq, at ``ℓ = 2Δx`` (order 2) RΔ²q.
     """
     given = distances
-    prep, other, dx, distances = stencils(obj, dim, distances, order, f"sdrp(order={order})")
-    h, u = prep.h, prep.units
-    etas = distances / (order * dx)
-    out = apply_lateral(sdrp_rms, h, core_dims=tuple(other) + (dim,), output_core_dims=[["distance"]],
-                        output_sizes={"distance": etas.size},
-                        kwargs=dict(dx=dx, etas=etas, order=order, periodic=prep.periodic, rows=len(other)),
-                        height_power=(1,), what="sdrp")
-    out = out.assign_coords(distance=length_coord("distance", distances, u, "stencil length"))
+    prep, dx, distances = stencils(obj, dim, distances, order, f"sdrp(order={order})")
+    u = prep.units
+    out = prep.along(sdrp_rms, dim, length_coord("distance", distances, u, "stencil length"), 1, "sdrp", dx=dx,
+                     etas=distances / (order * dx), order=order, periodic=prep.periodic)
     if order == 1:
-        out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, "sdrp", order=1, direction=dim)
+        out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, order=1, direction=dim)
     else:
-        out = finish(out, "sdrp", f"{u}-1", "scale-dependent RMS curvature", prep, "sdrp", order=2, direction=dim)
+        out = finish(out, "sdrp", f"{u}-1", "scale-dependent RMS curvature", prep, order=2, direction=dim)
     out = apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
     return provenance(out, obj, "sdrp", order=order, dim=dim, distances=given, reliable=reliable)

@@ -13,6 +13,7 @@ from typing import Annotated
 import numpy as np
 import xarray as xr
 
+from .._kernels.collocation import collocation_points
 from .._kernels.estimator_error import mean_square_relative_error, variogram_from_samples
 from ..conventions import X
 from ..errors import XtopoError
@@ -33,14 +34,6 @@ VARIOGRAM_FRACTION = 0.25
 #: Stencils ``(offsets in units of ℓ, weights)`` of the mean-square estimators of :func:`stencil_error`.
 _STENCILS = {"acf": ((0.0, 1.0), (-1.0, 1.0)), "slope": ((0.0, 1.0), (-1.0, 1.0)),
              "curvature": ((-0.5, 0.0, 0.5), (1.0, -2.0, 1.0))}
-
-
-def _extent(prep, dim):
-    """Number of profiles and the lengths along and across ``dim`` of a measurement."""
-    other = [d for d in prep.lat if d != dim]
-    if not other:
-        return 1, prep.size(dim), 0.0
-    return prep.h.sizes[other[0]], prep.size(dim), prep.size(other[0])
 
 
 def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
@@ -74,7 +67,9 @@ def independent_samples(obj, coord: str, values, *, dim: str = X) -> np.ndarray:
         Independent samples per value (0 for ``q = 0`` or lengths beyond the measurement).
     """
     prep = prepare(obj)
-    rows, length, width = _extent(prep, dim)
+    other = [d for d in prep.lat if d != dim]  # the profiles of an area scan lie side by side along it
+    rows, width = (prep.h.sizes[other[0]], prep.size(other[0])) if other else (1, 0.0)
+    length = prep.size(dim)
     v = np.abs(np.asarray(values, dtype=float))
     if coord == "q":
         k = v * length / (2 * np.pi)
@@ -173,8 +168,7 @@ def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
     prep.check_dim(dim)
     n, dx = prep.h.sizes[dim], prep.spacing(dim)
     other = [d for d in prep.lat if d != dim]
-    rows = prep.h.sizes[other[0]] if other else 1
-    dy = prep.spacing(other[0]) if other else 0.0
+    rows, dy = (prep.h.sizes[other[0]], prep.spacing(other[0])) if other else (1, 0.0)
     # lengths beyond the scan: NaN (the stencil does not fit)
     curve = acf(obj, kind="1d", dim=dim, reliable=False)
     keep = max(3, int(np.ceil(fraction * n)))
@@ -182,8 +176,7 @@ def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
     lags = np.asarray(curve["distance"].values, dtype=float)
     # evaluate on at most 10 points per decade and interpolate log-log (the error varies slowly with ℓ)
     pos = lengths[lengths > 0]
-    nodes = np.geomspace(pos.min(), pos.max(), max(2, int(np.ceil(10 * np.log10(pos.max() / pos.min()))) + 1)) \
-        if pos.size > 32 and pos.max() > pos.min() else lengths
+    nodes = collocation_points(pos.min(), pos.max(), 10) if pos.size > 32 and pos.max() > pos.min() else lengths
 
     def kernel(values):
         flat = values.reshape(-1, values.shape[-1])

@@ -86,7 +86,7 @@ def vbm(obj, *, min_pixels: Annotated[int, Count(min=2)] = 4, reliable: Annotate
                             magnification=("bandwidth", levels, {"units": "1", "long_name": "magnification ζ"}))
     out = out.isel(bandwidth=slice(None, None, -1))
     out = finish(out, "vbm", u, "mean tilt-corrected RMS height" if average == "mean" else
-                 "tilt-corrected RMS height over all blocks", prep, "vbm", min_pixels=int(min_pixels),
+                 "tilt-corrected RMS height over all blocks", prep, min_pixels=int(min_pixels),
                  **({} if average == "mean" else {"average": "rms"}))
     out = apply_reliability(out, obj, coord="bandwidth", kind="length", reliable=reliable)
     extra = {} if (kind, average) == ("area", "mean") else {"kind": kind, "dim": dim, "average": average}
