@@ -15,7 +15,7 @@ from ._lazy import Lazy
 
 sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
 
-__all__ = ["rfftn", "irfftn", "fftn", "ifftn", "choose_backend", "workers"]
+__all__ = ["rfftn", "irfftn", "fftn", "choose_backend", "workers"]
 
 _PYFFTW_THRESHOLD = 2048 * 2048
 
@@ -75,8 +75,3 @@ def irfftn(a, s=None, axes=None, *, backend="auto"):
 def fftn(a, s=None, axes=None, *, backend="auto"):
     """Complex n-dim FFT (unnormalised)."""
     return _call("fftn", a, s, axes, backend)
-
-
-def ifftn(a, s=None, axes=None, *, backend="auto"):
-    """Inverse complex n-dim FFT (normalised by 1/N)."""
-    return _call("ifftn", a, s, axes, backend)
