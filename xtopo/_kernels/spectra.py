@@ -23,7 +23,8 @@ njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (
 #: on the 2-core development machine.
 BACKEND = "scipy"
 
-__all__ = ["BACKEND", "psd_profiles", "prewhitening", "psd_map", "psd_iso", "rfft_abs_q", "rfft_multiplicity", "check_finite"]
+__all__ = ["BACKEND", "psd_profiles", "prewhitening", "psd_map", "psd_iso", "rfft_abs_q", "rfft_multiplicity", "check_finite",
+           "power"]
 
 
 def check_finite(h: np.ndarray, what: str) -> None:
@@ -32,7 +33,8 @@ def check_finite(h: np.ndarray, what: str) -> None:
         raise MissingDataError(f"{what}: the heights contain missing data (NaN)")
 
 
-def _power(f: np.ndarray) -> np.ndarray:
+def power(f: np.ndarray) -> np.ndarray:
+    """``|f|²`` of a complex array (one temporary, no complex multiply)."""
     p = f.real * f.real
     p += f.imag * f.imag
     return p
@@ -139,7 +141,7 @@ def _demeaned_map(h, dy, dx, window):
 def psd_map(h: np.ndarray, dy: float, dx: float, *, window: bool) -> np.ndarray:
     """C2D on the full (q_y, q_x) grid in ascending order (``fftshift``), shape ``(..., ny, nx)``."""
     ny, nx = h.shape[-2:]
-    p = _power(_fft.fftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
+    p = power(_fft.fftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
     return np.fft.fftshift(p * (dx * dy / (nx * ny)), axes=(-2, -1))
 
 
@@ -162,5 +164,5 @@ def rfft_multiplicity(ny: int, nx: int) -> np.ndarray:
 def psd_iso(h: np.ndarray, dy: float, dx: float, *, window: bool, plan) -> np.ndarray:
     """Radially averaged C2D over the bins of ``plan`` (a :class:`~.binning.BinPlan` on :func:`rfft_abs_q`)."""
     ny, nx = h.shape[-2:]
-    p = _power(_fft.rfftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
+    p = power(_fft.rfftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
     return plan.mean(p) * (dx * dy / (nx * ny))
