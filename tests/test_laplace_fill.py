@@ -67,11 +67,6 @@ def test_multigrid_cg_converges_on_strongly_anisotropic_grids(dy):
     assert converged and iterations < 60
 
 
-def test_unknown_method_is_refused():
-    with pytest.raises(ValueError, match="method"):
-        harmonic_fill_2d(np.ones((3, 3)), method="cg")
-
-
 @pytest.mark.parametrize("method", ["direct", "iterative", "auto"])
 @pytest.mark.parametrize("view", ["transposed", "flipped"])
 def test_fill_of_a_non_contiguous_map(method, view):
