@@ -12,7 +12,7 @@ from .._checks import bin_count
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
 from ..params import Count, checked
-from .solve import ONE_SEQUENCE, _control, given, run_solver, solver_settings, to_dataset
+from .solve import ONE_SEQUENCE, _control, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution"]
 
@@ -48,7 +48,7 @@ def _per_length(units: str, length: str) -> str:
     return f"{units} {length}-1"
 
 
-@checked(error=ContactError)
+@checked(ONE_SEQUENCE, error=ContactError)
 def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
           gap_bins: Annotated[int, Count(min=0)] = 50, preset: str | None = None) -> xr.Dataset:
     """Solve ``scene`` for each value of a sequence, each step starting from the previous solution.
@@ -70,7 +70,7 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         solves reached), plus ``stiffness`` (``dF/dδ``) and ``gap_distribution``.
     """
     gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), error=ContactError)
-    name, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
+    name, values = ONE_SEQUENCE.given(dict(loads=loads, mean_pressures=mean_pressures, penetrations=penetrations))
     values = _sequence(name, values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
     key = name[:-1]

@@ -19,11 +19,11 @@ from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, provenance_of, shared_length_unit, spacing
 from ..errors import ContactError, GridError
-from ..params import Flag
+from ..params import Flag, checked
 from ..presets import resolve as resolve_preset
 from .curves import curve as _curve
 from .models import PlasticCap, scene_models
-from .solve import ONE_CONTROL, given, solve as _solve
+from .solve import ONE_CONTROL, solve as _solve
 
 __all__ = ["Scene", "contact"]
 
@@ -212,6 +212,7 @@ class Scene:
                       maxiter=maxiter, gap_bins=gap_bins, preset=preset)
 
 
+@checked(ONE_CONTROL)
 def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
             hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
             tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
@@ -251,7 +252,7 @@ def contact(topography, *, load=None, mean_pressure=None, penetration=None, modu
     """
     scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
                   preset=preset)
-    key, value = given(ONE_CONTROL, load=load, mean_pressure=mean_pressure, penetration=penetration)
+    key, value = ONE_CONTROL.given(dict(load=load, mean_pressure=mean_pressure, penetration=penetration))
     if np.ndim(value) == 0:
         return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
     return scene.curve(**{f"{key}s": value}, tol=tol, maxiter=maxiter)
