@@ -80,8 +80,8 @@ def _direct(A, rhs):
 
 def _iterative(A, rhs, iy, ix, anisotropy):
     M = multigrid.SmoothedAggregation(A, iy, ix, anisotropy=anisotropy)
-    x, converged, _ = multigrid.pcg(A, rhs, M, rtol=RTOL, maxiter=1000)
-    return x if converged else _direct(A, rhs)  # (not seen in practice: a safety net)
+    x, info = scipy.sparse.linalg.cg(A, rhs, rtol=RTOL, maxiter=1000, M=M)
+    return x if info == 0 else _direct(A, rhs)  # (not seen in practice: a safety net)
 
 
 def _fill_one(h, periodic, wy, wx, method):
