@@ -28,16 +28,12 @@ def acf_profiles(h: np.ndarray, dx: float, *, periodic: bool, rows: int) -> np.n
     check_finite(h, "acf")
     n = h.shape[-1]
     raxes = tuple(range(-1 - rows, -1))
-    nrows = int(np.prod([h.shape[a] for a in raxes])) if rows else 1
+    nrows = int(np.prod([h.shape[a] for a in raxes]))
     d = h - h.mean(axis=-1, keepdims=True)
     size = n if periodic else sfft.next_fast_len(2 * n - 1, real=True)
-    p = power(_fft.rfftn(d, s=(size,), axes=(-1,), backend=_BACKEND))
-    if rows:
-        p = p.sum(axis=raxes)
+    p = power(_fft.rfftn(d, s=(size,), axes=(-1,), backend=_BACKEND)).sum(axis=raxes)  # raxes=(): unchanged
     c = _fft.irfftn(p, s=(size,), axes=(-1,), backend=_BACKEND)
-    sq = d * d
-    if rows:
-        sq = sq.sum(axis=raxes)
+    sq = (d * d).sum(axis=raxes)
     if periodic:
         k = n // 2 + 1
         a = (sq.sum(axis=-1, keepdims=True) - c[..., :k]) / (n * nrows)

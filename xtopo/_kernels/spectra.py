@@ -42,19 +42,15 @@ def power(f: np.ndarray) -> np.ndarray:
 
 @njit(nogil=True, cache=True)
 def _centred_profiles(h, window, out):
-    """``out[r] = (h[r] - mean(h[r])) · window`` for the rows of ``h`` (2D) in one pass each (no window: empty)."""
+    """``out[r] = (h[r] - mean(h[r])) · window`` for the rows of ``h`` (2D) in one pass each."""
     rows, n = h.shape
     for r in range(rows):
         s = 0.0
         for i in range(n):
             s += h[r, i]
         m = s / n
-        if window.size:
-            for i in range(n):
-                out[r, i] = (h[r, i] - m) * window[i]
-        else:
-            for i in range(n):
-                out[r, i] = h[r, i] - m
+        for i in range(n):
+            out[r, i] = (h[r, i] - m) * window[i]
 
 
 @njit(nogil=True, cache=True)
@@ -101,7 +97,7 @@ def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int, prewhiten
         h2 = np.diff(h2, axis=-1) / dx  # the slope (D_x h): n - 1 values, transformed on the heights' n points
     m = h2.shape[-1]
     d = np.empty_like(h2)
-    _centred_profiles(h2, hann(m) if window else np.empty(0), d)
+    _centred_profiles(h2, hann(m) if window else np.ones(m), d)
     f = _fft.rfftn(d.reshape(h.shape[:-1] + (m,)), s=(n,), axes=(-1,), backend=BACKEND)
     del d
     lead = h.shape[: h.ndim - 1 - rows]

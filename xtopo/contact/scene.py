@@ -114,6 +114,7 @@ class Scene:
         self.spacing = tuple(spacing(h, d) for d in self.dims)
         per_attr = is_periodic(topography)
         source = f"from the data's periodic attribute ({int(per_attr)})"
+        values = np.asarray(h.values, dtype=np.float64)
         if counter is not None:
             h2 = _heights(counter, "counter")
             self._check_same_grid(h, h2)
@@ -121,9 +122,7 @@ class Scene:
             source = (f"from the periodic attributes of the topography ({int(per_attr)}) and the counter surface "
                       f"({int(per_counter)}): periodic only when both are")
             per_attr = per_attr and per_counter
-            values = np.asarray(h.values, dtype=np.float64) + np.asarray(h2.values, dtype=np.float64)
-        else:
-            values = np.asarray(h.values, dtype=np.float64)
+            values = values + np.asarray(h2.values, dtype=np.float64)
         if periodic is None:
             self.periodic = bool(per_attr)
             self._boundary_reason = source
