@@ -82,26 +82,24 @@ class SmoothedAggregation:
             if keys.size > 0.8 * A.shape[0]:  # blocks too sparse to coarsen: try larger blocks
                 iy, ix = by, bx
                 continue
-            self.levels.append(self._level(A, agg, keys.size))
-            A = self._galerkin(A, self.levels[-1][2])
+            level, A = self._level(A, agg, keys.size)
+            self.levels.append(level)
             iy, ix = np.divmod(keys, ncx)
         self.coarse = scipy.sparse.linalg.splu(A.tocsc())
 
     @staticmethod
     def _level(A, agg, nc):
+        """``(A, 1/diag(A), P)`` of a level whose unknowns form the aggregates ``agg``, and the next level's
+        Galerkin matrix ``Pᵀ A P``."""
         n = A.shape[0]
         dinv = 1.0 / A.diagonal()
         rho = float(np.max(abs(A).sum(axis=1).A1 * dinv))
         P0 = scipy.sparse.csr_matrix((np.ones(n), (np.arange(n), agg)), shape=(n, nc))
         P = (P0 - scipy.sparse.diags((4.0 / 3.0 / rho) * dinv) @ (A @ P0)).tocsr()
         P.eliminate_zeros()
-        return A, dinv, P
-
-    @staticmethod
-    def _galerkin(A, P):
         Ac = (P.T.tocsr() @ (A @ P)).tocsr()
         Ac.eliminate_zeros()
-        return Ac
+        return (A, dinv, P), Ac
 
     def matvec(self, r):
         return self._cycle(0, np.asarray(r, dtype=float))
