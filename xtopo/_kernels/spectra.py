@@ -14,6 +14,7 @@ from ._lazy import LazyJit
 
 from ..errors import MissingDataError
 from . import fft as _fft
+from .derivatives import wavevectors
 from .windows import hann, radial_hann
 
 njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
@@ -143,8 +144,7 @@ def psd_map(h: np.ndarray, dy: float, dx: float, *, window: bool) -> np.ndarray:
 
 def rfft_abs_q(ny: int, nx: int, dy: float, dx: float) -> np.ndarray:
     """|q| of every mode of a 2D real FFT, shape ``(ny, nx//2+1)``."""
-    qy = 2 * np.pi * np.fft.fftfreq(ny, d=dy)
-    qx = 2 * np.pi * np.fft.rfftfreq(nx, d=dx)
+    qy, qx = wavevectors(ny, dy), wavevectors(nx, dx, real=True)
     return np.sqrt(qy[:, None] ** 2 + qx[None, :] ** 2)
 
 
