@@ -72,8 +72,10 @@ def _rows_x(z, sx, nxs, periodic):
     for r in range(ny):
         row = z[r]
         if periodic:
-            for j in range(nx + 6):
+            wrapped[3:nx + 3] = row
+            for j in range(3):
                 wrapped[j] = row[(j - 3) % nx]
+                wrapped[nx + 3 + j] = row[j % nx]
             row = wrapped
         for c in range(3, row.size - 3):
             g = seven_point(row[c - 3], row[c - 2], row[c - 1], row[c + 1], row[c + 2], row[c + 3]) + 0.0 * row[c]
