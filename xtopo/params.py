@@ -348,6 +348,10 @@ class OneOf:
             extra = f" (got {', '.join(given)})" if given else ""
             raise (self.error or error)(f"give {'at most' if self.optional else 'exactly'} one of {listed}{extra}")
 
+    def given(self, values: Mapping) -> tuple[str, object]:
+        """``(name, value)`` of the one argument given (the call checked by :func:`checked` first)."""
+        return next((n, values[n]) for n in self.names if values.get(n) is not None)
+
 
 class _Spec:
     """The declarations of one function, read from its signature and type hints when it is decorated (on its

@@ -498,5 +498,5 @@ def test_gap_bins_beyond_the_pixels_refused():
 def test_curve_refuses_booleans_and_text_as_controls(values):
     # True was solved as the load 1, ["0.001"] as the number 0.001 (solve(load=True) is refused)
     scene = Scene(datasets.sphere((16, 16), 1.0, 2.0))
-    with pytest.raises(ContactError, match="loads must be a sequence of numbers"):
+    with pytest.raises(ContactError, match="loads must be a number or a 1D sequence of numbers"):
         scene.curve(loads=values)

@@ -9,6 +9,9 @@ plane fit stays well conditioned.
 
 from __future__ import annotations
 
+import functools
+import operator
+
 import numpy as np
 from ._lazy import LazyJit
 
@@ -98,11 +101,6 @@ def _merge(arrs, w, centre, axis):
     return out, wp, cp
 
 
-def _sum_xsq(w):
-    """Σ over a block of width w of (x - centre)² in pixels²."""
-    return (w**3 - w) / 12.0
-
-
 def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None, quadratic: bool = False) -> np.ndarray:
     """Mean tilt-corrected RMS height ⟨h_rms⟩ at each magnification ``ζ`` in ``levels``.
 
@@ -148,17 +146,12 @@ def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None,
     results = {}
     zeta = zmax
     while True:
-        count = 1.0
-        for ax, (w, _) in geo.items():
-            shape = [1] * m["s0"].ndim
-            shape[ax] = len(w)
-            count = count * w.reshape(shape)
+        # block widths along each axis, broadcastable against the block sums
+        widths = {ax: w.reshape([-1 if a == ax else 1 for a in range(m["s0"].ndim)]) for ax, (w, _) in geo.items()}
+        count = functools.reduce(operator.mul, widths.values(), 1.0)
         ss = m["s2"] - m["s0"] ** 2 / count
-        for ax, (w, _) in geo.items():
-            shape = [1] * m["s0"].ndim
-            shape[ax] = len(w)
-            other = count / w.reshape(shape)
-            sxx = _sum_xsq(w).reshape(shape) * other
+        for ax, w in widths.items():
+            sxx = (w**3 - w) / 12.0 * (count / w)  # Σ (x - centre)² over the block, pixels²
             with np.errstate(invalid="ignore", divide="ignore"):
                 ss = ss - np.where(sxx > 0, m["s1_" + str(ax)] ** 2 / np.where(sxx > 0, sxx, 1.0), 0.0)
         if quadratic:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["log_edges", "bin_index", "BinPlan", "binned_mean"]
+__all__ = ["log_edges", "bin_index", "BinPlan"]
 
 
 def log_edges(lo: float, hi: float, nb_points: int) -> np.ndarray:
@@ -72,7 +72,7 @@ class BinPlan:
     def __len__(self):
         return int(self.keep.sum())
 
-    def mean(self, data: np.ndarray, *, weighted: bool = True) -> np.ndarray:
+    def mean(self, data: np.ndarray) -> np.ndarray:
         """Average ``data[..., values]`` per non-empty bin; leading dims broadcast."""
         data = np.asarray(data, dtype=float)
         lead = data.shape[: data.ndim - self.ndim]
@@ -82,9 +82,3 @@ class BinPlan:
             s = np.bincount(self.index, weights=flat[b] * self.weights, minlength=self.nbins + 1)
             out[b] = s[: self.nbins][self.keep]
         return out.reshape(lead + (len(self),))
-
-
-def binned_mean(x, data, edges, multiplicity=None):
-    """Convenience: ``(centers, means)`` of ``data[..., i]`` at abscissae ``x[i]`` over ``edges``."""
-    plan = BinPlan(x, edges, multiplicity)
-    return plan.centers, plan.mean(data)

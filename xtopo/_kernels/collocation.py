@@ -49,7 +49,7 @@ def interp_loglog(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
     return out
 
 
-def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, weights=None, min_weight: float = 0.0) -> np.ndarray:
+def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
     """Mean of ``y[..., n]`` (at abscissae ``x[n]``) over log bins, evaluated at the bin centres ``xnew``.
 
     Bin edges lie at the geometric midpoints between the points of ``xnew`` (and half a bin
@@ -57,13 +57,11 @@ def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, weights=None, min_w
     samples, not to its centre (a sparse bin, e.g. one sample near an edge, would otherwise
     shift a steep curve by up to half a bin): each non-empty bin's value is the log-log line
     through the neighbouring bin means, evaluated at its centre (at most half a bin away).
-    NaN samples are ignored; empty bins, and bins whose summed ``weights`` (statistical
-    weight of each sample, default 1) stay below ``min_weight``, are NaN.
+    NaN samples are ignored; empty bins are NaN.
     """
     y = np.asarray(y, dtype=float)
     x = np.asarray(x, dtype=float)
     centers = np.asarray(xnew, dtype=float)
-    w = np.ones_like(x) if weights is None else np.asarray(weights, dtype=float)
     lc = np.log(centers)
     idx = _bin_index(x, centers)
     nb = centers.size
@@ -73,8 +71,7 @@ def bin_mean(y: np.ndarray, x: np.ndarray, xnew: np.ndarray, weights=None, min_w
     for i, row in enumerate(flat):
         ok = np.isfinite(row)
         counts = np.bincount(idx[ok], minlength=nb + 1)[:nb]
-        weight = np.bincount(idx[ok], weights=w[ok], minlength=nb + 1)[:nb]
-        full = (counts > 0) & (weight >= min_weight)
+        full = counts > 0
         if not full.any():
             continue
         means = np.bincount(idx[ok], weights=row[ok], minlength=nb + 1)[:nb][full] / counts[full]

@@ -14,15 +14,9 @@ from .fft import sfft  # imported on first use (startup time)
 
 from . import fft as _fft
 from .spectra import BACKEND as _BACKEND
-from .spectra import check_finite
+from .spectra import check_finite, power
 
 __all__ = ["acf_profiles", "acf_offsets", "acf_map"]
-
-
-def _power(f):
-    p = f.real * f.real
-    p += f.imag * f.imag
-    return p
 
 
 def acf_profiles(h: np.ndarray, dx: float, *, periodic: bool, rows: int) -> np.ndarray:
@@ -34,16 +28,12 @@ def acf_profiles(h: np.ndarray, dx: float, *, periodic: bool, rows: int) -> np.n
     check_finite(h, "acf")
     n = h.shape[-1]
     raxes = tuple(range(-1 - rows, -1))
-    nrows = int(np.prod([h.shape[a] for a in raxes])) if rows else 1
+    nrows = int(np.prod([h.shape[a] for a in raxes]))
     d = h - h.mean(axis=-1, keepdims=True)
     size = n if periodic else sfft.next_fast_len(2 * n - 1, real=True)
-    p = _power(_fft.rfftn(d, s=(size,), axes=(-1,), backend=_BACKEND))
-    if rows:
-        p = p.sum(axis=raxes)
+    p = power(_fft.rfftn(d, s=(size,), axes=(-1,), backend=_BACKEND)).sum(axis=raxes)  # raxes=(): unchanged
     c = _fft.irfftn(p, s=(size,), axes=(-1,), backend=_BACKEND)
-    sq = d * d
-    if rows:
-        sq = sq.sum(axis=raxes)
+    sq = (d * d).sum(axis=raxes)
     if periodic:
         k = n // 2 + 1
         a = (sq.sum(axis=-1, keepdims=True) - c[..., :k]) / (n * nrows)
@@ -95,14 +85,14 @@ def acf_map(h: np.ndarray, *, periodic: bool) -> np.ndarray:
     d = h - h.mean(axis=(-2, -1), keepdims=True)
     sq = d * d
     if periodic:
-        p = _power(_fft.rfftn(d, axes=(-2, -1), backend=_BACKEND))
+        p = power(_fft.rfftn(d, axes=(-2, -1), backend=_BACKEND))
         c = _fft.irfftn(p, s=(ny, nx), axes=(-2, -1), backend=_BACKEND)
         a = sq.mean(axis=(-2, -1), keepdims=True) - c / (nx * ny)
         a[..., 0, 0] = 0.0
         return _nonnegative(a)
     py = sfft.next_fast_len(2 * ny - 1, real=True)
     px = sfft.next_fast_len(2 * nx - 1, real=True)
-    p = _power(_fft.rfftn(d, s=(py, px), axes=(-2, -1), backend=_BACKEND))
+    p = power(_fft.rfftn(d, s=(py, px), axes=(-2, -1), backend=_BACKEND))
     c = _fft.irfftn(p, s=(py, px), axes=(-2, -1), backend=_BACKEND)
     del p
     c = np.concatenate([c[..., :ny, px - (nx - 1):], c[..., :ny, :nx]], axis=-1)

@@ -7,6 +7,7 @@ any size (docs/tradeoffs.md, FFT backend). ``backend="auto"`` follows that rule;
 
 from __future__ import annotations
 
+import functools
 import os
 
 import numpy as np
@@ -15,7 +16,7 @@ from ._lazy import Lazy
 
 sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
 
-__all__ = ["rfftn", "irfftn", "fftn", "ifftn", "choose_backend", "workers"]
+__all__ = ["rfftn", "irfftn", "fftn", "choose_backend", "workers"]
 
 _PYFFTW_THRESHOLD = 2048 * 2048
 
@@ -54,7 +55,8 @@ def choose_backend(shape, backend: str = "auto", *, planned: bool = False) -> st
     return "pyfftw"
 
 
-def _call(name, a, s, axes, backend):
+def _call(name, a, s=None, axes=None, *, backend="auto"):
+    """``scipy.fft.<name>`` of ``a``, or pyFFTW's where :func:`choose_backend` picks it."""
     if choose_backend(a.shape if s is None else s, backend) == "pyfftw":
         import pyfftw.interfaces.scipy_fft as pfft
 
@@ -62,21 +64,6 @@ def _call(name, a, s, axes, backend):
     return getattr(sfft, name)(a, s=s, axes=axes, workers=workers())
 
 
-def rfftn(a, s=None, axes=None, *, backend="auto"):
-    """Real-input n-dim FFT (unnormalised, numpy sign convention)."""
-    return _call("rfftn", a, s, axes, backend)
-
-
-def irfftn(a, s=None, axes=None, *, backend="auto"):
-    """Inverse of :func:`rfftn` (normalised by 1/N)."""
-    return _call("irfftn", a, s, axes, backend)
-
-
-def fftn(a, s=None, axes=None, *, backend="auto"):
-    """Complex n-dim FFT (unnormalised)."""
-    return _call("fftn", a, s, axes, backend)
-
-
-def ifftn(a, s=None, axes=None, *, backend="auto"):
-    """Inverse complex n-dim FFT (normalised by 1/N)."""
-    return _call("ifftn", a, s, axes, backend)
+#: ``f(a, s=None, axes=None, *, backend="auto")``: the real-input n-dim FFT, its inverse (normalised by 1/N) and the
+#: complex n-dim FFT (unnormalised), numpy's sign convention
+rfftn, irfftn, fftn = (functools.partial(_call, name) for name in ("rfftn", "irfftn", "fftn"))

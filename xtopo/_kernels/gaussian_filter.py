@@ -21,8 +21,6 @@ Heights arrive with the filtered axes last; NaN marks missing data, which stays 
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from ._lazy import Lazy

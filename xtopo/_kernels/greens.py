@@ -117,12 +117,6 @@ def periodic_greens(shape, spacing, modulus: float = 1.0, dtype=np.float64) -> n
     return q.astype(dtype, copy=False)
 
 
-def _signed_index(n_fft: int) -> np.ndarray:
-    """Distances in pixels on a wrapped grid of ``n_fft`` points: ``0..n/2, -(n/2-1)..-1``."""
-    i = np.arange(n_fft)
-    return np.where(i <= n_fft // 2, i, i - n_fft)
-
-
 def free_greens(shape, spacing, modulus: float = 1.0, dtype=np.float64) -> np.ndarray:
     """Fourier coefficients (folded rfft layout, real) of the free-boundary operator on the padded grid.
 

@@ -31,6 +31,7 @@ from . import features as _features
 from . import material_ratio as _mr
 from . import profile_iso as _profile
 from .spectra import BACKEND as _BACKEND
+from .spectra import power as _power
 from .windows import radial_hann
 
 __all__ = ["PARAMETERS", "GROUPS", "areal_parameters", "slope_sums", "decay_lengths", "texture_direction",
@@ -65,23 +66,39 @@ _SUM = dict(_JIT, fastmath={"reassoc", "contract", "arcp"})
 
 @njit(**_SUM)
 def _rows_x(z, sx, nxs, periodic):
-    """Σ and count of the squared x slopes (× 60Δx) of every row."""
+    """Σ and count of the squared x slopes (× 60Δx) of every row (periodic rows wrapped 3 values each side)."""
     ny, nx = z.shape
+    wrapped = np.empty(nx + 6)
     for r in range(ny):
         row = z[r]
-        for c in range(3, nx - 3):
+        if periodic:
+            wrapped[3:nx + 3] = row
+            for j in range(3):
+                wrapped[j] = row[(j - 3) % nx]
+                wrapped[nx + 3 + j] = row[j % nx]
+            row = wrapped
+        for c in range(3, row.size - 3):
             g = seven_point(row[c - 3], row[c - 2], row[c - 1], row[c + 1], row[c + 2], row[c + 3]) + 0.0 * row[c]
             if g == g:
                 sx += g * g
                 nxs += 1
-        if periodic:
-            for c in list(range(0, min(3, nx))) + list(range(max(nx - 3, 3), nx)):
-                g = seven_point(row[(c - 3) % nx], row[(c - 2) % nx], row[(c - 1) % nx], row[(c + 1) % nx],
-                                row[(c + 2) % nx], row[(c + 3) % nx]) + 0.0 * row[c]
-                if g == g:
-                    sx += g * g
-                    nxs += 1
     return sx, nxs
+
+
+@njit(inline="always")
+def _cell(a, b, d, e, ix2, iy2):
+    """4 × the excess area of the cell with corners ``a``, ``b`` (one row) and ``d``, ``e`` (the next): the sum
+    over its four corner triangles (each ``g / (1 + √(1 + g))``, ``g`` its squared gradient)."""
+    bottom = (b - a) * (b - a) * ix2
+    top = (e - d) * (e - d) * ix2
+    left = (d - a) * (d - a) * iy2
+    right = (e - b) * (e - b) * iy2
+    g1 = bottom + left
+    g2 = bottom + right
+    g3 = top + left
+    g4 = top + right
+    return (g1 / (1.0 + math.sqrt(1.0 + g1)) + g2 / (1.0 + math.sqrt(1.0 + g2))
+            + g3 / (1.0 + math.sqrt(1.0 + g3)) + g4 / (1.0 + math.sqrt(1.0 + g4)))
 
 
 @njit(**_SUM)
@@ -97,35 +114,12 @@ def _cells(z, dy, dx, periodic):
         top_row = z[(r + 1) % ny]
         row = z[r]
         for c in range(nx - 1):
-            a = row[c]
-            b = row[c + 1]
-            d = top_row[c]
-            e = top_row[c + 1]
-            bottom = (b - a) * (b - a) * ix2
-            top = (e - d) * (e - d) * ix2
-            left = (d - a) * (d - a) * iy2
-            right = (e - b) * (e - b) * iy2
-            g1 = bottom + left
-            g2 = bottom + right
-            g3 = top + left
-            g4 = top + right
-            s = (g1 / (1.0 + math.sqrt(1.0 + g1)) + g2 / (1.0 + math.sqrt(1.0 + g2))
-                 + g3 / (1.0 + math.sqrt(1.0 + g3)) + g4 / (1.0 + math.sqrt(1.0 + g4)))
+            s = _cell(row[c], row[c + 1], top_row[c], top_row[c + 1], ix2, iy2)
             if s == s:
                 area += s
                 cells += 1
         if periodic:
-            a = row[nx - 1]
-            b = row[0]
-            d = top_row[nx - 1]
-            e = top_row[0]
-            bottom = (b - a) * (b - a) * ix2
-            top = (e - d) * (e - d) * ix2
-            left = (d - a) * (d - a) * iy2
-            right = (e - b) * (e - b) * iy2
-            s = 0.0
-            for g in (bottom + left, bottom + right, top + left, top + right):
-                s += g / (1.0 + math.sqrt(1.0 + g))
+            s = _cell(row[nx - 1], row[0], top_row[nx - 1], top_row[0], ix2, iy2)
             if s == s:
                 area += s
                 cells += 1
@@ -211,10 +205,7 @@ def decay_lengths(z: np.ndarray, dy: float, dx: float, periodic: bool, s: float)
         shape = (sfft.next_fast_len(2 * ny - 1, real=True), sfft.next_fast_len(2 * nx - 1, real=True))
     # single precision: the correlation at a lag with N pairs is off by ~1e-6·n/N of C(0), far below
     # any threshold s, and the transforms run twice as fast
-    f = _fft.rfftn(z.astype(np.float32), s=shape, axes=(-2, -1), backend=_BACKEND)
-    p = f.real * f.real
-    p += f.imag * f.imag
-    del f
+    p = _power(_fft.rfftn(z.astype(np.float32), s=shape, axes=(-2, -1), backend=_BACKEND))
     corr = _fft.irfftn(p, s=shape, axes=(-2, -1), backend=_BACKEND)
     return _rays(corr, ny, nx, dy, dx, periodic, s, DIRECTIONS)
 

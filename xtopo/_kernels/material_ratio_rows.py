@@ -24,12 +24,11 @@ import warnings
 
 import numpy as np
 
-__all__ = ["FUNCTIONAL", "descending", "material_ratio_at", "functional_parameters", "functional_of_sorted",
-           "equivalent_line", "WINDOW"]
+__all__ = ["FUNCTIONAL", "descending", "material_ratio_at", "functional_of_sorted", "equivalent_line", "WINDOW"]
 
 #: width (in % material ratio) of the central region of the equivalent straight line
 WINDOW = 40.0
-#: names and order of the outputs of :func:`functional_parameters`
+#: names and order of the outputs of :func:`functional_of_sorted`
 FUNCTIONAL = ("k", "pk", "vk", "mr1", "mr2")
 
 
@@ -66,13 +65,13 @@ def material_ratio_at(d: np.ndarray, n: np.ndarray, c) -> np.ndarray:
         return np.where(n >= 2, 100.0 * t / (n - 1), np.nan)
 
 
-def functional_parameters(values: np.ndarray) -> np.ndarray:
+def functional_of_sorted(d: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Core height, reduced peak height, reduced dale depth and the two material ratios of each row.
 
     Parameters
     ----------
-    values : numpy.ndarray
-        Heights ``(..., n)``; NaN are left out.
+    d, n : numpy.ndarray
+        Rows ``(..., size)`` sorted by :func:`descending` and their counts of valid values.
 
     Returns
     -------
@@ -81,11 +80,6 @@ def functional_parameters(values: np.ndarray) -> np.ndarray:
         :data:`FUNCTIONAL` (Rk/Sk, Rpk/Spk, Rvk/Svk, Rmr1/Smr1, Rmr2/Smr2); NaN for rows with fewer
         than 3 valid values.
     """
-    return functional_of_sorted(*descending(values))
-
-
-def functional_of_sorted(d: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """:func:`functional_parameters` of rows already sorted by :func:`descending` (``d``, ``n``)."""
     shape = n.shape
     d = d.reshape(-1, d.shape[-1])
     n = n.reshape(-1)

@@ -1,10 +1,10 @@
-"""Multigrid-preconditioned conjugate gradients for Laplacians on the pixels of a map (numpy/scipy/numba).
+"""Multigrid preconditioner for Laplacians on the pixels of a map (numpy/scipy/numba).
 
 For a symmetric positive definite sparse system ``A x = b`` whose unknowns are pixels
 ``(iy, ix)`` of a map and whose matrix couples neighbouring pixels (the masked Laplacian of
 the harmonic fill, :mod:`xtopo._kernels.laplace_fill`), :class:`SmoothedAggregation` builds a
-multigrid hierarchy and :func:`pcg` runs conjugate gradients preconditioned with one V-cycle
-of it per iteration.
+multigrid hierarchy; one V-cycle of it per iteration preconditions conjugate gradients
+(:func:`scipy.sparse.linalg.cg` with ``M=`` a :class:`SmoothedAggregation`).
 
 Hierarchy (smoothed aggregation, Vaněk, Mandel & Brezina 1996): the unknowns of a level are
 aggregated by their position, ``a_y × a_x`` blocks of pixels (3×3; 3×1 or 1×3 while the
@@ -27,7 +27,7 @@ import scipy.sparse
 import scipy.sparse.linalg
 from numba import njit
 
-__all__ = ["SmoothedAggregation", "pcg"]
+__all__ = ["SmoothedAggregation"]
 
 
 @njit(nogil=True, cache=True)
@@ -57,12 +57,13 @@ class SmoothedAggregation:
     coarse_size : int
         Number of unknowns at or below which a level is solved directly.
 
-    Calling the object with a residual ``r`` (shape (n,)) returns one V-cycle's approximation
-    of ``A⁻¹ r``.
+    ``matvec(r)`` of a residual ``r`` (shape (n,)) returns one V-cycle's approximation of ``A⁻¹ r``:
+    the object is the preconditioner ``M`` of :func:`scipy.sparse.linalg.cg`.
     """
 
     def __init__(self, A, iy, ix, anisotropy: float = 1.0, coarse_size: int = 2000):
         A = scipy.sparse.csr_matrix(A)
+        self.shape, self.dtype = A.shape, np.dtype(float)  # what scipy.sparse.linalg.aslinearoperator reads
         iy = np.asarray(iy, dtype=np.int64)
         ix = np.asarray(ix, dtype=np.int64)
         ratio = float(anisotropy)
@@ -81,28 +82,26 @@ class SmoothedAggregation:
             if keys.size > 0.8 * A.shape[0]:  # blocks too sparse to coarsen: try larger blocks
                 iy, ix = by, bx
                 continue
-            self.levels.append(self._level(A, agg, keys.size))
-            A = self._galerkin(A, self.levels[-1][2])
+            level, A = self._level(A, agg, keys.size)
+            self.levels.append(level)
             iy, ix = np.divmod(keys, ncx)
         self.coarse = scipy.sparse.linalg.splu(A.tocsc())
 
     @staticmethod
     def _level(A, agg, nc):
+        """``(A, 1/diag(A), P)`` of a level whose unknowns form the aggregates ``agg``, and the next level's
+        Galerkin matrix ``Pᵀ A P``."""
         n = A.shape[0]
         dinv = 1.0 / A.diagonal()
         rho = float(np.max(abs(A).sum(axis=1).A1 * dinv))
         P0 = scipy.sparse.csr_matrix((np.ones(n), (np.arange(n), agg)), shape=(n, nc))
         P = (P0 - scipy.sparse.diags((4.0 / 3.0 / rho) * dinv) @ (A @ P0)).tocsr()
         P.eliminate_zeros()
-        return A, dinv, P
-
-    @staticmethod
-    def _galerkin(A, P):
         Ac = (P.T.tocsr() @ (A @ P)).tocsr()
         Ac.eliminate_zeros()
-        return Ac
+        return (A, dinv, P), Ac
 
-    def __call__(self, r):
+    def matvec(self, r):
         return self._cycle(0, np.asarray(r, dtype=float))
 
     def _cycle(self, k, b):
@@ -115,49 +114,3 @@ class SmoothedAggregation:
         _gauss_seidel(A.indptr, A.indices, A.data, dinv, b, x, True)
         return x
 
-
-def pcg(A, b, M, rtol: float, maxiter: int = 1000):
-    """Preconditioned conjugate gradients for SPD ``A x = b`` from ``x = 0``.
-
-    Parameters
-    ----------
-    A : scipy.sparse matrix, shape (n, n)
-        Symmetric positive definite.
-    b : ndarray, shape (n,)
-        Right-hand side.
-    M : callable
-        Symmetric positive definite preconditioner, ``M(r) ≈ A⁻¹ r``.
-    rtol : float
-        Stop when the residual's 2-norm is at most ``rtol · ‖b‖₂`` (dimensionless).
-    maxiter : int
-        Most iterations.
-
-    Returns
-    -------
-    x : ndarray, shape (n,)
-        The approximate solution.
-    converged : bool
-        Whether the tolerance was reached within ``maxiter`` iterations.
-    iterations : int
-        Iterations done.
-    """
-    x = np.zeros_like(b, dtype=float)
-    r = np.array(b, dtype=float, copy=True)
-    stop = rtol * np.linalg.norm(r)
-    if np.linalg.norm(r) <= stop:
-        return x, True, 0
-    z = M(r)
-    p = z.copy()
-    rz = r @ z
-    for it in range(1, maxiter + 1):
-        q = A @ p
-        alpha = rz / (p @ q)
-        x += alpha * p
-        r -= alpha * q
-        if np.linalg.norm(r) <= stop:
-            return x, True, it
-        z = M(r)
-        rz, rz_old = r @ z, rz
-        p *= rz / rz_old
-        p += z
-    return x, False, maxiter

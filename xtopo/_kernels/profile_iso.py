@@ -80,10 +80,8 @@ def mean_width(z: np.ndarray, dx: float, discrimination: np.ndarray, min_width: 
     turn = np.zeros(z.shape, dtype=bool)
     turn[..., 1:] = (state[..., :-1] == -1) & (state[..., 1:] == 1)
     count = np.count_nonzero(turn, axis=-1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        first = np.min(np.where(turn, crossing, np.inf), axis=-1)
-        lastc = np.max(np.where(turn, crossing, -np.inf), axis=-1)
+    first = _nan(np.min, np.where(turn, crossing, np.inf), axis=-1)
+    lastc = _nan(np.max, np.where(turn, crossing, -np.inf), axis=-1)
     if min_width > 0:
         count, first, lastc = _width_discrimination(turn, crossing, min_width, count, first, lastc)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -32,29 +32,25 @@ def _nanmean(a, axis):
         return np.nanmean(a, axis=axis)
 
 
-def _moments(d, axis):
-    """Sq, Sa, Sz, Ssk, Sku of deviations ``d`` (NaN-aware) reduced over ``axis``."""
+def _moments(d, axes):
+    """RMS, mean absolute value, range (of each profile along the last axis, averaged over the other ``axes``),
+    skewness and kurtosis of deviations ``d`` (NaN-aware) reduced over ``axes``. Skewness and kurtosis are NaN
+    where the RMS is 0 (a flat surface, where they are undefined), with an
+    :class:`~xtopo.errors.UndefinedValueWarning` saying so."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        q = np.sqrt(np.nanmean(d**2, axis=axis))
-        a = np.nanmean(np.abs(d), axis=axis)
-        z = np.nanmax(d, axis=axis) - np.nanmin(d, axis=axis)
-    sk, ku = _shape(d, q, axis)
-    return q, a, z, sk, ku
-
-
-def _shape(d, q, axis):
-    """Skewness and kurtosis of deviations ``d`` with RMS ``q``: NaN where ``q`` is 0 (a flat surface, where
-    they are undefined), with an :class:`~xtopo.errors.UndefinedValueWarning` saying so."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
+        q = np.sqrt(np.nanmean(d**2, axis=axes))
+        a = np.nanmean(np.abs(d), axis=axes)
+        z = np.nanmax(d, -1) - np.nanmin(d, -1)
+        if len(axes) > 1:
+            z = np.nanmean(z, axis=tuple(range(1 - len(axes), 0)))
         with np.errstate(invalid="ignore", divide="ignore"):
-            sk = np.where(q > 0, np.nanmean(d**3, axis=axis) / q**3, np.nan)
-            ku = np.where(q > 0, np.nanmean(d**4, axis=axis) / q**4, np.nan)
+            sk = np.where(q > 0, np.nanmean(d**3, axis=axes) / q**3, np.nan)
+            ku = np.where(q > 0, np.nanmean(d**4, axis=axes) / q**4, np.nan)
     if np.any(q == 0):
         warnings.warn("skewness and kurtosis of a flat surface (RMS height 0) are undefined: NaN",
-                      UndefinedValueWarning, stacklevel=3)
-    return sk, ku
+                      UndefinedValueWarning, stacklevel=2)
+    return q, a, z, sk, ku
 
 
 def area_parameters(h: np.ndarray, dy: float, dx: float, periodic: bool) -> np.ndarray:
@@ -67,7 +63,7 @@ def area_parameters(h: np.ndarray, dy: float, dx: float, periodic: bool) -> np.n
     h = np.asarray(h, dtype=float)
     flat = h.reshape(h.shape[:-2] + (-1,))
     d = flat - _nanmean(flat, -1)[..., None]
-    sq, sa, sz, ssk, sku = _moments(d, -1)
+    sq, sa, sz, ssk, sku = _moments(d, (-1,))
     gx = forward_difference(h, dx, periodic=periodic, axis=-1)
     gy = forward_difference(h, dy, periodic=periodic, axis=-2)
     sdq = np.sqrt(_nanmean(gx.reshape(gx.shape[:-2] + (-1,)) ** 2, -1)
@@ -82,27 +78,17 @@ def area_parameters(h: np.ndarray, dy: float, dx: float, periodic: bool) -> np.n
     return np.stack([sq, sdq, sddq, sa, sz, ssk, sku], axis=-1)
 
 
-def _line(h, dx, periodic, rows):
+def profile_parameters(h: np.ndarray, dx: float, periodic: bool, rows: int) -> np.ndarray:
+    """R-parameters of the profiles along the last axis, averaged over ``rows`` preceding axes."""
     h = np.asarray(h, dtype=float)
     d = h - _nanmean(h, -1)[..., None]
     axes = tuple(range(-1 - rows, 0))
-    q = np.sqrt(_nanmean(d**2, axes))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        a = np.nanmean(np.abs(d), axis=axes)
-        z = np.nanmean(np.nanmax(d, -1) - np.nanmin(d, -1), axis=tuple(range(-rows, 0)) or None) if rows else \
-            np.nanmax(d, -1) - np.nanmin(d, -1)
-    sk, ku = _shape(d, q, axes)
+    q, a, z, sk, ku = _moments(d, axes)
     g = forward_difference(h, dx, periodic=periodic, axis=-1)
     dq = np.sqrt(_nanmean(g**2, axes))
     c = second_difference(h, dx, periodic=periodic, axis=-1)
     ddq = np.sqrt(_nanmean(c**2, axes))
     return np.stack([q, dq, ddq, a, z, sk, ku], axis=-1)
-
-
-def profile_parameters(h: np.ndarray, dx: float, periodic: bool, rows: int) -> np.ndarray:
-    """R-parameters of the profiles along the last axis, averaged over ``rows`` preceding axes."""
-    return _line(h, dx, periodic, rows)
 
 
 def nonuniform_parameters(h: np.ndarray, x: np.ndarray) -> np.ndarray:

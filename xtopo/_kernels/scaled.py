@@ -56,10 +56,8 @@ def scaled_difference(h: np.ndarray, eta: float, *, order: int, periodic: bool) 
     fwd = _shifted(h, eta, start, count, +1)
     if order == 1:
         return (fwd - centre) / eta
-    if order == 2:
-        bwd = _shifted(h, eta, start, count, -1)
-        return (fwd - 2 * centre + bwd) / eta**2
-    raise ValueError(f"order must be 1 or 2, got {order}")
+    bwd = _shifted(h, eta, start, count, -1)
+    return (fwd - 2 * centre + bwd) / eta**2
 
 
 @njit(inline="always")
@@ -80,42 +78,25 @@ _SUM = dict(nogil=True, cache=True, fastmath={"reassoc", "nsz"})   # sums may be
 
 
 @njit(**_SUM)
-def _diff1(row, start, a, count, g, f, squares):
-    """``Σ d²`` or ``min d`` of ``d = h(m+η) - h(m)`` (interpolated: ``g·h[a+m] + f·h[a+1+m]``).
+def _diff(row, start, a, b, count, g, f, squares, second):
+    """``Σ d²`` or ``min d`` of ``d = h(m+η) - h(m)``, or with ``second`` ``h(m+η) - 2h(m) + h(m-η)``, over
+    ``m = start..start+count-1``: ``h(m+η) = g·h[a+m] + f·h[a+1+m]``, ``h(m-η) = g·h[b+m] + f·h[b-1+m]``.
 
     The loops run over contiguous slices (no index arithmetic in them), which vectorises them.
     """
     acc = 0.0 if squares else np.inf
     c = row[start:start + count]
     x = row[a:a + count]
-    if f == 0.0:
-        for m in range(count):
-            d = x[m] - c[m]
-            acc = acc + d * d if squares else min(acc, d)
-    else:
-        y = row[a + 1:a + 1 + count]
-        for m in range(count):
-            d = (g * x[m] + f * y[m]) - c[m]
-            acc = acc + d * d if squares else min(acc, d)
-    return acc
-
-
-@njit(**_SUM)
-def _diff2(row, start, a, b, count, g, f, squares):
-    """As :func:`_diff1` for ``d = h(m+η) - 2h(m) + h(m-η)`` (``b`` the backward point, ``b-1`` beyond)."""
-    acc = 0.0 if squares else np.inf
-    c = row[start:start + count]
-    x = row[a:a + count]
     z = row[b:b + count]
     if f == 0.0:
         for m in range(count):
-            d = x[m] - 2 * c[m] + z[m]
+            d = x[m] - 2 * c[m] + z[m] if second else x[m] - c[m]
             acc = acc + d * d if squares else min(acc, d)
     else:
         y = row[a + 1:a + 1 + count]
         w = row[b - 1:b - 1 + count]
         for m in range(count):
-            d = (g * x[m] + f * y[m]) - 2 * c[m] + (g * z[m] + f * w[m])
+            d = (g * x[m] + f * y[m]) - 2 * c[m] + (g * z[m] + f * w[m]) if second else (g * x[m] + f * y[m]) - c[m]
             acc = acc + d * d if squares else min(acc, d)
     return acc
 
@@ -129,10 +110,7 @@ def _row_stats(row, etas, order, periodic, n, pad, squares, out):
         k, f, start, count = _stencil(etas[e], order, periodic, n, pad)
         if count <= 0:
             continue
-        if order == 1:
-            acc = _diff1(row, start, start + k, count, 1.0 - f, f, squares)
-        else:
-            acc = _diff2(row, start, start + k, start - k, count, 1.0 - f, f, squares)
+        acc = _diff(row, start, start + k, start - k, count, 1.0 - f, f, squares, order == 2)
         if squares:
             out[e] += acc
         else:
@@ -155,9 +133,8 @@ def _scaled_stats(h, etas, order, periodic, squares):
             if periodic:
                 for j in range(n + 2 * pad):
                     row[j] = src[(j - pad) % n]
-                _row_stats(row, etas, order, periodic, n, pad, squares, out[lead])
-            else:
-                _row_stats(src, etas, order, periodic, n, pad, squares, out[lead])
+                src = row
+            _row_stats(src, etas, order, periodic, n, pad, squares, out[lead])
     return out
 
 
@@ -182,8 +159,6 @@ def sdrp_rms(h: np.ndarray, dx: float, etas, *, order: int, periodic: bool, rows
     those of :func:`scaled_difference` (to rounding).
     """
     check_finite(h, "sdrp")
-    if order not in (1, 2):
-        raise ValueError(f"order must be 1 or 2, got {order}")
     h3, lead = _profiles(h, rows)
     etas = np.asarray(etas, dtype=float).reshape(-1)
     sums = _scaled_stats(h3, etas, order, periodic, True)

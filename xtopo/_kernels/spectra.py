@@ -14,6 +14,7 @@ from ._lazy import LazyJit
 
 from ..errors import MissingDataError
 from . import fft as _fft
+from .derivatives import wavevectors
 from .windows import hann, radial_hann
 
 njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
@@ -23,7 +24,8 @@ njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (
 #: on the 2-core development machine.
 BACKEND = "scipy"
 
-__all__ = ["BACKEND", "psd_profiles", "prewhitening", "psd_map", "psd_iso", "rfft_abs_q", "rfft_multiplicity", "check_finite"]
+__all__ = ["BACKEND", "psd_profiles", "prewhitening", "psd_map", "psd_iso", "rfft_abs_q", "rfft_multiplicity", "check_finite",
+           "power"]
 
 
 def check_finite(h: np.ndarray, what: str) -> None:
@@ -32,7 +34,8 @@ def check_finite(h: np.ndarray, what: str) -> None:
         raise MissingDataError(f"{what}: the heights contain missing data (NaN)")
 
 
-def _power(f: np.ndarray) -> np.ndarray:
+def power(f: np.ndarray) -> np.ndarray:
+    """``|f|²`` of a complex array (one temporary, no complex multiply)."""
     p = f.real * f.real
     p += f.imag * f.imag
     return p
@@ -40,19 +43,15 @@ def _power(f: np.ndarray) -> np.ndarray:
 
 @njit(nogil=True, cache=True)
 def _centred_profiles(h, window, out):
-    """``out[r] = (h[r] - mean(h[r])) · window`` for the rows of ``h`` (2D) in one pass each (no window: empty)."""
+    """``out[r] = (h[r] - mean(h[r])) · window`` for the rows of ``h`` (2D) in one pass each."""
     rows, n = h.shape
     for r in range(rows):
         s = 0.0
         for i in range(n):
             s += h[r, i]
         m = s / n
-        if window.size:
-            for i in range(n):
-                out[r, i] = (h[r, i] - m) * window[i]
-        else:
-            for i in range(n):
-                out[r, i] = h[r, i] - m
+        for i in range(n):
+            out[r, i] = (h[r, i] - m) * window[i]
 
 
 @njit(nogil=True, cache=True)
@@ -99,7 +98,7 @@ def psd_profiles(h: np.ndarray, dx: float, *, window: bool, rows: int, prewhiten
         h2 = np.diff(h2, axis=-1) / dx  # the slope (D_x h): n - 1 values, transformed on the heights' n points
     m = h2.shape[-1]
     d = np.empty_like(h2)
-    _centred_profiles(h2, hann(m) if window else np.empty(0), d)
+    _centred_profiles(h2, hann(m) if window else np.ones(m), d)
     f = _fft.rfftn(d.reshape(h.shape[:-1] + (m,)), s=(n,), axes=(-1,), backend=BACKEND)
     del d
     lead = h.shape[: h.ndim - 1 - rows]
@@ -139,14 +138,13 @@ def _demeaned_map(h, dy, dx, window):
 def psd_map(h: np.ndarray, dy: float, dx: float, *, window: bool) -> np.ndarray:
     """C2D on the full (q_y, q_x) grid in ascending order (``fftshift``), shape ``(..., ny, nx)``."""
     ny, nx = h.shape[-2:]
-    p = _power(_fft.fftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
+    p = power(_fft.fftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
     return np.fft.fftshift(p * (dx * dy / (nx * ny)), axes=(-2, -1))
 
 
 def rfft_abs_q(ny: int, nx: int, dy: float, dx: float) -> np.ndarray:
     """|q| of every mode of a 2D real FFT, shape ``(ny, nx//2+1)``."""
-    qy = 2 * np.pi * np.fft.fftfreq(ny, d=dy)
-    qx = 2 * np.pi * np.fft.rfftfreq(nx, d=dx)
+    qy, qx = wavevectors(ny, dy), wavevectors(nx, dx, real=True)
     return np.sqrt(qy[:, None] ** 2 + qx[None, :] ** 2)
 
 
@@ -162,5 +160,5 @@ def rfft_multiplicity(ny: int, nx: int) -> np.ndarray:
 def psd_iso(h: np.ndarray, dy: float, dx: float, *, window: bool, plan) -> np.ndarray:
     """Radially averaged C2D over the bins of ``plan`` (a :class:`~.binning.BinPlan` on :func:`rfft_abs_q`)."""
     ny, nx = h.shape[-2:]
-    p = _power(_fft.rfftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
+    p = power(_fft.rfftn(_demeaned_map(h, dy, dx, window), axes=(-2, -1), backend=BACKEND))
     return plan.mean(p) * (dx * dy / (nx * ny))

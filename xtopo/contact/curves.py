@@ -11,23 +11,13 @@ import xarray as xr
 from .._checks import bin_count
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
-from ..params import Count, checked
-from .solve import ONE_SEQUENCE, _control, given, run_solver, solver_settings, to_dataset
+from ..params import Count, Numbers, checked
+from .solve import ONE_SEQUENCE, _control, run_solver, solver_settings, to_dataset
 
 __all__ = ["curve", "stiffness", "gap_distribution"]
 
-
-def _sequence(name, values):
-    try:
-        raw = np.asarray(values)
-        if raw.dtype.kind in "bSU":  # True is not the load 1, nor "0.01" a number
-            raise TypeError
-        v = np.atleast_1d(np.asarray(raw, dtype=float))
-    except (TypeError, ValueError):
-        raise ContactError(f"{name} must be a sequence of numbers, got {values!r}") from None
-    if v.ndim != 1 or v.size == 0:
-        raise ContactError(f"{name} must be a non-empty 1D sequence, got shape {v.shape}")
-    return v
+#: the values of a curve (each then checked against the scene's models by :func:`~xtopo.contact.solve.control_value`)
+_VALUES = Numbers(what="finite numbers")
 
 
 def _curve_variables(ds, names, what: str):
@@ -48,8 +38,9 @@ def _per_length(units: str, length: str) -> str:
     return f"{units} {length}-1"
 
 
-@checked(error=ContactError)
-def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None, maxiter: int | None = None,
+@checked(ONE_SEQUENCE, error=ContactError)
+def curve(scene, *, loads: Annotated[object, _VALUES] = None, mean_pressures: Annotated[object, _VALUES] = None,
+          penetrations: Annotated[object, _VALUES] = None, tol=None, maxiter: int | None = None,
           gap_bins: Annotated[int, Count(min=0)] = 50, preset: str | None = None) -> xr.Dataset:
     """Solve ``scene`` for each value of a sequence, each step starting from the previous solution.
 
@@ -70,8 +61,8 @@ def curve(scene, *, loads=None, mean_pressures=None, penetrations=None, tol=None
         solves reached), plus ``stiffness`` (``dF/dδ``) and ``gap_distribution``.
     """
     gap_bins = bin_count(gap_bins, "gap_bins", int(np.prod(scene.shape)), error=ContactError)
-    name, values = given(ONE_SEQUENCE, loads=loads, mean_pressures=mean_pressures, penetrations=penetrations)
-    values = _sequence(name, values)
+    name, values = ONE_SEQUENCE.given(dict(loads=loads, mean_pressures=mean_pressures, penetrations=penetrations))
+    values = np.atleast_1d(values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
     key = name[:-1]
     # every value checked before the first solve (a bad last value must not cost the whole curve)

@@ -19,11 +19,11 @@ from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, provenance_of, shared_length_unit, spacing
 from ..errors import ContactError, GridError
-from ..params import Flag
+from ..params import Flag, checked
 from ..presets import resolve as resolve_preset
 from .curves import curve as _curve
 from .models import PlasticCap, scene_models
-from .solve import ONE_CONTROL, given, solve as _solve
+from .solve import ONE_CONTROL, solve as _solve
 
 __all__ = ["Scene", "contact"]
 
@@ -114,6 +114,7 @@ class Scene:
         self.spacing = tuple(spacing(h, d) for d in self.dims)
         per_attr = is_periodic(topography)
         source = f"from the data's periodic attribute ({int(per_attr)})"
+        values = np.asarray(h.values, dtype=np.float64)
         if counter is not None:
             h2 = _heights(counter, "counter")
             self._check_same_grid(h, h2)
@@ -121,9 +122,7 @@ class Scene:
             source = (f"from the periodic attributes of the topography ({int(per_attr)}) and the counter surface "
                       f"({int(per_counter)}): periodic only when both are")
             per_attr = per_attr and per_counter
-            values = np.asarray(h.values, dtype=np.float64) + np.asarray(h2.values, dtype=np.float64)
-        else:
-            values = np.asarray(h.values, dtype=np.float64)
+            values = values + np.asarray(h2.values, dtype=np.float64)
         if periodic is None:
             self.periodic = bool(per_attr)
             self._boundary_reason = source
@@ -212,6 +211,7 @@ class Scene:
                       maxiter=maxiter, gap_bins=gap_bins, preset=preset)
 
 
+@checked(ONE_CONTROL)
 def contact(topography, *, load=None, mean_pressure=None, penetration=None, modulus: float = 1.0,
             hardness: float | None = None, periodic: bool | None = None, counter=None, dtype=None,
             tol=None, maxiter: int | None = None, preset: str | None = None) -> xr.Dataset:
@@ -251,7 +251,7 @@ def contact(topography, *, load=None, mean_pressure=None, penetration=None, modu
     """
     scene = Scene(topography, modulus=modulus, hardness=hardness, periodic=periodic, counter=counter, dtype=dtype,
                   preset=preset)
-    key, value = given(ONE_CONTROL, load=load, mean_pressure=mean_pressure, penetration=penetration)
+    key, value = ONE_CONTROL.given(dict(load=load, mean_pressure=mean_pressure, penetration=penetration))
     if np.ndim(value) == 0:
         return scene.solve(**{key: value}, tol=tol, maxiter=maxiter)
     return scene.curve(**{f"{key}s": value}, tol=tol, maxiter=maxiter)

@@ -6,14 +6,13 @@ import numpy as np
 import xarray as xr
 
 from .._apply import rescaled
-from ..params import Count, OneOf, Positive
+from ..params import Count, OneOf, Positive, checked
 from ..conventions import append_history
 from ..errors import ContactError, ConvergenceWarning, warn
 from ..presets import resolve as resolve_preset
 
-__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "ONE_CONTROL", "ONE_SEQUENCE", "given",
-           "control_value",
-           "result_units", "run_solver"]
+__all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "ONE_CONTROL", "ONE_SEQUENCE",
+           "control_value", "result_units", "run_solver"]
 
 #: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`): the knee of the
 #: error-vs-time curve (benchmarks/tradeoffs.py, docs/tradeoffs.md); it was 1e-6 for float64 before issue 9.
@@ -65,20 +64,11 @@ def result_units(scene) -> dict:
     return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2"}
 
 
-#: The rule of every contact entry point, declared once: exactly one control, a value (``solve``,
-#: ``contact``) or a sequence of values (``curve``, :func:`xtopo.batch.contact`).
+#: The rule of every contact entry point, declared once (``@checked``): exactly one control, a value
+#: (``solve``, ``contact``) or a sequence of values (``curve``, :func:`xtopo.batch.contact`); its value is
+#: checked in the body (:func:`control_value`), with the models' advice.
 ONE_CONTROL = OneOf("load", "mean_pressure", "penetration", error=ContactError)
 ONE_SEQUENCE = OneOf("loads", "mean_pressures", "penetrations", error=ContactError)
-
-
-def given(rule: OneOf, **controls) -> tuple[str, object]:
-    """``(name, value)`` of the one control given, by ``rule`` (:data:`ONE_CONTROL` or :data:`ONE_SEQUENCE`).
-
-    Called in the body, not declared with ``@checked``: the controls' own checks carry the models' advice
-    (:func:`control_value`), which no generic kind of :mod:`xtopo.params` gives.
-    """
-    rule.check(controls)
-    return next((k, v) for k, v in controls.items() if v is not None)
 
 
 def control_value(name: str, v, models=(), *, label: str | None = None, scene=None) -> float:
@@ -105,7 +95,7 @@ def control_value(name: str, v, models=(), *, label: str | None = None, scene=No
 
 def _control(scene, load=None, mean_pressure=None, penetration=None):
     """``(load, penetration)`` of a solve of ``scene`` (one of them None), checked."""
-    name, value = given(ONE_CONTROL, load=load, mean_pressure=mean_pressure, penetration=penetration)
+    name, value = ONE_CONTROL.given(dict(load=load, mean_pressure=mean_pressure, penetration=penetration))
     value = control_value(name, value, scene.models, scene=scene)
     if name == "penetration":
         return None, value
@@ -134,6 +124,7 @@ def _initial(scene, initial):
     return p
 
 
+@checked(ONE_CONTROL)
 def solve(scene, *, load=None, mean_pressure=None, penetration=None, tol=None, maxiter: int | None = None,
           initial=None, preset: str | None = None, callback=None) -> xr.Dataset:
     """Solve the contact of ``scene`` at one load, mean pressure or penetration.
