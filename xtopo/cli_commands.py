@@ -208,9 +208,7 @@ def _cmd_info(args) -> int:
         print(f"heights: {format_quantities([finite.min(), finite.max()], u)}, missing "
               f"{hv.size - finite.size} points ({format_percent(100 * (1 - finite.size / hv.size))})")
     print("metadata:")
-    for key in sorted(ds.attrs):
-        if key == "history":
-            continue
+    for key in sorted(set(ds.attrs) - {"history"}):
         val = str(ds.attrs[key])
         print(f"  {key}: {val if len(val) <= 100 else val[:97] + '...'}")
     _, iso_errors = iso_report({os.path.basename(path): ds}, args)
