@@ -338,15 +338,17 @@ def _safe_label(label, *dims) -> str:
     return label + "\u00a0" if label in {d.name for d in dims} else label
 
 
+def _line(data, xdim, ydim, label, width, **common):
+    """An hv.Curve ``width`` wide with the options ``common`` (colour, alpha, ...) on both backends."""
+    el = _hv().Curve(data, kdims=[xdim], vdims=[ydim], label=label)
+    return _style(el, common=common, bokeh=dict(line_width=width), matplotlib=dict(linewidth=width))
+
+
 def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
     """One or two hv.Curve elements: reliable part solid, ``unreliable`` (bool mask) part dashed."""
     hv = _hv()
     label = _safe_label(label, xdim, ydim)
-    out = []
-    solid = np.where(unreliable, np.nan, y)
-    common = dict(color=color)
-    out.append(_style(hv.Curve((x, solid), kdims=[xdim], vdims=[ydim], label=label),
-                      common=common, bokeh=dict(line_width=line_width), matplotlib=dict(linewidth=line_width)))
+    out = [_line((x, np.where(unreliable, np.nan, y)), xdim, ydim, label, line_width, color=color)]
     if unreliable.any():
         # overlap by one point so the dashed part joins the solid one
         edge = unreliable.copy()
@@ -354,7 +356,7 @@ def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
         edge[:-1] |= unreliable[1:]
         dashed = np.where(edge, y, np.nan)
         out.append(_style(hv.Curve((x, dashed), kdims=[xdim], vdims=[ydim], label=f"{label} (unreliable)"),
-                          common=common, bokeh=dict(line_width=line_width, line_dash="dashed"),
+                          common=dict(color=color), bokeh=dict(line_width=line_width, line_dash="dashed"),
                           matplotlib=dict(linewidth=line_width, linestyle="--")))
     return out
 
@@ -489,14 +491,9 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
         label = _safe_label(labels.get(group, group), xdim, ydim)
         first = group not in shown
         shown.add(group)
-        el = hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label=label)
         # replicates share their group's legend entry: only the first of a group carries it
-        elements.append(_style(el, common=dict(color=colours[group], alpha=0.8),
-                               bokeh=dict(line_width=1.2, show_legend=first),
-                               matplotlib=dict(linewidth=1.2, show_legend=first)))
-    xs, ys = _positive(x, avg)
-    elements.append(_style(hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label="average"),
-                           common=dict(color="black"), bokeh=dict(line_width=4), matplotlib=dict(linewidth=4)))
+        elements.append(_line((xs, ys), xdim, ydim, label, 1.2, color=colours[group], alpha=0.8, show_legend=first))
+    elements.append(_line(_positive(x, avg), xdim, ydim, "average", 4, color="black"))
     opts = _axes_opts(title or long_name, legend_outside=True)
     overlay = _style(hv.Overlay(elements), **opts)
     if not legend:
@@ -598,9 +595,7 @@ def contact_area(results, *, labels: Annotated[dict | None, Dict()] = None, titl
             xdim = _dimension(x, ds[x].attrs)
         ydim = _dimension(y, ds[y].attrs, label="relative contact area A/A₀" if y == "area_fraction" else None)
         name = _safe_label(labels.get(key, key), xdim, ydim)
-        line = (xv[ok], yv[ok])
-        elements.append(_style(hv.Curve(line, kdims=[xdim], vdims=[ydim], label=name), common=dict(color=color),
-                               bokeh=dict(line_width=1), matplotlib=dict(linewidth=1)))
+        elements.append(_line((xv[ok], yv[ok]), xdim, ydim, name, 1, color=color))
         for flag, alpha, suffix in ((True, 1.0, ""), (False, 0.3, " (not converged)")):
             sel = ok & (conv == flag)
             if not sel.any():
