@@ -12,8 +12,7 @@ _UNIT_ALIASES = {
     "µm": "um", "μm": "um", "micron": "um", "microns": "um", "micrometer": "um",
     "micrometre": "um", "nanometer": "nm", "nanometre": "nm", "millimeter": "mm",
     "millimetre": "mm", "meter": "m", "metre": "m", "meters": "m", "Å": "angstrom",
-    "Angstrom": "angstrom", "pm": "pm", "picometer": "pm",
-    "km": "km", "cm": "cm", "centimeter": "cm",
+    "Angstrom": "angstrom", "picometer": "pm", "centimeter": "cm",
 }
 
 

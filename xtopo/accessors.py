@@ -39,11 +39,15 @@ def _delegate(func):
     return method
 
 
-class _TopoAccessor:
+class _Accessor:
     __slots__ = ("_obj",)
 
     def __init__(self, xarray_obj):
         self._obj = xarray_obj
+
+
+class _TopoAccessor(_Accessor):
+    __slots__ = ()
 
     # foundation (issue 2)
     to_units = _delegate(conventions.convert_length)
@@ -100,13 +104,10 @@ class TopoDataArrayAccessor(_TopoAccessor):
 
 
 @xr.register_datatree_accessor("topo")
-class TopoTreeAccessor:
+class TopoTreeAccessor(_Accessor):
     """``tree.topo``: a digital surface twin (one child node per measurement)."""
 
-    __slots__ = ("_obj",)
-
-    def __init__(self, tree):
-        self._obj = tree
+    __slots__ = ()
 
     to_netcdf = _delegate(_twin.to_netcdf)
     measurements = _delegate(_twin.measurements)

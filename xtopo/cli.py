@@ -142,6 +142,20 @@ def _cmd_report(args) -> int:
     return 1 if failed else 0
 
 
+def _add_inputs(p, func, output: str, what: str) -> None:
+    """The options ``analyze`` and ``report`` share: the files (or the example twin), how to read them, -o, -q."""
+    p.add_argument("files", nargs="*", help="measurement files (any supported format) or contact.engineering "
+                                            "downloads (ZIP)")
+    p.add_argument("-o", "--output", default=output, help=f"{what} (default: %(default)s)")
+    p.add_argument("--surface", help="surface of a contact.engineering download with several (name or index)")
+    add_preprocess_options(p)
+    add_read_options(p)
+    add_iso_options(p)
+    add_probe_options(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars (shown only on a terminal)")
+    p.set_defaults(func=func)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="xtopo", description="Surface topography analysis and contact mechanics.")
     parser.add_argument("--version", action="version", version=f"xtopo {__version__}")
@@ -149,34 +163,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("analyze", help="analyse measurements (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin when none are "
                                    "given), print a summary table and write the results to NetCDF.")
-    p.add_argument("files", nargs="*", help="measurement files (any supported format) or contact.engineering "
-                                            "downloads (ZIP)")
-    p.add_argument("-o", "--output", default="xtopo-analysis.nc", help="output NetCDF file (default: %(default)s)")
-    p.add_argument("--surface", help="surface of a contact.engineering download with several (name or index)")
+    _add_inputs(p, _cmd_analyze, "xtopo-analysis.nc", "output NetCDF file")
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
-    add_preprocess_options(p)
-    add_read_options(p)
-    add_iso_options(p)
-    add_probe_options(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bars (shown only on a terminal)")
-    p.set_defaults(func=_cmd_analyze)
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin), and write one "
                                    "HTML page with the summary table, the stitched PSD/ACF/VBM/curvature "
                                    "averages and a map of every measurement. Opens offline in any browser.")
-    r.add_argument("files", nargs="*", help="measurement files (any supported format) or contact.engineering "
-                                            "downloads (ZIP)")
-    r.add_argument("-o", "--output", default="xtopo-report.html", help="output HTML file (default: %(default)s)")
-    r.add_argument("--surface", help="surface of a contact.engineering download with several (name or index)")
+    _add_inputs(r, _cmd_report, "xtopo-report.html", "output HTML file")
     r.add_argument("--title", help="page title")
     r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
                    help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
-    add_preprocess_options(r)
-    add_read_options(r)
-    add_iso_options(r)
-    add_probe_options(r)
-    r.add_argument("-q", "--quiet", action="store_true", help="no progress bars (shown only on a terminal)")
-    r.set_defaults(func=_cmd_report)
 
     add_commands(sub)
     return parser

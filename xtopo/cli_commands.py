@@ -189,14 +189,12 @@ def _cmd_info(args) -> int:
         _err(f"{path}: {'is a directory, not a file' if os.path.isdir(path) else 'no such file'}")
         return 2
     print(f"file: {path} ({os.path.getsize(path)} bytes)")
-    channels = getattr(xio, "channels", None)
-    if channels is not None:
-        infos = channels(path, **read_options(args))
-        print(f"channels: {len(infos)}")
-        for c in infos:
-            kind = "height" if getattr(c, "is_height", True) else "other"
-            print(f"  [{c.index}] {c.name}: {' × '.join(str(n) for n in c.shape)} points, "
-                  f"size {_fmt_size(c.size, c.units)}, data in {c.height_units or '?'} ({kind})")
+    infos = xio.channels(path, **read_options(args))
+    print(f"channels: {len(infos)}")
+    for c in infos:
+        print(f"  [{c.index}] {c.name}: {' × '.join(str(n) for n in c.shape)} points, "
+              f"size {_fmt_size(c.size, c.units)}, data in {c.height_units or '?'} "
+              f"({'height' if c.is_height else 'other'})")
     ds = xio.open_topography(path, channel=args.channel, units=None, **read_options(args))
     h = height_of(ds)  # NaN where the mask says a point is missing
     dims = lateral_dims(h)
@@ -210,9 +208,7 @@ def _cmd_info(args) -> int:
         print(f"heights: {format_quantities([finite.min(), finite.max()], u)}, missing "
               f"{hv.size - finite.size} points ({format_percent(100 * (1 - finite.size / hv.size))})")
     print("metadata:")
-    for key in sorted(ds.attrs):
-        if key == "history":
-            continue
+    for key in sorted(set(ds.attrs) - {"history"}):
         val = str(ds.attrs[key])
         print(f"  {key}: {val if len(val) <= 100 else val[:97] + '...'}")
     _, iso_errors = iso_report({os.path.basename(path): ds}, args)
@@ -324,11 +320,8 @@ def _cmd_batch_contact(args) -> int:
     from .batch import contact  # deferred: xtopo --help loads no numpy
 
     common = _batch_common(args)
-    solve = _solve_kwargs(args)
-    scene = _scene_kwargs(args)
     control, values = _control(args)
-    result = contact(args.files, **{f"{control}s": values}, modulus=scene["modulus"], hardness=scene.get("hardness"),
-                     periodic=scene.get("periodic"), tol=solve.get("tol"), maxiter=solve.get("maxiter"),
+    result = contact(args.files, **{f"{control}s": values}, **_scene_kwargs(args), **_solve_kwargs(args),
                      maps=args.maps, **common)
     return _report_batch(result, args.output)
 
@@ -348,15 +341,8 @@ def _cmd_convert(args) -> int:
 
     ds = preprocess(xio.open_topography(args.file, channel=args.channel, units=args.units, **read_options(args)),
                     args)
-    if args.layout == "surfacetopography":
-        writer = getattr(xio, "to_surfacetopography_netcdf", None)
-        if writer is None:
-            _err("the SurfaceTopography NetCDF writer is not available in this xtopo build; "
-                 "use --layout xtopo")
-            return 2
-        writer(ds, args.output)
-    else:
-        xio.to_netcdf(ds, args.output)
+    writer = xio.to_surfacetopography_netcdf if args.layout == "surfacetopography" else xio.to_netcdf
+    writer(ds, args.output)
     print(f"wrote {args.output} ({args.layout} layout)")
     return 0
 
@@ -422,7 +408,6 @@ def add_commands(sub) -> None:
     p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
     p.add_argument("--maps", action="store_true",
                    help="keep the pressure/gap/displacement/contact maps of every step (large; compressed)")
-    p.add_argument("--scalars-only", action="store_true", help=argparse.SUPPRESS)  # the default since issue 26
     p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
     _add_scene_options(p)
     add_preprocess_options(p)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import itertools
 import math
 from typing import Annotated
 
@@ -135,7 +136,6 @@ class FractalPSD:
             tt = 0.5 * tmax * (t + 1)
             k = scale * np.sinh(tt)
             jac = scale * np.cosh(tt) * 0.5 * tmax
-            # kink at k where sqrt(q²+k²) = q_L: split there for accuracy
             vals = self.c_native(np.sqrt(qi**2 + k**2))
             out[i] = np.sum(w * vals * jac) / np.pi
         return out.reshape(shape)
@@ -305,24 +305,18 @@ def _synthesize(shape, size, c, rng) -> np.ndarray:
     area = float(np.prod(size))
     amp = np.sqrt(c * area) / np.sqrt(2.0)
     ht = amp * (rng.standard_normal(c.shape) + 1j * rng.standard_normal(c.shape))
-    _make_self_conjugatereal_number(ht, shape, amp, rng)
+    _make_hermitian(ht, shape, amp, rng)
     return _fft.irfftn(ht, s=shape, axes=tuple(range(-len(shape), 0))) * (int(np.prod(shape)) / area)
 
 
-def _make_self_conjugatereal_number(ht, shape, amp, rng):
-    idx_last = [0] + ([shape[-1] // 2] if shape[-1] % 2 == 0 else [])
-    idx_first = [0] + ([shape[0] // 2] if len(shape) == 2 and shape[0] % 2 == 0 else []) if len(shape) == 2 else [None]
-    for j in idx_last:
-        for i in idx_first:
-            sl = (j,) if i is None else (i, j)
-            ht[sl] = amp[sl] * np.sqrt(2.0) * rng.standard_normal()
-    if len(shape) == 2:
-        # columns 0 and n/2 of an rfft2 must be Hermitian along y: mirror the upper half
-        ny = shape[0]
-        for j in idx_last:
-            col = ht[:, j]
-            for i in range(1, (ny + 1) // 2):
-                col[ny - i] = np.conj(col[i])
+def _make_hermitian(ht, shape, amp, rng):
+    """Make the rfft coefficients ``ht`` those of a real field: real self-conjugate modes, no mean."""
+    selfconj = [[0, n // 2] if n % 2 == 0 else [0] for n in shape]
+    for j, *i in itertools.product(*selfconj[::-1]):
+        ht[(*i, j)] = amp[(*i, j)] * np.sqrt(2.0) * rng.standard_normal()
+    if len(shape) == 2:  # columns 0 and n/2 of an rfft2 must be Hermitian along y: mirror the upper half
+        rows = np.arange(1, (shape[0] + 1) // 2)
+        ht[np.ix_(shape[0] - rows, selfconj[-1])] = np.conj(ht[np.ix_(rows, selfconj[-1])])
     ht.flat[0] = 0.0
 
 
@@ -370,17 +364,11 @@ def sinusoid(shape: Annotated[tuple, Shape()], size, *, amplitude: Annotated[flo
     size = per_axis(size, len(shape), "size")
     sp = size / np.asarray(shape)
     lam = float(size[-1]) if wavelength is None else wavelength
-    axes = np.meshgrid(*[np.arange(n) * d for n, d in zip(shape, sp)], indexing="ij")
-    xx = axes[-1]
-    yy = axes[0] if len(shape) == 2 else None
-    if direction == "x":
-        h = amplitude * np.cos(2 * np.pi * xx / lam)
-    elif direction == "y" and yy is not None:
-        h = amplitude * np.cos(2 * np.pi * yy / lam)
-    elif direction == "xy" and yy is not None:
-        h = amplitude * (np.cos(2 * np.pi * xx / lam) + np.cos(2 * np.pi * yy / lam))
-    else:
+    if direction != "x" and len(shape) == 1:
         raise XtopoError(f"direction must be 'x', 'y' or 'xy' (the latter two for area scans), got {direction!r}")
+    axes = np.meshgrid(*[np.arange(n) * d for n, d in zip(shape, sp)], indexing="ij")
+    chosen = {"x": axes[-1:], "y": axes[:1], "xy": axes[::-1]}[direction]
+    h = amplitude * sum(np.cos(2 * np.pi * a / lam) for a in chosen)
     ds = make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
                           title=f"sinusoid λ={lam:g} {units}", source="xtopo.datasets.sinusoid")
     ds.attrs.update(sinusoid_amplitude=float(amplitude), sinusoid_wavelength=lam)
@@ -406,40 +394,20 @@ def _sphere_drop(radius: float, d2):
     return d2 / (radius + np.sqrt(radius - d) * np.sqrt(radius + d))
 
 
-def _tip_dilate_line(h: np.ndarray, dx: float, radius: float) -> np.ndarray:
-    """Morphological dilation of profiles ``h[..., n]`` by a sphere of ``radius`` (apex at the origin)."""
+def _tip_dilate(h: np.ndarray, spacings, radius: float) -> np.ndarray:
+    """Morphological dilation of a profile or map ``h`` by a sphere of ``radius`` (apex at the origin);
+    only offsets whose drop can matter are visited."""
     reach = _tip_reach(h, radius)
-    k = int(np.ceil(reach / dx))
+    reaches = [range(-m, m + 1) for m in (min(int(np.ceil(reach / d)), n - 1) for d, n in zip(spacings, h.shape))]
     out = h.copy()
-    n = h.shape[-1]
-    for s in range(1, min(k, n - 1) + 1):
-        d = s * dx
-        if d > radius:
-            break
-        drop = _sphere_drop(radius, d**2)
-        np.maximum(out[..., :-s], h[..., s:] - drop, out=out[..., :-s])
-        np.maximum(out[..., s:], h[..., :-s] - drop, out=out[..., s:])
-    return out
-
-
-def _tip_dilate_area(h: np.ndarray, dy: float, dx: float, radius: float) -> np.ndarray:
-    """Dilation of a map ``h[ny, nx]`` by a spherical tip; only offsets whose drop can matter are visited."""
-    reach = _tip_reach(h, radius)
-    ky, kx = int(np.ceil(reach / dy)), int(np.ceil(reach / dx))
-    out = h.copy()
-    ny, nx = h.shape
-    for i in range(-min(ky, ny - 1), min(ky, ny - 1) + 1):
-        for j in range(-min(kx, nx - 1), min(kx, nx - 1) + 1):
-            r2 = (i * dy) ** 2 + (j * dx) ** 2
-            if (i == 0 and j == 0) or r2 > reach**2:
-                continue
-            drop = _sphere_drop(radius, r2)
-            # out[y, x] = max(out[y, x], h[y+i, x+j] - drop)
-            ys_o = slice(max(0, -i), ny - max(0, i))
-            xs_o = slice(max(0, -j), nx - max(0, j))
-            ys_h = slice(max(0, i), ny - max(0, -i))
-            xs_h = slice(max(0, j), nx - max(0, -j))
-            np.maximum(out[ys_o, xs_o], h[ys_h, xs_h] - drop, out=out[ys_o, xs_o])
+    for offset in itertools.product(*reaches):
+        r2 = sum((k * d) ** 2 for k, d in zip(offset, spacings))
+        if not any(offset) or r2 > reach**2:
+            continue
+        # out[y, x] = max(out[y, x], h[y+i, x+j] - drop)
+        into = tuple(slice(max(0, -k), n - max(0, k)) for k, n in zip(offset, h.shape))
+        src = tuple(slice(max(0, k), n - max(0, -k)) for k, n in zip(offset, h.shape))
+        np.maximum(out[into], h[src] - _sphere_drop(radius, r2), out=out[into])
     return out
 
 
@@ -535,7 +503,7 @@ def measure(surface: xr.Dataset, *, size=None, pixels: Annotated[tuple | None, S
     hi = np.minimum(np.ceil((offset + size) / sp).astype(int) + 1 + margin, n)
     crop = values[tuple(slice(a, b) for a, b in zip(lo, hi))]
     if tip_radius is not None:
-        crop = _tip_dilate_area(crop, sp[0], sp[1], tip_radius) if area else _tip_dilate_line(crop, sp[0], tip_radius)
+        crop = _tip_dilate(crop, sp, tip_radius)
     if pixels is None:
         pixels = np.maximum(np.round(size / sp).astype(int), 1)
     pixels = np.broadcast_to(np.asarray(pixels, dtype=int), (len(dims),))
@@ -558,9 +526,8 @@ def measure(surface: xr.Dataset, *, size=None, pixels: Annotated[tuple | None, S
     ds = make_measurement(np.where(missing, np.nan, sampled), spacing=tuple(new_sp) if sampled.ndim == 2 else new_sp[0],
                           units=units, periodic=False, tip_radius=tip_radius, resolution=resolution,
                           instrument=instrument, source="xtopo.datasets.measure")
-    for key in ("psd_hurst", "psd_prefactor", "psd_long_cutoff", "psd_short_cutoff", "psd_dim"):
-        if key in surface.attrs:
-            ds.attrs[key] = surface.attrs[key]
+    ds.attrs.update({key: surface.attrs[key] for key in ("psd_hurst", "psd_prefactor", "psd_long_cutoff",
+                                                          "psd_short_cutoff", "psd_dim") if key in surface.attrs})
     if sampled.ndim == 1 and surface.attrs.get("psd_dim") == 2:
         ds.attrs["psd_dim"] = 2  # a profile of an isotropic area surface: compare with FractalPSD.c1d
     return append_history(ds, f"measure(size={[float(v) for v in size]}, pixels={[int(p) for p in pixels]}, "

@@ -199,23 +199,18 @@ class Choice(Kind):
         raise Refused
 
 
-class Names(Kind):
-    """One of ``options`` or a sequence of them → a tuple (e.g. the analyses of a report)."""
+class Names(Choice):
+    """One of ``options`` (strings) or a sequence of them → a tuple (e.g. the analyses of a report)."""
 
     def __init__(self, *options, error=None):
-        super().__init__(error=error)
-        self.options = options
+        super().__init__(*options, error=error)
         self.expects = f"a name or a sequence of names from {options}"
 
     def convert(self, value):
-        items = (value,) if isinstance(value, str) else value
         try:
-            items = tuple(items)
+            return tuple(map(super().convert, (value,) if isinstance(value, str) else value))
         except TypeError:
             raise Refused from None
-        if not all(isinstance(v, str) and v in self.options for v in items):
-            raise Refused
-        return items
 
 
 class Text(Kind):

@@ -33,7 +33,7 @@ import xarray as xr
 from ._optional import require
 from .conventions import LATERAL_DIMS, X, Y, height_of, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
-from .params import Count, Data, Dict, Positive, Text, checked
+from .params import Count, Data, Dict, Names, Positive, Text, checked
 from .stitching import ANALYSES, PER_DECADE
 from .twins import measurements
 
@@ -201,14 +201,11 @@ def _frame(x, y) -> dict:
     return dict(frame_width=width, frame_height=int(round(width * float(np.clip(ratio, 0.25, 4.0)))))
 
 
-def _values(da: xr.DataArray) -> np.ndarray:
-    return np.asarray(da.values)
-
-
 # --------------------------------------------------------------------------- maps
 
 @checked
-def topography(obj, *, max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS, cmap: str = "viridis",
+def topography(obj: Annotated[xr.Dataset | xr.DataArray, Data()], *,
+               max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS, cmap: str = "viridis",
                title: Annotated[str | None, Text()] = None, variable: Annotated[str, Text()] = "height"):
     """Height map (area scan) or profile (line scan) with units on every axis.
 
@@ -240,10 +237,8 @@ def topography(obj, *, max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS, cmap: s
                              f"{sorted(map(str, obj.data_vars))}")
         da = height_of(obj) if variable == "height" else obj[variable]
         da = da.assign_attrs({k: v for k, v in obj.attrs.items() if k in ("title", "instrument")} | dict(da.attrs))
-    elif isinstance(obj, xr.DataArray):
-        da = obj
     else:
-        raise XtopoError(f"topography() needs an xarray Dataset or DataArray, got {type(obj).__name__}")
+        da = obj
     lat = tuple(d for d in LATERAL_DIMS if d in da.dims)
     extra = [d for d in da.dims if d not in lat]
     if X not in lat:
@@ -257,29 +252,19 @@ def topography(obj, *, max_pixels: Annotated[int, _PIXELS] = MAX_PIXELS, cmap: s
     name = str(da.name or "value")
     units = da.attrs.get("units")
     small = downsample(da, max_pixels if len(lat) == 2 else MAX_POINTS)
-    z = _values(small).astype(np.float32 if len(lat) == 2 else np.float64)
-    if z.dtype.kind == "f" and np.isfinite(z).any():
-        finite = z[np.isfinite(z)]
-        z, zu = _rescaled(z, units, float(np.max(np.abs(finite))))
-    else:
-        zu = units
-    coords = {}
-    extent = 0.0
-    for d in lat:
-        c = small[d]
-        v = np.asarray(c.values, dtype=float)
-        extent = max(extent, float(np.ptp(v)) if v.size > 1 else 0.0)
-        coords[d] = (v, c.attrs)
+    z = small.values.astype(np.float32 if len(lat) == 2 else np.float64)
+    finite = z[np.isfinite(z)]
+    z, zu = _rescaled(z, units, float(np.max(np.abs(finite)))) if finite.size else (z, units)
+    coords = {d: np.asarray(small[d].values, dtype=float) for d in lat}
+    extent = max([0.0] + [float(np.ptp(v)) for v in coords.values()])
     xunits = da[X].attrs.get("units")
     lu = _display_unit(xunits, extent) if _is_length(xunits) else xunits
     dims = {}
-    for d, (v, attrs) in coords.items():
-        cu = attrs.get("units")
+    for d in lat:
+        cu = small[d].attrs.get("units")
         if _is_length(cu):
-            v = v * length_factor(cu, lu)
-            cu = lu
-        coords[d] = v
-        dims[d] = _dimension(d, attrs, units=cu)
+            coords[d], cu = coords[d] * length_factor(cu, lu), lu
+        dims[d] = _dimension(d, small[d].attrs, units=cu)
     vdim = _dimension(name, da.attrs, units=zu)
     label = _title(da, title)
     if len(lat) == 2:
@@ -306,7 +291,7 @@ def spectrum_map(da: Annotated[xr.DataArray, Data("DataArray")], *, max_pixels: 
     if "q_x" not in da.dims or "q_y" not in da.dims:
         raise XtopoError(f"spectrum_map() needs a 2D power spectrum on (q_y, q_x), got {da.name!r} with dims {da.dims}")
     small = downsample(da.rename({"q_y": Y, "q_x": X}), max_pixels).rename({Y: "q_y", X: "q_x"})
-    z = _values(small).astype(np.float32)
+    z = small.values.astype(np.float32)
     z = np.where(z > 0, z, np.nan)
     kx = _dimension("q_x", small["q_x"].attrs)
     ky = _dimension("q_y", small["q_y"].attrs)
@@ -353,15 +338,17 @@ def _safe_label(label, *dims) -> str:
     return label + "\u00a0" if label in {d.name for d in dims} else label
 
 
+def _line(data, xdim, ydim, label, width, **common):
+    """An hv.Curve ``width`` wide with the options ``common`` (colour, alpha, ...) on both backends."""
+    el = _hv().Curve(data, kdims=[xdim], vdims=[ydim], label=label)
+    return _style(el, common=common, bokeh=dict(line_width=width), matplotlib=dict(linewidth=width))
+
+
 def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
     """One or two hv.Curve elements: reliable part solid, ``unreliable`` (bool mask) part dashed."""
     hv = _hv()
     label = _safe_label(label, xdim, ydim)
-    out = []
-    solid = np.where(unreliable, np.nan, y)
-    common = dict(color=color)
-    out.append(_style(hv.Curve((x, solid), kdims=[xdim], vdims=[ydim], label=label),
-                      common=common, bokeh=dict(line_width=line_width), matplotlib=dict(linewidth=line_width)))
+    out = [_line((x, np.where(unreliable, np.nan, y)), xdim, ydim, label, line_width, color=color)]
     if unreliable.any():
         # overlap by one point so the dashed part joins the solid one
         edge = unreliable.copy()
@@ -369,18 +356,17 @@ def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
         edge[:-1] |= unreliable[1:]
         dashed = np.where(edge, y, np.nan)
         out.append(_style(hv.Curve((x, dashed), kdims=[xdim], vdims=[ydim], label=f"{label} (unreliable)"),
-                          common=common, bokeh=dict(line_width=line_width, line_dash="dashed"),
+                          common=dict(color=color), bokeh=dict(line_width=line_width, line_dash="dashed"),
                           matplotlib=dict(linewidth=line_width, linestyle="--")))
     return out
 
 
 def _axes_opts(title, logx=True, logy=True, legend_outside=False):
-    bokeh = dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 90, legend_position="bottom_left", tools=["hover"],
-                 toolbar="above")
-    if legend_outside:  # many entries (a twin): legend beside the axes, not over the curves
-        bokeh.update(legend_position="right")
-    return dict(common=dict(logx=logx, logy=logy, title=title, show_grid=True), bokeh=bokeh,
-                matplotlib=dict(aspect=1.3, legend_position="right" if legend_outside else "bottom_left"))
+    where = "right" if legend_outside else "bottom_left"  # many entries (a twin): beside the axes, not over the curves
+    return dict(common=dict(logx=logx, logy=logy, title=title, show_grid=True),
+                bokeh=dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 90, legend_position=where, tools=["hover"],
+                           toolbar="above"),
+                matplotlib=dict(aspect=1.3, legend_position=where))
 
 
 @checked
@@ -415,7 +401,7 @@ def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title:
     ydim = _dimension(str(da.name or "value"), da.attrs)
     da = da.transpose(..., coord)
     x = np.asarray(da[coord].values, dtype=float)
-    values = _values(da)
+    values = da.values
     rows = values.reshape(-1, x.size)
     others = [d for d in da.dims if d != coord]
     keys = [""]
@@ -436,12 +422,6 @@ def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title:
         elements += _line_elements(xs, ys, xdim=xdim, ydim=ydim, label=lab, color=col,
                                    unreliable=bad)
     return _style(hv.Overlay(elements), **_axes_opts(_title(da, title)))
-
-
-def _groups(names, groups) -> dict:
-    """Legend group of each measurement: ``groups`` (name → group), else the name itself."""
-    groups = groups or {}
-    return {n: str(groups.get(n, n)) for n in names}
 
 
 def group_colours(groups: dict) -> dict:
@@ -491,13 +471,13 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
     ydim = _dimension(yname, curves.attrs or ds["average"].attrs)
     x = np.asarray(ds[coord].values, dtype=float)
     names = [str(n) for n in np.asarray(curves["measurement"].values)]
-    group_of = _groups(names, groups)
+    group_of = {n: str(groups.get(n, n)) for n in names}  # the name is its own group unless ``groups`` say
     colours = group_colours(group_of)
     elements, shown = [], set()
-    values = _values(curves)
-    avg = _values(ds["average"]).astype(float)
+    values = curves.values
+    avg = ds["average"].values.astype(float)
     if "uncertainty" in ds:  # the band: average ± its standard error (clipped above zero for log axes)
-        se = _values(ds["uncertainty"]).astype(float)
+        se = ds["uncertainty"].values.astype(float)
         ok = np.isfinite(avg) & np.isfinite(se) & (avg > 0) & (x > 0)
         if ok.any():
             lo = np.maximum(avg - se, avg / 10)
@@ -511,14 +491,9 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
         label = _safe_label(labels.get(group, group), xdim, ydim)
         first = group not in shown
         shown.add(group)
-        el = hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label=label)
         # replicates share their group's legend entry: only the first of a group carries it
-        elements.append(_style(el, common=dict(color=colours[group], alpha=0.8),
-                               bokeh=dict(line_width=1.2, show_legend=first),
-                               matplotlib=dict(linewidth=1.2, show_legend=first)))
-    xs, ys = _positive(x, avg)
-    elements.append(_style(hv.Curve((xs, ys), kdims=[xdim], vdims=[ydim], label="average"),
-                           common=dict(color="black"), bokeh=dict(line_width=4), matplotlib=dict(linewidth=4)))
+        elements.append(_line((xs, ys), xdim, ydim, label, 1.2, color=colours[group], alpha=0.8, show_legend=first))
+    elements.append(_line(_positive(x, avg), xdim, ydim, "average", 4, color="black"))
     opts = _axes_opts(title or long_name, legend_outside=True)
     overlay = _style(hv.Overlay(elements), **opts)
     if not legend:
@@ -527,9 +502,9 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
 
 
 @checked
-def twin_figure(tree, *, analyses=None, groups: Annotated[dict | None, Dict()] = None,
-                labels: Annotated[dict | None, Dict()] = None, per_decade: int | None = None,
-                cols: Annotated[int, Count()] = 2):
+def twin_figure(tree, *, analyses: Annotated[tuple | None, Names(*ANALYSES)] = None,
+                groups: Annotated[dict | None, Dict()] = None, labels: Annotated[dict | None, Dict()] = None,
+                per_decade: int | None = None, cols: Annotated[int, Count()] = 2):
     """The paper's Figure 5 for a twin: PSD, ACF, VBM and scale-dependent curvature averages.
 
     One log-log panel per analysis of :data:`xtopo.stitching.ANALYSES` (with units): each
@@ -559,10 +534,7 @@ def twin_figure(tree, *, analyses=None, groups: Annotated[dict | None, Dict()] =
     hv = _hv()
 
     ms = measurements(tree)
-    names = list(ANALYSES) if analyses is None else [str(a) for a in analyses]
-    unknown = [a for a in names if a not in ANALYSES]
-    if unknown:
-        raise XtopoError(f"unknown analysis {unknown[0]!r} in analyses; choose from {tuple(ANALYSES)}")
+    names = list(ANALYSES) if analyses is None else analyses
     groups = {n: str(ds.attrs.get("instrument") or n) for n, ds in ms.items()} if groups is None else groups
     per_decade = PER_DECADE if per_decade is None else per_decade
     # the one legend sits right of the last panel of the first row, where it covers no other panel
@@ -574,10 +546,7 @@ def twin_figure(tree, *, analyses=None, groups: Annotated[dict | None, Dict()] =
 # --------------------------------------------------------------------------- contact
 
 def _contact_steps_dim(ds) -> str | None:
-    for d in ("load", "mean_pressure", "penetration"):
-        if d in ds.dims:
-            return d
-    return None
+    return next((d for d in ("load", "mean_pressure", "penetration") if d in ds.dims), None)
 
 
 @checked
@@ -608,16 +577,15 @@ def contact_area(results, *, labels: Annotated[dict | None, Dict()] = None, titl
     results, labels = Dict().check({} if results is None else results, "results"), labels or {}
     if not results:
         raise XtopoError("contact_area() needs at least one contact result")
-    for key, ds in results.items():
-        Data("Dataset").check(ds, f"contact_area() result {key!r}")
     elements = []
     for k, (key, ds) in enumerate(results.items()):
+        Data("Dataset").check(ds, f"contact_area() result {key!r}")
         for v in (x, y):
             if v not in ds:
                 raise XtopoError(f"contact result {key!r} has no variable {v!r} (variables: {list(ds.data_vars)})")
-        xv = np.atleast_1d(_values(ds[x])).astype(float)
-        yv = np.atleast_1d(_values(ds[y])).astype(float)
-        conv = (np.atleast_1d(_values(ds["converged"])).astype(bool) if "converged" in ds
+        xv = np.atleast_1d(ds[x].values).astype(float)
+        yv = np.atleast_1d(ds[y].values).astype(float)
+        conv = (np.atleast_1d(ds["converged"].values).astype(bool) if "converged" in ds
                 else np.ones(xv.shape, dtype=bool))
         ok = (xv > 0) & (yv > 0)
         color = PALETTE[k % len(PALETTE)]
@@ -627,9 +595,7 @@ def contact_area(results, *, labels: Annotated[dict | None, Dict()] = None, titl
             xdim = _dimension(x, ds[x].attrs)
         ydim = _dimension(y, ds[y].attrs, label="relative contact area A/A₀" if y == "area_fraction" else None)
         name = _safe_label(labels.get(key, key), xdim, ydim)
-        line = (xv[ok], yv[ok])
-        elements.append(_style(hv.Curve(line, kdims=[xdim], vdims=[ydim], label=name), common=dict(color=color),
-                               bokeh=dict(line_width=1), matplotlib=dict(linewidth=1)))
+        elements.append(_line((xv[ok], yv[ok]), xdim, ydim, name, 1, color=color))
         for flag, alpha, suffix in ((True, 1.0, ""), (False, 0.3, " (not converged)")):
             sel = ok & (conv == flag)
             if not sel.any():

@@ -12,6 +12,7 @@ from __future__ import annotations
 import datetime
 import html
 import os
+import pathlib
 from typing import Annotated
 
 import xarray as xr
@@ -70,10 +71,6 @@ def _as_twin(source) -> xr.DataTree:
     if isinstance(source, (str, os.PathLike)):
         source = [source]
     return twin(source)
-
-
-def _table_html(table: xr.Dataset) -> str:
-    return _cells_html(*table_rows(table))
 
 
 def _iso_html(ms: dict, options: dict) -> str:
@@ -224,7 +221,7 @@ def report(source, path: Annotated[str | None, Path("file path")] = None, *, tit
     # the page: sections of HTML snippets and bokeh models, in order (a new section is one more entry)
     sections = [("", [f"<h1>{html.escape(title)}</h1>"
                       f'<p class="meta">{len(ms)} measurement(s) · xtopo {html.escape(__version__)} · {stamp}</p>']),
-                ("Measurements", [_table_html(table)]),
+                ("Measurements", [_cells_html(*table_rows(table))]),
                 ("Preprocessing and reliability (paper §3.2, §4.9)",
                  [_cells_html(["measurement", "instrument", "preprocessing", "short reliability cutoff", "cause"],
                               _reliability_rows(ms))])]
@@ -257,9 +254,4 @@ def report(source, path: Annotated[str | None, Path("file path")] = None, *, tit
     page = _html_page(title, blocks)
     if path is None:
         return page
-
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(page)
-
-    return atomic_write(path, write)
+    return atomic_write(path, lambda tmp: pathlib.Path(tmp).write_text(page, encoding="utf-8"))
