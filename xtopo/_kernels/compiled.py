@@ -244,12 +244,10 @@ def set_direction(t, g, beta, zero_sum, slots, buf):
             v = t[j] * b + g[j]
             t[j] = v
             s += v
-        if zero_sum and n:
-            m = s / n
-            for j in range(n):
-                t[j] -= m
+        m = s / n if zero_sum and n else 0.0
         slope = 0.0
         for j in range(n):
+            t[j] -= m
             slope += float(g[j]) * float(t[j])
         if slope > 0:
             break
