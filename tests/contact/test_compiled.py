@@ -117,10 +117,15 @@ def test_writes_land_in_the_active_part(shape, row):
     idx = rng.permutation(n)[: n // 3]
     p = rng.random(idx.size)
     p0 = p.copy()
-    compiled.write_increment(p, compiled.slots(idx, nx, pad), p_ref[idx], 2.0, buf, False, nx, pad)   # r per point
+    slots = compiled.slots(idx, nx, pad)
+    zero = np.zeros(idx.size)   # no step: every point stays, scaled to twice its load
+    step = (slots, p, zero, zero, p_ref[idx], idx.size, 0.0, np.inf, False, np.empty(n), buf, nx, pad, False,
+            2 * p0.sum(), 0.0)
+    assert compiled.step_project(*step)[0] == idx.size                               # r per point
     buf_grid = np.zeros_like(buf)
     # the reference pressures read on the grid at the flat indices
-    compiled.write_increment(p0.copy(), compiled.slots(idx, nx, pad), p_ref, 2.0, buf_grid, True, nx, pad)
+    compiled.step_project(slots.copy(), p0.copy(), zero, zero, p_ref, *step[5:10], buf_grid, *step[11:13], True,
+                          *step[14:])
     np.testing.assert_array_equal(buf_grid, buf)
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
     rest = np.setdiff1d(np.arange(n), idx)
@@ -147,9 +152,10 @@ def test_split_sets(hardness):
     np.testing.assert_array_equal(pl, np.flatnonzero(p >= H))
 
 
+@pytest.mark.parametrize("target", [0.0, 400.0])
 @pytest.mark.parametrize("grid", [False, True])
 @pytest.mark.parametrize("hardness", [None, 0.8])
-def test_step_project_compacts_in_order(hardness, grid):
+def test_step_project_compacts_in_order(hardness, grid, target):
     rng = np.random.default_rng(6)
     nx, pad = 100, 28
     idx = rng.permutation(5000)[:1000].astype(np.int32)
@@ -170,11 +176,13 @@ def test_step_project_compacts_in_order(hardness, grid):
         c_grid, r_grid = np.full(5000, np.nan), np.full(5000, np.nan)
         c_grid[idx], r_grid[idx] = c, r
         c, r = c_grid, r_grid
-    m, gone, capped = compiled.step_project(slots, p, t, c, r, 1000, tau, H, hardness is not None, c_low, buf, nx,
-                                            pad, grid)
+    m, gone, capped, scale = compiled.step_project(slots, p, t, c, r, 1000, tau, H, hardness is not None, c_low,
+                                                   buf, nx, pad, grid, target, 5.0)   # 5: the joins' load
     assert m == keep.sum() and 0 < m < 1000
+    assert scale == pytest.approx(target / (new[keep].sum() + 5.0) if target else 1.0, rel=1e-14)
     np.testing.assert_array_equal(slots[:m], s0[keep])
-    np.testing.assert_allclose(p[:m], new[keep])
+    np.testing.assert_allclose(p[:m], new[keep] * scale, rtol=1e-14)
+    np.testing.assert_allclose(buf[slots[:m]], p[:m] - r0[keep], rtol=1e-6)   # the increments of those that stay
     np.testing.assert_array_equal(t[:m], t0[keep])
     if grid:   # left where they are
         np.testing.assert_array_equal(c[i0], c0)
@@ -191,7 +199,7 @@ def test_step_project_compacts_in_order(hardness, grid):
     at_cap = np.zeros(gone.size, bool) if hardness is None else expect_capped
     slot = gone + (gone // nx) * pad
     np.testing.assert_allclose(buf[slot], np.where(at_cap, H, 0.0) - r0[~keep], rtol=1e-6)
-    assert np.count_nonzero(buf != 9) == gone.size
+    assert np.count_nonzero(buf != 9) == 1000
     np.testing.assert_array_equal(c_low[gone[~at_cap]], c0[~keep][~at_cap])
     assert np.isinf(c_low[gone[at_cap]]).all() and np.count_nonzero(np.isfinite(c_low)) == (~at_cap).sum()
 
@@ -203,13 +211,17 @@ def test_join_appends_with_reference_values():
     before = [a[:n].copy() for a in (slots, p, t, c, r)]
     c_full, p_ref, c_low = rng.random(400), rng.random(400), rng.random(400)
     where = np.array([5, 77, 301], np.int32)
-    m = compiled.join(slots, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), c_full, p_ref, c_low, nx, pad, False)
+    buf = np.zeros(20 * 42)
+    m = compiled.join(slots, p, t, c, r, n, where, np.array([1.0, 2.0, 3.0]), 2.0, c_full, p_ref, c_low, buf, nx, pad,
+                      False)
     assert m == n + 3
     for a, b in zip((slots, p, t, c, r), before):
         np.testing.assert_array_equal(a[:n], b)                  # the set so far is left alone
     np.testing.assert_array_equal(slots[n:m], where + (where // nx) * pad)
     np.testing.assert_array_equal(compiled.flat_indices(slots[n:m], nx, pad), where)
-    np.testing.assert_array_equal(p[n:m], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(p[n:m], [2.0, 4.0, 6.0])                # scaled
+    np.testing.assert_array_equal(buf[slots[n:m]], p[n:m] - p_ref[where])  # their increments
+    assert np.count_nonzero(buf) == 3
     assert not t[n:m].any()                                      # their direction starts at 0
     np.testing.assert_array_equal(c[n:m], c_full[where])
     np.testing.assert_array_equal(r[n:m], p_ref[where])

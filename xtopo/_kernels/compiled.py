@@ -23,7 +23,7 @@ from numba import njit
 
 __all__ = ["slots", "slots_into", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps",
            "scan_overlaps", "set_direction", "energy", "scale_spectrum", "reference_gaps", "rebase", "split_sets",
-           "step_project", "join", "write_increment", "write_values"]
+           "step_project", "join", "write_values"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -244,12 +244,10 @@ def set_direction(t, g, beta, zero_sum, slots, buf):
             v = t[j] * b + g[j]
             t[j] = v
             s += v
-        if zero_sum and n:
-            m = s / n
-            for j in range(n):
-                t[j] -= m
+        m = s / n if zero_sum and n else 0.0
         slope = 0.0
         for j in range(n):
+            t[j] -= m
             slope += float(g[j]) * float(t[j])
         if slope > 0:
             break
@@ -397,43 +395,65 @@ def flat_indices(slots, nx, pad):
     return out
 
 
+@njit(**_FAST)
+def _kept(p, n, hardness, capped_flag):
+    """How many of the first ``n`` pressures stay in the set (``0 < p``, and ``p < H`` with ``capped_flag``) and
+    their sum (float64)."""
+    m = 0
+    total = 0.0
+    for j in range(n):
+        v = p[j]
+        keep = (v > 0) & ((not capped_flag) | (v < hardness))
+        m += keep
+        total += v if keep else 0.0
+    return m, total
+
+
 @njit(nogil=True, cache=True)
-def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, nx, pad, grid):
-    """``p ← p - τ t`` and the projection onto ``0 < p < H`` of the first ``n`` points, compacting the set in place.
+def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, nx, pad, grid, target, joining):
+    """``p ← p - τ t`` and the projection onto ``0 < p < H`` of the first ``n`` points, compacting the set in place,
+    and the increment's input written for all of them.
 
     The set is given by the points' positions ``slots`` in the increment buffer ``buf``. The
     points that stay are moved to the front of ``slots``, ``p``, ``t``, ``c`` and ``r`` (order
-    kept; ``c`` and ``r`` are the points' reference gaps and pressures). A point that leaves
+    kept; ``c`` and ``r`` are the points' reference gaps and pressures); under load control (``target > 0``:
+    the load over the pixel area) their pressures are scaled by ``target / (Σ p + joining)``, ``joining`` the
+    sum of the pressures of the points that join next (:func:`join`, with the same scale), and each gets its
+    increment ``p - r`` written into ``buf``. A point that leaves
     gets its new pressure (0, or ``H`` at the cap) minus its reference pressure written into
     ``buf``, and a freed one (``p ≤ 0``) its reference gap ``c`` back in ``c_low`` (the overlap
     test, on the active grid). With ``grid``, ``c`` and ``r`` are the grid's arrays (read at the
-    points' flat indices, not moved). Returns ``(count, gone, capped)``: how many stay, the flat
-    (int32) indices of those that left and flags of the latter that left at the cap (``p ≥ H``;
-    empty unless ``capped_flag``).
+    points' flat indices, not moved). Returns ``(count, gone, capped, scale)``: how many stay, the flat
+    (int32) indices of those that left, flags of the latter that left at the cap (``p ≥ H``;
+    empty unless ``capped_flag``) and the scale (1 without load control).
     """
-    m = 0
     for j in range(n):
-        v = p[j] - tau * t[j]
-        p[j] = v
-        m += (v > 0) & ((not capped_flag) | (v < hardness))
+        p[j] = p[j] - tau * t[j]
+    m, total = _kept(p, n, hardness, capped_flag)
+    scale = np.ones(1, p.dtype)   # in the pressures' precision
+    if target > 0 and total + joining > 0:
+        scale[0] = target / (total + joining)
+    sc = scale[0]
     gone = np.empty(n - m, np.int32)
     capped = np.zeros(n - m if capped_flag else 0, np.bool_)
-    if m == n:
-        return m, gone, capped
     a = 0
     b = 0
     for j in range(n):
         v = p[j]
+        k = slots[j]
         if v > 0 and not (capped_flag and v >= hardness):
-            slots[a] = slots[j]
+            if sc != 1:
+                v = v * sc
+            slots[a] = k
             p[a] = v
             t[a] = t[j]
+            ref = r[_flat(k, nx, pad)] if grid else r[j]
             if not grid:
                 c[a] = c[j]
-                r[a] = r[j]
+                r[a] = ref
+            buf[_at(k)] = v - ref
             a += 1
         else:
-            k = slots[j]
             i = _flat(k, nx, pad)
             jj = i if grid else j
             gone[b] = i
@@ -446,41 +466,31 @@ def step_project(slots, p, t, c, r, n, tau, hardness, capped_flag, c_low, buf, n
                 buf[_at(k)] = 0 - r[jj]
                 c_low[_at(i)] = c[jj]
             b += 1
-    return m, gone, capped
+    return m, gone, capped, sc
 
 
 @njit(nogil=True, cache=True)
-def join(slots, p, t, c, r, n, where, values, c_full, p_ref, c_low, nx, pad, grid):
-    """Append the points ``where`` (flat indices) with pressures ``values`` after the first ``n`` of the set.
+def join(slots, p, t, c, r, n, where, values, scale, c_full, p_ref, c_low, buf, nx, pad, grid):
+    """Append the points ``where`` (flat indices) with pressures ``values · scale`` after the first ``n`` of the set.
 
-    Their buffer positions go to ``slots``, their direction starts at 0, their reference gap and
+    Their increments over the reference go into ``buf`` (:func:`step_project`, whose scale this is),
+    their buffer positions to ``slots``, their direction starts at 0, their reference gap and
     pressure are read from the grids ``c_full`` and ``p_ref`` (unless ``grid``: the set reads them
     there), and they leave the overlap test (``c_low = +inf``). The arrays must have room for them.
     Returns the new count.
     """
     for j in range(where.size):
         i = where[j]
-        slots[n + j] = _slot(i, nx, pad)
-        p[n + j] = values[j]
+        k = _slot(i, nx, pad)
+        slots[n + j] = k
+        p[n + j] = values[j] if scale == 1 else values[j] * scale
+        buf[k] = p[n + j] - p_ref[_at(i)]
         t[n + j] = 0
         if not grid:
             c[n + j] = c_full[_at(i)]
             r[n + j] = p_ref[_at(i)]
         c_low[_at(i)] = np.inf
     return n + where.size
-
-
-@njit(**_FAST)
-def write_increment(p, slots, r, scale, buf, grid, nx, pad):
-    """``p *= scale`` (unless ``scale`` is 1), then ``buf[slots] = p - r`` (the increment over the
-    reference pressures ``r``, one per point; with ``grid`` the grid's, at the flat indices)."""
-    for j in range(slots.size):
-        v = p[j]
-        if scale != 1:
-            v = v * scale
-            p[j] = v
-        k = slots[j]
-        buf[_at(k)] = v - (r[_flat(k, nx, pad)] if grid else r[j])
 
 
 @njit(nogil=True, cache=True)

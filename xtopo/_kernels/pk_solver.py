@@ -282,20 +282,16 @@ class _Displacements:
         """The float32 increment ``G * (p - p_ref)`` in its buffer layout (a placeholder when fresh)."""
         return self._no_increment if self.fresh else self.low.output_flat
 
-    def update(self, cg, changed, scale):
+    def update(self, changed):
         """Increment ``G * (p - p_ref)`` of the current pressures (one float32 convolution).
 
-        ``changed``: ``(points, pressure)`` pairs of points outside the set ``cg`` whose pressure
-        became 0 or the hardness since the last call and that :meth:`step` has not written (joins
-        from the plastic set, or to it). The set's pressures are multiplied by ``scale`` first (in
-        place; load control).
+        The set's increments are written by :meth:`step`; ``changed``: ``(points, pressure)`` pairs of
+        points outside the set whose pressure became 0 or the hardness since the last call and that
+        :meth:`step` has not written (joins from the plastic set, or to it).
         """
-        flat, nx, pad = self.low.input_flat, self.nx, self.pad
         for where, value in changed:
             if where.size:
-                compiled.write_values(where, float(value), self.p_ref, nx, pad, flat)
-        compiled.write_increment(cg.p_, cg.s_, cg.r if cg.grid else cg.r_, cg.p.dtype.type(scale), flat, cg.grid,
-                                 nx, pad)
+                compiled.write_values(where, float(value), self.p_ref, self.nx, self.pad, self.low.input_flat)
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         self.low.inverse(self.low.forward())
@@ -345,24 +341,27 @@ class _Displacements:
         self.counts["fft"] += 1
         return slope, self.direction.energy(self.direction.forward())
 
-    def step(self, cg, tau, H):
-        """``p ← p - τ t`` on the set and its projection (:func:`compiled.step_project`): the points that
-        left get their pressure written into the increment's input and the freed ones rejoin the overlap
+    def step(self, cg, tau, H, target, joins):
+        """``p ← p - τ t`` on the set and its projection (:func:`compiled.step_project`), then the points of
+        ``joins`` (``(points, pressures)`` pairs) appended (:func:`compiled.join`); with a ``target`` (load
+        control: the load over the pixel area, else 0) all pressures are scaled to it. The increment's input
+        gets the set's pressures and those of the points that left, and the freed ones rejoin the overlap
         test. Returns ``(gone, capped)``."""
         if cg.t is None:   # no direction was set (an empty set)
             cg.t = np.zeros(cg.s.size, cg.p.dtype)
-        m, gone, capped = compiled.step_project(
+        joining = sum(float(np.sum(v, dtype=np.float64)) for _, v in joins)
+        buf, nx, pad = self.low.input_flat, self.nx, self.pad
+        m, gone, capped, scale = compiled.step_project(
             cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau, H if H is not None else np.inf, H is not None, self.c_low,
-            self.low.input_flat, self.nx, self.pad, cg.grid)
+            buf, nx, pad, cg.grid, target, joining)
         cg.n = m
         cg.fit()
+        for where, values in joins:
+            if where.size:
+                cg.reserve(where.size)
+                cg.n = compiled.join(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, where, values, cg.p.dtype.type(scale),
+                                     self.c, self.p_ref, self.c_low, buf, nx, pad, cg.grid)
         return gone, capped
-
-    def join(self, cg, where, values):
-        """Append the points ``where`` at pressures ``values`` to the set (:func:`compiled.join`)."""
-        cg.reserve(where.size)
-        cg.n = compiled.join(cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, where, values, self.c, self.p_ref, self.c_low,
-                             self.nx, self.pad, cg.grid)
 
     def energy_of(self, pairs):
         """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
@@ -585,17 +584,14 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         if pl.size and opened.any():
             joined.append((pl[opened], H - step * g_pl[opened], True))
             pl = pl[~opened]
-        # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic), the set compacted in place;
-        # `changed` collects the other points whose pressure became 0 or H (the increment's input)
-        changed = []
-        gone, capped = disp.step(cg, dtype.type(tau), H)
-        if capped.any():
-            pl = np.concatenate([pl, gone[capped]])
+        # joining points at H become plastic, plastic ones at 0 free; `changed` collects the points outside the set
+        # whose pressure became 0 or H (the increment's input)
+        changed, joins, capped_now = [], [], []
         for where, value, was_plastic in joined:
             if H is not None:
                 full = value >= H
                 if full.any():
-                    pl = np.concatenate([pl, where[full]])
+                    capped_now.append(where[full])
                     if not was_plastic:
                         changed.append((where[full], H))
                         disp.hide(where[full])
@@ -606,13 +602,15 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
                 disp.show(where[~pos])
             if not pos.all():
                 where, value = where[pos], value[pos]
-            disp.join(cg, where, value.astype(dtype, copy=False))
-        scale_p = 1.0
-        if load_control:
-            total = pixel_area * float(np.sum(cg.p_, dtype=np.float64))
-            if total > 0:
-                scale_p = load / total
-        disp.update(cg, changed, scale_p)
+            joins.append((where, value.astype(dtype, copy=False)))
+        # projection: leave the CG set at p ≤ 0 (free) or p ≥ H (plastic), the set compacted in place, the
+        # joins appended and (load control) all scaled to the load
+        gone, capped = disp.step(cg, dtype.type(tau), H, load / pixel_area if load_control else 0.0, joins)
+        if capped.any():
+            pl = np.concatenate([pl, gone[capped]])
+        if capped_now:
+            pl = np.concatenate([pl, *capped_now])
+        disp.update(changed)
     if not disp.fresh:  # the returned displacements are exact convolutions of the pressures
         disp.refresh(cg, pl, H, delta)
     if load_control and cg.n:
