@@ -400,7 +400,8 @@ def test_changing_a_hit_in_place_never_reaches_the_cache(tmp_path, func):
     (lambda d: d.rename(x="u"), True),
     (lambda d: d.assign_attrs(periodic=0), False),
     (lambda d: d.assign(mask=d.height > 0), False),
-], ids=["x values", "x units", "height units", "dim name", "periodic", "mask added"])
+    (lambda d: d.stack(p=("y", "x")), True),  # index coordinates read from pandas: a MultiIndex too
+], ids=["x values", "x units", "height units", "dim name", "periodic", "mask added", "stacked"])
 def test_checksum_follows_what_analyses_read(ds_change, in_height):
     """The checksum covers coordinates (values, units), dims, every variable and the measurement attrs,
     on a Dataset and on its height DataArray alike."""
@@ -409,6 +410,8 @@ def test_checksum_follows_what_analyses_read(ds_change, in_height):
     assert checksum(ds.copy(deep=True)) == checksum(ds)
     assert checksum(changed) != checksum(ds)
     assert (checksum(changed.height) != checksum(ds.height)) == in_height
+    stretched = ds.assign_coords(x=ds.x * 2)
+    assert checksum(ds_change(stretched)) != checksum(changed)
 
 
 def test_parameters_are_keyed_by_value_and_type(tmp_path):
