@@ -251,8 +251,9 @@ def _private_copy(obj):
     """
     indexes = obj._indexes
 
-    def own(name, var):
-        return var.copy(deep=False) if name in indexes else var.copy(deep=False, data=np.array(var.data))
+    def own(name, var):  # new attrs and encoding dicts (the constructor copies them), new data
+        return var.copy(deep=False) if name in indexes else xr.Variable(var.dims, np.array(var.data), var.attrs,
+                                                                         var.encoding, fastpath=True)
 
     if isinstance(obj, xr.DataArray):
         return obj._replace(own(None, obj.variable), {k: own(k, v) for k, v in obj._coords.items()})
