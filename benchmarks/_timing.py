@@ -1,17 +1,36 @@
-"""Timing helper shared by the benchmark scripts (medians, never single runs)."""
+"""Timing helpers shared by the benchmark scripts (medians and spread, never single runs)."""
 
 from __future__ import annotations
 
 import statistics
+import subprocess
+import sys
 import time
 
 
-def median_time(fn, repeat: int) -> float:
-    """Median wall time of ``fn()`` over ``repeat`` runs after one warm-up call (plans, caches, imports)."""
+def times(fn, repeat: int) -> list[float]:
+    """Sorted wall times (s) of ``repeat`` runs of ``fn()`` after one warm-up call (plans, caches, imports)."""
     fn()
-    times = []
+    out = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+        out.append(time.perf_counter() - t0)
+    return sorted(out)
+
+
+def median_time(fn, repeat: int) -> float:
+    """Median wall time of ``fn()`` over ``repeat`` runs after one warm-up call."""
+    return statistics.median(times(fn, repeat))
+
+
+def spread(ts) -> str:
+    """``median [min–max]`` of wall times in seconds."""
+    ts = sorted(ts)
+    return f"{statistics.median(ts):.4f} [{ts[0]:.4f}–{ts[-1]:.4f}]"
+
+
+def fresh_process_seconds(args: list[str], repeat: int) -> list[float]:
+    """Seconds printed (last line of stdout) by ``repeat`` fresh Python processes running ``args``."""
+    return sorted(float(subprocess.run([sys.executable, *args], check=True, capture_output=True,
+                                       text=True).stdout.split()[-1]) for _ in range(repeat))

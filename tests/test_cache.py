@@ -357,3 +357,71 @@ def test_entries_are_netcdf3_unless_the_result_needs_netcdf4(tmp_path, func, mag
     cold = _cold(tmp_path)
     xr.testing.assert_identical(cold(func, ds), first)
     assert cold.hits == 1
+
+
+# --------------------------------------------------------------------------- cheap hits (issue 27)
+
+def _with_coords(ds):
+    """A DataArray with an index coordinate and a non-index one (what a 1D PSD or ACF looks like, plus one)."""
+    q = np.arange(5.0)
+    return xr.DataArray(q * float(scalars(ds).Sq), dims="q", name="power", attrs={"units": "m3"},
+                        coords={"q": ("q", q, {"units": "1/m"}), "weight": ("q", np.ones(5), {"units": "1"})})
+
+
+def _two_variables(ds):
+    return _with_coords(ds).to_dataset().assign(other=lambda d: d.power * 2).assign_attrs(kind="test")
+
+
+@pytest.mark.parametrize("func", [_with_coords, _two_variables])
+def test_changing_a_hit_in_place_never_reaches_the_cache(tmp_path, func):
+    """Hits share the stored result's indexes but nothing a caller can change: values, non-index
+    coordinates, and the attrs of the object, its variables and its coordinates are its own."""
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=1)
+    cache = Cache(tmp_path)
+    first = cache(func, ds).copy(deep=True)
+    hit = cache(func, ds)
+    xr.testing.assert_identical(hit, first)
+    hit.attrs["units"] = "changed"
+    hit["q"].attrs["units"] = "changed"
+    hit["weight"].values[:] = -1.0
+    hit["weight"].attrs["units"] = "changed"
+    for name in ["power", "other"] if isinstance(hit, xr.Dataset) else [None]:
+        var = hit if name is None else hit[name]
+        var.values[:] = -1.0
+        var.attrs["units"] = "changed"
+    xr.testing.assert_identical(cache(func, ds), first)
+    assert cache.hits == 2
+
+
+@pytest.mark.parametrize("ds_change, in_height", [
+    (lambda d: d.assign_coords(x=d.x * 2), True),
+    (lambda d: d.assign_coords(x=d.x.assign_attrs(units="um")), True),
+    (lambda d: d.assign(height=d.height.assign_attrs(units="nm")), True),
+    (lambda d: d.rename(x="u"), True),
+    (lambda d: d.assign_attrs(periodic=0), False),
+    (lambda d: d.assign(mask=d.height > 0), False),
+    (lambda d: d.stack(p=("y", "x")), True),  # index coordinates read from pandas: a MultiIndex too
+], ids=["x values", "x units", "height units", "dim name", "periodic", "mask added", "stacked"])
+def test_checksum_follows_what_analyses_read(ds_change, in_height):
+    """The checksum covers coordinates (values, units), dims, every variable and the measurement attrs,
+    on a Dataset and on its height DataArray alike."""
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    changed = ds_change(ds)
+    assert checksum(ds.copy(deep=True)) == checksum(ds)
+    assert checksum(changed) != checksum(ds)
+    assert (checksum(changed.height) != checksum(ds.height)) == in_height
+    stretched = ds.assign_coords(x=ds.x * 2)
+    assert checksum(ds_change(stretched)) != checksum(changed)
+
+
+def test_parameters_are_keyed_by_value_and_type(tmp_path):
+    """Plain parameters are keyed by their repr: 1, 1.0, True, '1' and None give different entries, numpy
+    scalars and arrays (keyed by dask's tokenize) others again, and the same values the same entry."""
+    cache = Cache(tmp_path)
+    ds = fractal_surface((16, 16), 1.0, hurst=0.7, seed=1)
+    values = [1, 1.0, True, "1", None, 2, -0.0, 0.0, float("nan"), np.float64(1.0), np.int64(1), np.ones(3)]
+    paths = [cache.path(_counted, ds, x=v) for v in values]
+    assert len(set(paths)) == len(values)
+    assert paths == [cache.path(_counted, ds, x=v) for v in values]
+    assert cache.path(_counted, ds, a=1, b="x") == cache.path(_counted, ds, b="x", a=1)
+    assert cache.path(_counted, ds, a=1, b="x") != cache.path(_counted, ds, a="x", b=1)

@@ -110,29 +110,33 @@ def checksum(ds: Annotated[xr.Dataset | xr.DataArray, Data()]) -> str:
     Computing it loads dask-backed data.
     """
     h = hashlib.sha256()
-    items = ds.variables.items() if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable)] + [
-        (k, v.variable) for k, v in ds.coords.items()]
+    items = list(ds.variables.items()) if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable),
+                                                                          *ds.coords.variables.items()]
+    indexes = ds.xindexes
     for name, var in sorted(items, key=lambda kv: str(kv[0])):
-        h.update(str(name).encode())
-        h.update(str(var.dims).encode())
-        h.update(json.dumps({k: str(var.attrs.get(k)) for k in ("units",)}).encode())
-        h.update(_array_digest(var.values))
-    attrs = {k: str(ds.attrs.get(k)) for k in MEASUREMENT_ATTRS if k in ds.attrs}
-    h.update(json.dumps(attrs, sort_keys=True).encode())
+        h.update(f"{name}\0{var.dims}\0{var.attrs.get('units')}\0".encode())
+        index = indexes.get(name)  # a pandas index: its values without xarray's conversion (4 µs)
+        h.update(_array_digest(np.asarray(index.index) if isinstance(index, xr.indexes.PandasIndex) else var.values))
+    h.update(repr([(k, str(ds.attrs[k])) for k in MEASUREMENT_ATTRS if k in ds.attrs]).encode())
     return h.hexdigest()
+
+
+#: parameter values keyed by their ``repr`` (exact for these types: 1, 1.0 and True differ)
+_PLAIN = (str, int, float, bool, type(None))
 
 
 def _key(func, data_sum: str, params: dict) -> str:
     """Key of ``func(ds, **params)``: function (with its own code, :mod:`xtopo._tokens`) and parameters by content.
 
     A name or ``repr`` is not enough: every lambda is ``<lambda>``, closures of one factory share
-    a qualified name, and numpy abbreviates the repr of large arrays.
+    a qualified name, and numpy abbreviates the repr of large arrays. Parameters that are all plain
+    scalars and text are keyed by their ``repr`` (a tenth of a ``tokenize``), others by ``tokenize``.
     """
-    tokenize = require("dask.base", "the result cache").tokenize  # the [dask] extra, loaded on first use
-
-    blob = json.dumps({"f": callable_token(func), "data": data_sum, "params": tokenize(params), "version": __version__},
-                      sort_keys=True)
-    return hashlib.sha256(blob.encode()).hexdigest()
+    if all(type(v) in _PLAIN for v in params.values()):
+        token = repr(sorted(params.items()))
+    else:
+        token = require("dask.base", "the result cache").tokenize(params)  # the [dask] extra, loaded on first use
+    return hashlib.sha256("\0".join((callable_token(func), data_sum, token, __version__)).encode()).hexdigest()
 
 
 #: attributes of an entry that verify it (not part of the result)
@@ -240,15 +244,20 @@ def _restore(stored: xr.Dataset, key: str):
 
 
 def _private_copy(obj):
-    """``obj`` with its own arrays and attribute dicts (what ``copy(deep=True)`` gives, at a tenth of its cost:
-    the attribute values, text and numbers, are not deep-copied)."""
-    out = obj.copy(deep=False)  # new Variables with new attrs dicts, sharing data
-    variables = out.variables if isinstance(out, xr.Dataset) else {None: out.variable, **out.coords.variables}
-    indexed = out.xindexes
-    for name, var in variables.items():
-        if name not in indexed:  # index coordinates are immutable (pandas)
-            var.data = np.array(var.data, copy=True)
-    return out
+    """``obj`` with its own data arrays and attribute dicts; the (immutable) indexes are shared.
+
+    What ``copy(deep=True)`` gives of what a caller can change, at half of ``copy(deep=False)``'s cost
+    (which rebuilds the indexes): the object is built by xarray's private ``_replace``.
+    """
+    indexes = obj._indexes
+
+    def own(name, var):  # new attrs and encoding dicts (the constructor copies them), new data
+        return var.copy(deep=False) if name in indexes else xr.Variable(var.dims, np.array(var.data), var.attrs,
+                                                                         var.encoding, fastpath=True)
+
+    if isinstance(obj, xr.DataArray):
+        return obj._replace(own(None, obj.variable), {k: own(k, v) for k, v in obj._coords.items()})
+    return obj._replace({k: own(k, v) for k, v in obj._variables.items()}, attrs=dict(obj.attrs))
 
 
 class Cache:
