@@ -227,12 +227,11 @@ def pick_channel(path, channels, channel) -> int:
     if channel is None:
         return next((i for i, c in enumerate(channels) if getattr(c, "is_height", False)), 0)
     if isinstance(channel, str):
-        want = channel.strip().lower()
+        lowered = [n.lower() for n in names]
         if channel in names:
             return names.index(channel)
-        for i, n in enumerate(names):
-            if n.lower() == want:
-                return i
+        if channel.strip().lower() in lowered:
+            return lowered.index(channel.strip().lower())
         raise UnsupportedFormatError(path, f"no channel named {channel!r}; channels are {listing}")
     if not isinstance(channel, numbers.Integral) or isinstance(channel, bool):
         raise UnsupportedFormatError(path, f"channel must be an index or a name, got {channel!r}; "
