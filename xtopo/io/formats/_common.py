@@ -4,6 +4,7 @@ underscore keeps the registry from importing it as one).
 * :func:`reading` (a context manager) and :func:`guarded` (the decorator built on it)
   turn any failure while parsing a file into a :class:`~xtopo.errors.ReaderError`
   naming the file.
+* :func:`zip_member` reads a named member of a zip archive.
 * :func:`sniff_magic` makes the sniffer of a format recognised by its first bytes.
 * :func:`channel_format` registers a format from a ``parse`` (the channels) and a ``load`` (one channel).
 * :func:`pick_channel` resolves ``channel=`` (index or name) against a list of channel
@@ -29,11 +30,13 @@ import numpy as np
 from ..._units import _ureg
 from ...conventions import make_measurement, normalize_units
 from ...errors import MetadataWarning, ReaderError, UnitsError, UnsupportedFormatError, XtopoError, warn
+from .._zip import read_member
 from ..registry import ChannelInfo, Format, register
 
 __all__ = ["reading", "guarded", "pick_channel", "to_float", "to_int", "clean_text", "length_unit", "value_unit",
            "unit_factor", "channel_info", "measurement", "unique_name", "iso_time", "parse_time", "unix_time",
-           "sniff_magic", "channel_format", "ChannelInfo", "HEIGHT_NAME_RE", "lateral_unit_or_given", "metres_assumed"]
+           "sniff_magic", "channel_format", "zip_member", "ChannelInfo", "HEIGHT_NAME_RE", "lateral_unit_or_given",
+           "metres_assumed"]
 
 #: Channel names that denote topography (heights) rather than an auxiliary signal.
 HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|^z[ _(]", re.IGNORECASE)
@@ -86,6 +89,16 @@ def guarded(what: str):
         return wrapper
 
     return deco
+
+
+def zip_member(path, zf, name: str, what: str, missing: str, **options) -> bytes:
+    """The bytes of member ``name`` of the open archive ``zf`` (:func:`~xtopo.io._zip.read_member` with
+    ``options``); :class:`ReaderError` ``missing`` where the archive has no such member."""
+    try:
+        info = zf.getinfo(name)
+    except KeyError:
+        raise ReaderError(path, missing) from None
+    return read_member(path, zf, info, what, **options)
 
 
 def sniff_magic(*magics: bytes):
@@ -214,12 +227,11 @@ def pick_channel(path, channels, channel) -> int:
     if channel is None:
         return next((i for i, c in enumerate(channels) if getattr(c, "is_height", False)), 0)
     if isinstance(channel, str):
-        want = channel.strip().lower()
+        lowered = [n.lower() for n in names]
         if channel in names:
             return names.index(channel)
-        for i, n in enumerate(names):
-            if n.lower() == want:
-                return i
+        if channel.strip().lower() in lowered:
+            return lowered.index(channel.strip().lower())
         raise UnsupportedFormatError(path, f"no channel named {channel!r}; channels are {listing}")
     if not isinstance(channel, numbers.Integral) or isinstance(channel, bool):
         raise UnsupportedFormatError(path, f"channel must be an index or a name, got {channel!r}; "

@@ -121,11 +121,7 @@ def _parse(path, file_units=None):
     for i in range(nchan):
         cname = chan_names[i] if i < len(chan_names) and chan_names[i] else ""
         cname = cname or (name if nchan == 1 and name else f"channel {i}")
-        unit = data_units or lunit
-        for rx, u in _SIGNAL_UNITS:
-            if rx.search(cname):
-                unit = u
-                break
+        unit = next((u for rx, u in _SIGNAL_UNITS if rx.search(cname)), data_units or lunit)
         infos.append(channel_info(i, cname, (ny, nx), size, lunit, unit, height=True if nchan == 1 else None))
     return infos, dict(r=r, dtype=dtype, npnts=npnts, start=data_start, shape=shape, notes=notes, lunit=lunit,
                        assumed=assumed, wave=name)

@@ -29,8 +29,8 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from .._zip import open_zip, read_member
-from ._common import channel_format, channel_info, iso_time, measurement
+from .._zip import open_zip
+from ._common import channel_format, channel_info, iso_time, measurement, zip_member
 
 _OFFSETS = ("conditions", "color_peak", "color_light", "light", "light2", "light3", "height", "height2",
             "height3", "thumb_color_peak", "thumb_color", "thumb_light", "thumb_height", "assemble",
@@ -53,11 +53,8 @@ def _vk4_bytes(path) -> bytes:
     if data[:3] in (b"VK6", b"VK7"):
         zf = open_zip(path, "Keyence VK6/VK7")
         with zf:
-            try:
-                info = zf.getinfo("Vk4File")
-            except KeyError:
-                raise ReaderError(path, "the Keyence VK6/VK7 archive has no member 'Vk4File'") from None
-            data = read_member(path, zf, info, "Keyence VK6/VK7")
+            data = zip_member(path, zf, "Vk4File", "Keyence VK6/VK7",
+                              "the Keyence VK6/VK7 archive has no member 'Vk4File'")
     if not data.startswith(b"VK4_"):
         raise ReaderError(path, "not a Keyence VK4 file (magic 'VK4_' missing)")
     return data

@@ -27,8 +27,8 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count
 from .._xml import child_text, parse_xml
-from .._zip import MAX_MEMBER, open_zip, read_member
-from ._common import channel_format, channel_info, measurement, parse_time, to_float
+from .._zip import MAX_MEMBER, open_zip
+from ._common import channel_format, channel_info, measurement, parse_time, to_float, zip_member
 
 _WHAT = "Keyence ZON"
 _HEIGHT = "4cdb0c75-5706-48cc-a9a1-adf395d609ae"
@@ -46,13 +46,10 @@ def _sniff(head: bytes, path: str) -> bool:
 
 
 def _member(path, zf, name, optional=False, limit=MAX_MEMBER):
-    try:
-        info = zf.getinfo(name)
-    except KeyError:
-        if optional:
-            return None
-        raise ReaderError(path, f"the ZON archive lacks the member {name} (not a Keyence ZON measurement)") from None
-    data = read_member(path, zf, info, _WHAT, limit=limit)
+    if optional and name not in zf.namelist():
+        return None
+    data = zip_member(path, zf, name, _WHAT, f"the ZON archive lacks the member {name} (not a Keyence ZON measurement)",
+                      limit=limit)
     if data.startswith(_ZSTD):
         try:
             import zstandard

@@ -51,7 +51,12 @@ def _frames(path):
             if frame is not None:
                 out.append(frame)
         pos += size
-    return _infos(out), r, out
+    seen, infos = set(), []
+    for i, (name, shape, size, xu, zu, *_rest) in enumerate(out):
+        label = name if name.lower() not in seen else f"{name} #{i}"
+        seen.add(label.lower())
+        infos.append(channel_info(i, label, shape, size, xu, zu, hint=name))
+    return infos, r, out
 
 
 def _scanned(r, pos, size):
@@ -78,15 +83,6 @@ def _scanned(r, pos, size):
     zoff = scales[6] if math.isfinite(scales[6]) else 0.0
     name = _SIGNALS[adc] if adc < len(_SIGNALS) else f"ADC {adc}"
     return name, (ny, nx), (ny * dy, nx * dx), xu, zu, zstep, zoff, start, date
-
-
-def _infos(frames):
-    seen, out = set(), []
-    for i, (name, shape, size, xu, zu, *_rest) in enumerate(frames):
-        label = name if name.lower() not in seen else f"{name} #{i}"
-        seen.add(label.lower())
-        out.append(channel_info(i, label, shape, size, xu, zu, hint=name))
-    return out
 
 
 def _load(path, info, r, frames):

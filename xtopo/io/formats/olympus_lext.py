@@ -73,9 +73,7 @@ def _calibration(path, tif):
 
 def _parse(path):
     tif = TiffFile(read_bytes(path), path)
-    n_pages = len(tif.ifds)
-    desc = tif.value(0, _DESCRIPTION, "")
-    root = _xml_block(path, desc, _MAGIC.decode(), "LEXT TiffTagDescData")
+    root = _xml_block(path, tif.value(0, _DESCRIPTION, ""), _MAGIC.decode(), "LEXT TiffTagDescData")
     if root is None:
         raise ReaderError(path, "TIFF without the Olympus LEXT <TiffTagDescData> block")
     per = [to_float(path, child_text(root, "HeightInfo", f"HeightDataPerPixel{a}"), f"HeightDataPerPixel{a}")
@@ -85,7 +83,7 @@ def _parse(path):
     if not (dx > 0 and dy > 0 and dz > 0):
         raise ReaderError(path, f"invalid LEXT scaling: {dx} x {dy} pm per pixel, {dz} pm per digit")
     pages, invalid = [], None
-    for i in range(1, n_pages):
+    for i in range(1, len(tif.ifds)):
         title = str(tif.value(i, _DESCRIPTION, "")).strip().upper()
         if title in _SIGNALS and tif.value(i, 277, 1) == 1:
             pages.append((_SIGNALS[title], i))

@@ -20,7 +20,7 @@ from ...errors import ReaderError, UnsupportedFormatError
 from .._binary import BinaryReader, read_bytes
 from .._text import header_value, parse_table
 from ..registry import Format, register
-from ._common import sniff_magic
+from ._common import clean_text, sniff_magic
 
 __all__ = ["read_sdf"]
 
@@ -28,6 +28,9 @@ _MAGICS_ASCII = (b"aISO-1.0", b"aBCR-1.0")
 _MAGICS_BINARY = (b"bISO-1.0", b"bBCR-1.0")
 _DTYPES = {0: "u1", 1: "<u2", 2: "<u4", 3: "<f4", 4: "i1", 5: "<i2", 6: "<i4", 7: "<f8"}
 _INVALID = {1: 2**16 - 1, 2: 2**32 - 1, 5: -(2**15), 6: -(2**31)}
+#: the binary header fields after the version (then Compression, DataType, CheckType)
+_BINARY_HEADER = ("ManufacID", "CreateDate", "ModDate", "NumPoints", "NumProfiles", "Xscale", "Yscale", "Zscale",
+                  "Zresolution")
 
 
 def _measurement(path, values, header, npts, nprof, dtype_code):
@@ -71,11 +74,9 @@ def _read_ascii(path, data: bytes):
 
 def _read_binary(path, data: bytes):
     r = BinaryReader(data, path, "<")
-    r.seek(8)
-    header = {"ManufacID": r.cstring(10), "CreateDate": r.cstring(12), "ModDate": r.cstring(12)}
-    header["NumPoints"], header["NumProfiles"] = r.unpack("HH", "NumPoints/NumProfiles")
-    header["Xscale"], header["Yscale"], header["Zscale"], header["Zresolution"] = r.unpack("dddd", "scales")
-    compression, code, _check = r.unpack("BBB", "Compression/DataType/CheckType")
+    *fields, compression, code, _check = r.unpack("10s12s12s2H4d3B", "SDF header", at=8)
+    header = dict(zip(_BINARY_HEADER, fields))
+    header.update({k: clean_text(header[k]) for k in _BINARY_HEADER[:3]})
     if compression != 0:
         raise UnsupportedFormatError(path, f"compressed SDF (Compression={compression}) is not supported")
     if code not in _DTYPES:

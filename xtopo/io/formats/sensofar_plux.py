@@ -15,8 +15,8 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._xml import child_text, local_name, parse_xml
-from .._zip import open_zip, read_member
-from ._common import channel_format, channel_info, measurement, parse_time, to_float, to_int
+from .._zip import open_zip
+from ._common import channel_format, channel_info, measurement, parse_time, to_float, to_int, zip_member
 
 _WHAT = "Sensofar PLUX"
 _MAX_XML = 16 << 20
@@ -28,11 +28,8 @@ def _sniff(head: bytes, path: str) -> bool:
 
 def _parse(path):
     with open_zip(path, _WHAT) as zf:
-        try:
-            info = zf.getinfo("index.xml")
-        except KeyError:
-            raise ReaderError(path, "the zip archive has no index.xml, so it is not a Sensofar PLUX file") from None
-        root = parse_xml(read_member(path, zf, info, _WHAT, limit=_MAX_XML), path, "PLUX index.xml")
+        root = parse_xml(zip_member(path, zf, "index.xml", _WHAT, "the zip archive has no index.xml, so it is not a "
+                                    "Sensofar PLUX file", limit=_MAX_XML), path, "PLUX index.xml")
     nx = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_X"), "GENERAL/IMAGE_SIZE_X", minimum=1)
     ny = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_Y"), "GENERAL/IMAGE_SIZE_Y", minimum=1)
     if nx * ny > MAX_PIXELS:
@@ -60,11 +57,8 @@ def _parse(path):
 def _load(path, info, members, items, date):
     ny, nx = info.shape
     with open_zip(path, _WHAT) as zf:
-        try:
-            member = zf.getinfo(members[info.index])
-        except KeyError:
-            raise ReaderError(path, f"the PLUX archive lacks the layer member {members[info.index]!r}") from None
-        raw = read_member(path, zf, member, _WHAT, expected=4 * nx * ny)
+        raw = zip_member(path, zf, members[info.index], _WHAT,
+                         f"the PLUX archive lacks the layer member {members[info.index]!r}", expected=4 * nx * ny)
     z = np.frombuffer(raw, dtype="<f4").astype(np.float64).reshape(ny, nx)
     return measurement(path, z, info, mask=~np.isfinite(z), vendor="Sensofar", instrument=items.get("Device"),
                        objective=items.get("Objective"), technique=items.get("Technique"), comment=items.get("Comment"),

@@ -142,16 +142,11 @@ def _gwyddion_header(lines) -> dict:
     ``# <Value units>: unit`` in this order, the keys translated: a translated key is recognised by
     its catalogue spelling, an unknown translation by the place and form of its line.
     """
-    pairs = []
-    for line in lines[:4]:
-        m = _COMMENT_PAIR.match(line)
-        if not m:
-            return {}
-        pairs.append((m.group(1), m.group(2)))
-    if len(pairs) < 4 or not all(_is_quantity(v) for _, v in pairs[1:3]):
+    pairs = [_COMMENT_PAIR.match(line) for line in lines[:4]]
+    if len(pairs) < 4 or not all(pairs) or not all(_is_quantity(m.group(2)) for m in pairs[1:3]):
         return {}
-    return {_GWYDDION_LOOKUP.get(key.lower(), canonical): value
-            for (key, value), canonical in zip(pairs, _GWYDDION_KEYS)}
+    return {_GWYDDION_LOOKUP.get(m.group(1).lower(), canonical): m.group(2)
+            for m, canonical in zip(pairs, _GWYDDION_KEYS)}
 
 
 def _is_quantity(text: str) -> bool:
@@ -193,7 +188,7 @@ def read_text_measurement(path, *, channel=None, physical_size=None, file_units=
         raise ReaderError(path, "contains no table of numbers")
     sep = _separator(data[0])
     table = parse_table(path, data, sep=sep)
-    found_units = found_hu = None
+    found_units, found_hu = None, header.get("Value units", "").strip() or None
     sizes = {}
     for key, dim in (("Width", "x"), ("Height", "y")):
         if key in header:
@@ -203,8 +198,6 @@ def read_text_measurement(path, *, channel=None, physical_size=None, file_units=
                 found_units = found_units or unit
                 if unit != found_units:  # convert to the first unit found
                     sizes[dim] = val * length_factor(unit, found_units)
-    if "Value units" in header:
-        found_hu = header["Value units"].strip() or None
     attrs = {"channel": header.get("Channel")} if header.get("Channel") else {}
     nrows, ncols = table.shape
     units = _column_units(path, plain, ncols) if ncols in (2, 3) and not sizes else None

@@ -65,7 +65,6 @@ def _parse(path):
         key, sep, val = s.partition(": ")
         if sep:
             fields.setdefault(f"{section}/{key.strip()}", val.strip())
-            fields.setdefault(key.strip(), val.strip())
     nx = to_int(path, fields.get("General Info/Number of columns"), "Number of columns", minimum=1)
     ny = to_int(path, fields.get("General Info/Number of rows"), "Number of rows", minimum=1)
     lx, ux = _quantity(path, fields.get("Control/X Amplitude"), "X Amplitude")

@@ -31,7 +31,7 @@ from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._xml import child, child_text, local_name, parse_xml
 from .._zip import open_zip, read_member, unsafe_name
-from ._common import ChannelInfo, channel_format
+from ._common import ChannelInfo, channel_format, zip_member
 
 _DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
 _MAX_MAIN_XML = 16 << 20
@@ -57,11 +57,8 @@ def _linked(path, zf, base, rec3, key, expected):
     if unsafe_name(link):
         raise ReaderError(path, f"X3P {key} {link!r} leaves the archive (path traversal)")
     name = posixpath.join(base, link.replace("\\", "/"))
-    try:
-        info = zf.getinfo(name)
-    except KeyError:
-        raise ReaderError(path, f"the X3P archive lacks the member {name!r} named in main.xml") from None
-    return read_member(path, zf, info, "X3P", expected=expected, expected_from="main.xml")
+    return zip_member(path, zf, name, "X3P", f"the X3P archive lacks the member {name!r} named in main.xml",
+                      expected=expected, expected_from="main.xml")
 
 
 def _float(text, default):
