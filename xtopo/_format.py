@@ -102,7 +102,4 @@ def format_columns(columns) -> str:
             header.append(title)
             cells.append([str(v) for v in values])
     widths = [max([len(h)] + [len(c) for c in col]) for h, col in zip(header, cells)]
-    lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths))]
-    for row in zip(*cells):
-        lines.append("  ".join(c.rjust(w) for c, w in zip(row, widths)))
-    return "\n".join(lines)
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in [header, *zip(*cells)])

@@ -152,11 +152,8 @@ def run_chunk(chunk: Chunk) -> xr.Dataset:
         _tune_malloc()
         if chunk.fft_threads:
             os.environ["XTOPO_FFT_THREADS"] = str(int(chunk.fft_threads))
-    results, errors = [], []
-    for source, options in zip(chunk.sources, chunk.read_options):
-        res, err = _run_item(chunk.func, source, chunk.params, chunk.dim, options, chunk.preprocess)
-        results.append(res)
-        errors.append(err)
+    results, errors = zip(*(_run_item(chunk.func, source, chunk.params, chunk.dim, options, chunk.preprocess)
+                            for source, options in zip(chunk.sources, chunk.read_options)))
     ds = chunk_dataset(chunk.names, chunk.sources, results, errors, chunk.params, chunk.dim)
     if chunk.store is not None:
         Store(chunk.store).write(ds, chunk.key, sum(bool(e) for row in errors for e in row))

@@ -186,10 +186,8 @@ def pick_array(path, entries, channel=None):
         raise UnsupportedFormatError(path, "contains no 1D or 2D array of heights")
     names = [n for n, _ in cands]
     if channel is None:
-        for pref in PREFERRED_NAMES:
-            if pref in names:
-                return names.index(pref), pref
-        return 0, names[0]
+        name = next((pref for pref in PREFERRED_NAMES if pref in names), names[0])
+        return names.index(name), name
     if isinstance(channel, (int, np.integer)) and not isinstance(channel, bool):
         if 0 <= channel < len(names):
             return int(channel), names[channel]

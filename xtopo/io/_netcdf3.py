@@ -10,6 +10,7 @@ the file, so what a reader then allocates is bounded by the file's size.
 
 from __future__ import annotations
 
+import math
 import os
 
 from ..errors import ReaderError
@@ -103,9 +104,7 @@ def check_netcdf3_header(path) -> None:
         begin = h.uint(4 if version == 1 else 8)
         shape = [dims[i] for i in ids]
         is_record = bool(shape) and shape[0] == 0
-        n = size
-        for length in shape[1:] if is_record else shape:
-            n *= length
+        n = size * math.prod(shape[1:] if is_record else shape)
         if begin > file_size:
             h.fail(f"a variable's data begin at byte {begin}")
         if is_record:

@@ -193,11 +193,8 @@ def to_netcdf(ds, path: Annotated[str, _FILE], engine: str | None = None, *,
         raise XtopoError(f"to_netcdf expects an xarray Dataset, got {type(ds).__name__}")
     engine = check_engine(engine)
     out = prepare_for_netcdf(ds)
-    encoding = {}
-    if compress:
-        key = "zlib" if engine == "netcdf4" else "compression"
-        val = True if engine == "netcdf4" else "gzip"
-        encoding = {v: {key: val} for v in out.data_vars if out[v].dtype.kind == "f"}
+    codec = {"zlib": True} if engine == "netcdf4" else {"compression": "gzip"}
+    encoding = {v: dict(codec) for v in out.data_vars if compress and out[v].dtype.kind == "f"}
     return atomic_write(path, lambda tmp: _write(out, tmp, path, engine=engine, encoding=encoding))
 
 

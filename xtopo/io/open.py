@@ -23,11 +23,8 @@ _SIZE, _UNIT = Lengths(empty=False), LengthUnit(optional=True)
 
 def sha256(path) -> str:
     """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
     with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 @checked

@@ -8,6 +8,7 @@ the suffix is only a hint that orders candidates.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib
 import os
 import pkgutil
@@ -80,7 +81,6 @@ READ_OPTIONS = ("physical_size", "file_units", "height_units")
 
 
 _REGISTRY: dict[str, Format] = {}
-_LOADED = False
 
 
 def register(fmt: Format) -> Format:
@@ -89,15 +89,12 @@ def register(fmt: Format) -> Format:
     return fmt
 
 
+@functools.cache  # once: the format modules register themselves when imported
 def _load_all() -> None:
-    global _LOADED
-    if _LOADED:
-        return
     pkg = importlib.import_module(f"{__package__}.formats")
     for mod in pkgutil.iter_modules(pkg.__path__):
         if not mod.name.startswith("_"):
             importlib.import_module(f"{pkg.__name__}.{mod.name}")
-    _LOADED = True
 
 
 def formats() -> dict[str, Format]:
