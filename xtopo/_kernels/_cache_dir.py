@@ -10,7 +10,4 @@ __all__ = ["default_directory"]
 
 def default_directory() -> str:
     """``$XTOPO_CACHE_DIR`` or the platform's user cache directory for xtopo."""
-    env = os.environ.get("XTOPO_CACHE_DIR")
-    if env:
-        return env
-    return user_cache_dir("xtopo")
+    return os.environ.get("XTOPO_CACHE_DIR") or user_cache_dir("xtopo")
