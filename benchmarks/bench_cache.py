@@ -12,7 +12,9 @@ every look-up) and a frozen one (:func:`xtopo.cache.freeze`: hashed once), with 
 (min/median/max, ms) and the ratio compute / hit of the medians. A cold hit (the entry read from
 disk and verified: key and content checksum) is listed too. The first line times hashing the
 height array alone (XXH3, what a writeable look-up cannot skip) and the ``ceiling`` column is
-compute / that time: the ratio a writeable hit would reach with nothing but the hash.
+compute / that time: the ratio a writeable hit would reach with nothing but the hash. ``cpu`` is
+the ratio of the median CPU times (process time, all threads): closer to the wall ratio of an idle
+machine, since load from other processes stretches the wall time of computing more than of a hit.
 """
 
 from __future__ import annotations
@@ -31,12 +33,15 @@ from xtopo import cache as cache_module
 from xtopo.cache import Cache, freeze
 
 
-def _times(fn, n):
+def _times(fn, n, cpu=None):
+    """Wall times (s) of ``n`` calls of ``fn``; their CPU times (all threads) appended to ``cpu``."""
     out = []
     for _ in range(n):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         fn()
         out.append(time.perf_counter() - t0)
+        if cpu is not None:
+            cpu.append(time.process_time() - c0)
     return out
 
 
@@ -59,16 +64,18 @@ def main(argv=None):
     hashes = _times(lambda: cache_module._hash_array(ds.height.values), args.repeats)
     print(f"XXH3 of the {ds.height.nbytes / 2**20:.0f} MiB height array alone: {_fmt(hashes)} "
           f"({ds.height.nbytes / statistics.median(hashes) / 1e9:.0f} GB/s)")
-    print(f"{'analysis':10s} {'data':9s} {'compute':>26s} {'hit':>26s} {'ratio':>7s} {'ceiling':>7s} {'cold hit':>26s}")
+    print(f"{'analysis':10s} {'data':9s} {'compute':>26s} {'hit':>26s} {'ratio':>7s} {'cpu':>5s} {'ceiling':>7s} {'cold hit':>26s}")
     with tempfile.TemporaryDirectory() as tmp:
         for name, (func, params) in cases.items():
             func(ds, **params)  # warm-up: compiled kernels, FFT plans
-            compute = _times(lambda: func(ds, **params), max(3, args.repeats // 5))
+            compute_cpu = []
+            compute = _times(lambda: func(ds, **params), max(3, args.repeats // 5), compute_cpu)
             for label, data in (("writeable", ds), ("frozen", frozen)):
                 cache = Cache(tmp)
                 cache(func, data, **params)
                 cache(func, data, **params)
-                hits = _times(lambda: cache(func, data, **params), args.repeats)
+                hits_cpu = []
+                hits = _times(lambda: cache(func, data, **params), args.repeats, hits_cpu)
                 cold = Cache(tmp, memory_bytes=0)
 
                 def cold_hit():
@@ -77,8 +84,9 @@ def main(argv=None):
 
                 colds = _times(cold_hit, max(3, args.repeats // 5))
                 ratio = statistics.median(compute) / statistics.median(hits)
+                cpu = statistics.median(compute_cpu) / statistics.median(hits_cpu)
                 ceiling = f"{statistics.median(compute) / statistics.median(hashes):7.0f}" if label == "writeable" else ""
-                print(f"{name:10s} {label:9s} {_fmt(compute)} {_fmt(hits)} {ratio:7.0f} {ceiling:>7s} {_fmt(colds)}")
+                print(f"{name:10s} {label:9s} {_fmt(compute)} {_fmt(hits)} {ratio:7.0f} {cpu:5.0f} {ceiling:>7s} {_fmt(colds)}")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
