@@ -75,7 +75,11 @@ def test_gather_gaps_matches_numpy(shape, row, fresh):
     c = rng.standard_normal(n)
     idx = rng.permutation(n)[: n // 4]
     out = np.empty(idx.size)
-    total = compiled.gather_gaps(c, inc, idx, nx, pad, fresh, out)
+    total = compiled.gather_gaps(c, inc, compiled.slots(idx, nx, pad), fresh, out, True, nx, pad)   # c on the grid
+    compact = np.empty(idx.size)
+    assert compiled.gather_gaps(c[idx], inc, compiled.slots(idx, nx, pad), fresh, compact, False, nx, pad) == \
+        pytest.approx(total, rel=1e-12)
+    np.testing.assert_array_equal(compact, out)
     expect = c[idx] if fresh else c[idx] + inc_active[idx]
     np.testing.assert_allclose(out, expect, rtol=1e-12)
     assert total == pytest.approx(expect.sum(), rel=1e-9)
@@ -130,7 +134,7 @@ def test_writes_land_in_the_active_part(shape, row):
     np.testing.assert_allclose(p, 2 * p0)                       # scaled in place
     rest = np.setdiff1d(np.arange(n), idx)
     others, scattered, filled = rest[:50], rest[50:60], rest[60:70]
-    compiled.write_values(others, 0.5, p_ref, nx, pad, buf)
+    compiled.scatter(others, 0.5 - p_ref[others], nx, pad, buf)
     compiled.scatter(scattered, p_ref[scattered], nx, pad, buf)
     compiled.scatter(filled, np.full(1, -3.0, np.float32), nx, pad, buf)   # one value at every point
     active = buf.reshape(rows, nx + pad)[:, :nx].reshape(-1)

@@ -23,7 +23,7 @@ from numba import njit
 
 __all__ = ["slots", "slots_into", "flat_indices", "scatter", "gather_gaps", "center", "contact_gaps",
            "scan_overlaps", "set_direction", "energy", "scale_spectrum", "reference_gaps", "rebase", "split_sets",
-           "step_project", "join", "write_values"]
+           "step_project", "join"]
 
 _JIT = dict(nogil=True, cache=True)
 # reductions may be reordered (vectorised); inf and nan keep their meaning (the overlap test uses +inf)
@@ -66,24 +66,6 @@ def scatter(where, values, nx, pad, buf):
 
 
 @njit(**_FAST)
-def gather_gaps(c, inc, idx, nx, pad, fresh, out):
-    """``out = c[idx] (+ inc[slot(idx)])`` — the iterate's ``u - w - δ_ref`` on ``idx``; returns its sum.
-
-    ``c`` is ``u_ref - w - δ_ref`` (working precision), ``inc`` the float32 increment buffer
-    (ignored when ``fresh``).
-    """
-    s = 0.0
-    for j in range(idx.size):
-        i = idx[j]
-        d = c[_at(i)]
-        if not fresh:
-            d += inc[_slot(i, nx, pad)]
-        out[j] = d
-        s += d
-    return s
-
-
-@njit(**_FAST)
 def center(d, shift):
     """``d -= shift`` in place; returns ``(max |d|, Σ d²)`` (the residual and the CG norm)."""
     big = 0.0
@@ -101,8 +83,12 @@ def center(d, shift):
 
 
 @njit(**_FAST)
-def _gather_compact(c, inc, slots, fresh, out, grid, nx, pad):
-    """``out = c (+ inc[slots])`` with ``c`` given per point (``grid``: on the grid); returns the sum."""
+def gather_gaps(c, inc, slots, fresh, out, grid, nx, pad):
+    """``out = c (+ inc[slots])`` — the iterate's ``u - w - δ_ref`` at buffer positions ``slots``; returns its sum.
+
+    ``c`` is ``u_ref - w - δ_ref`` (working precision) per point, or with ``grid`` the grid's (read at the
+    flat indices), ``inc`` the float32 increment buffer (ignored when ``fresh``).
+    """
     s = 0.0
     for j in range(slots.size):
         d = c[_flat(slots[j], nx, pad)] if grid else c[j]
@@ -125,7 +111,7 @@ def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref, grid
     ``(δ, shift, max |g|, Σ g²)``. The scalar arithmetic is exact IEEE (only the loops may be
     reordered).
     """
-    total = _gather_compact(c, inc, slots, fresh, out, grid, nx, pad)
+    total = gather_gaps(c, inc, slots, fresh, out, grid, nx, pad)
     n = slots.size
     if load_control and n:
         delta = delta_ref + total / n
@@ -491,11 +477,3 @@ def join(slots, p, t, c, r, n, where, values, scale, c_full, p_ref, c_low, buf, 
             r[n + j] = p_ref[_at(i)]
         c_low[_at(i)] = np.inf
     return n + where.size
-
-
-@njit(nogil=True, cache=True)
-def write_values(where, value, p_ref, nx, pad, buf):
-    """``buf[slot(where)] = value - p_ref[where]`` for one pressure ``value`` (0 or the hardness)."""
-    for j in range(where.size):
-        i = where[j]
-        buf[_slot(i, nx, pad)] = value - p_ref[_at(i)]

@@ -291,7 +291,7 @@ class _Displacements:
         """
         for where, value in changed:
             if where.size:
-                compiled.write_values(where, float(value), self.p_ref, self.nx, self.pad, self.low.input_flat)
+                compiled.scatter(where, value - self.p_ref[where], self.nx, self.pad, self.low.input_flat)
         self.counts["conv"] += 1
         self.counts["fft"] += 2
         self.low.inverse(self.low.forward())
@@ -308,7 +308,8 @@ class _Displacements:
     def at(self, where):
         """``u - w - δ_ref`` at flat indices (working precision) and their sum."""
         d = np.empty(where.size, self.c.dtype)
-        total = compiled.gather_gaps(self.c, self._increment(), where, self.nx, self.pad, self.fresh, d)
+        total = compiled.gather_gaps(self.c, self._increment(), compiled.slots(where, self.nx, self.pad), self.fresh, d,
+                                     True, self.nx, self.pad)
         return d, total
 
     def overlaps(self, shift):
