@@ -815,11 +815,14 @@ def test_distributed_batch_preprocesses_in_the_workers(tilted_with_hole, cluster
         xr.testing.assert_allclose(res.drop_vars(_BOOKKEEPING).sel(measurement=name, drop=True), want, rtol=1e-12)
 
 
-def test_small_chunks_are_packed_into_few_tasks(tmp_path, cluster):
+def test_small_chunks_are_packed_into_few_tasks(tmp_path, cluster, monkeypatch):
     """Chunks far shorter than a task's overhead run several to a task (timed on one chunk per worker first);
     the store still holds one file per chunk and the results equal the serial run's."""
     from distributed import get_task_stream
 
+    # a task target far above any chunk's time, however loaded the machine: the packing is then set by the
+    # four-tasks-a-worker bound alone, not by how long the timed chunks happened to take
+    monkeypatch.setenv("XTOPO_BATCH_TASK_SECONDS", "60")
     _, client = cluster
     ms = _surfaces(8, size=32)
     work = functools.partial(fft_work, iterations=2)
