@@ -235,8 +235,9 @@ def run_memory(n, periodic, tol, repeat, dtype="float64"):
 def run_cold(n, periodic, tol, repeat, dtype="float64"):
     """The first solve of a fresh process (scene set up, plans, compiled kernels loaded) beside warm ones.
 
-    Imports and the surface are not counted; FFTW wisdom on disk is what a machine that has run xtopo
-    before has. ``XTOPO_FFT_THREADS`` in the environment sets the FFT threads.
+    Imports and the surface are not counted, but numba (imported by the first solve) is; FFTW wisdom and
+    numba's compiled kernels on disk are what a machine that has run xtopo before has (a grid new to the
+    wisdom is planned by estimate). ``XTOPO_FFT_THREADS`` in the environment sets the FFT threads.
     """
     from xtopo.contact import Scene
 

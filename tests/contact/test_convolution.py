@@ -1,5 +1,7 @@
 """The convolution's halves (forward / Parseval energy / inverse) and the solver built on them."""
 
+import os
+
 import numpy as np
 import xarray as xr
 import pytest
@@ -68,6 +70,34 @@ def test_measured_plans_are_remembered(tmp_path, monkeypatch):
 
     with np.load(path) as stored:
         assert stored["arr_0"].tobytes() == pyfftw.export_wisdom()[0]
+
+
+def test_wisdom_of_processes_saving_meanwhile_is_kept(tmp_path, monkeypatch):
+    """A process that stores its wisdom keeps what another process stored since it read the file (parallel
+    solves, other sessions): before, the last writer's wisdom replaced the file and the others' plans were
+    measured again."""
+    import subprocess
+    import sys
+
+    import pyfftw
+
+    monkeypatch.setenv("XTOPO_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("XTOPO_FFTW_PLANNER", "measure")
+    monkeypatch.setitem(conv_mod._WISDOM, "loaded", False)
+    pyfftw.forget_wisdom()
+    Convolution((6, 10), (1.0, 1.0), periodic=True, backend="pyfftw").input   # reads the file, stores its plans
+    other = ("from xtopo._kernels.convolution import Convolution; "
+             "Convolution((14, 18), (1.0, 1.0), periodic=True, backend='pyfftw').input")
+    subprocess.run([sys.executable, "-c", other], check=True, env=dict(os.environ))
+    Convolution((6, 12), (1.0, 1.0), periodic=True, backend="pyfftw").input   # stores again
+    pyfftw.forget_wisdom()
+    monkeypatch.setenv("XTOPO_FFTW_PLANNER", "")
+    monkeypatch.setitem(conv_mod._WISDOM, "loaded", False)
+    monkeypatch.setattr(conv_mod, "_MEASURE_FROM", 1)
+    for shape in ((6, 10), (14, 18), (6, 12)):
+        c = Convolution(shape, (1.0, 1.0), periodic=True, backend="pyfftw")
+        c.input
+        assert not c._estimated, shape   # measured plans known from the file
 
 
 def test_plans_estimated_until_the_operator_proves_its_use(tmp_path, monkeypatch):

@@ -91,7 +91,10 @@ def _load_wisdom(pyfftw) -> None:
 
 
 def _save_wisdom(pyfftw) -> None:
+    """Store this process's wisdom with what other processes stored meanwhile (FFTW adds imported wisdom)."""
     path = _wisdom_path()
+    _WISDOM["loaded"] = False
+    _load_wisdom(pyfftw)
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
         tmp = f"{path}.{os.getpid()}.tmp"

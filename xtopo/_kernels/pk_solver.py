@@ -44,11 +44,12 @@ count, and clears the direction's buffer as it goes). These passes are compiled
 (:mod:`xtopo._kernels.compiled`, numba): one pass each where numpy needed a chain of gathers,
 temporaries and reductions; the set keeps each point's buffer position and reference gap and
 pressure, so they read compact arrays and write the buffers without an integer division per
-point. The increment's input buffer is written only where the pressures changed; the
-direction is written on the set into the shared spectrum buffer (cleared by the scan), which
-its forward transform consumes in place. Per iteration (``benchmarks/bench_iteration.py``,
-CPU time, loaded machine) periodic 1024²–2048² cost 1.07–1.29 float64 pairs and 512² 1.55–1.67,
-float32 and float64 scenes (1.40–1.49 and 1.74–1.98 before the set was kept compact).
+point. The increment's input buffer is written only where the pressures changed (by the step, which
+also scales the pressures to the load, and the joins); the direction is written on the set into the
+shared spectrum buffer (cleared by the scan), which its forward transform consumes in place. Per
+iteration (``benchmarks/bench_iteration.py``, CPU time, load 11–13) periodic float64 scenes cost
+1.30 pairs at 512², 1.14 at 1024² and 1.35 at 2048² (1.44, 1.24 and 1.47 before the step wrote the
+increment), float32 1.36 at 512².
 
 Three transforms, not two: a conjugate-gradient recurrence ``u ← u - τ G*t`` needs only the
 pair of ``t`` (its forward gives the energy, its inverse the response), but the projection
@@ -305,12 +306,10 @@ class _Displacements:
         return compiled.contact_gaps(cg.c if cg.grid else cg.c_, self._increment(), cg.s_, self.fresh, cg.g_,
                                      load_control, delta, self.delta_ref, cg.grid, self.nx, self.pad)
 
-    def at(self, where):
-        """``u - w - δ_ref`` at flat indices (working precision) and their sum."""
-        d = np.empty(where.size, self.c.dtype)
-        total = compiled.gather_gaps(self.c, self._increment(), compiled.slots(where, self.nx, self.pad), self.fresh, d,
-                                     True, self.nx, self.pad)
-        return d, total
+    def at(self, slots):
+        """``u - w - δ_ref`` at buffer positions ``slots`` (working precision) and their sum."""
+        d = np.empty(slots.size, self.c.dtype)
+        return d, compiled.gather_gaps(self.c, self._increment(), slots, self.fresh, d, True, self.nx, self.pad)
 
     def overlaps(self, shift):
         """Free points where ``u - w - δ_ref < shift`` (the gap is negative), their gaps and the lowest.
@@ -533,7 +532,7 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
         nI = cg.n
         # plastic points whose gap opened
         if pl.size:
-            g_pl = disp.at(pl)[0] - shift
+            g_pl = disp.at(compiled.slots(pl, disp.nx, disp.pad))[0] - shift
             opened = g_pl > 0
             if opened.any():
                 res = max(res, float(np.max(g_pl[opened])))
@@ -615,7 +614,7 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
     if not disp.fresh:  # the returned displacements are exact convolutions of the pressures
         disp.refresh(cg, pl, H, delta)
     if load_control and cg.n:
-        delta = disp.delta_ref + disp.at(cg.flat())[1] / cg.n
+        delta = disp.delta_ref + disp.at(cg.s_)[1] / cg.n
     p, u, g = disp.take_result(delta)   # the reference pressures are the iterate's (fresh)
     return result(p.reshape(shape), u.reshape(shape), g.reshape(shape), delta, it, residual, converged)
 
