@@ -40,6 +40,7 @@ measures hits against computing).
 from __future__ import annotations
 
 import collections
+import functools
 import hashlib
 import json
 import os
@@ -73,15 +74,20 @@ _lock = threading.Lock()
 _digests: dict[int, tuple] = {}  # id(array) -> (weakref to array, digest)
 
 
+@functools.lru_cache(maxsize=1024)
+def _head(dtype: np.dtype, shape: tuple) -> bytes:
+    """What identifies an array's layout (formatting it took half of hashing a small array)."""
+    return f"{dtype.str}{shape}".encode()
+
+
 def _hash_array(a: np.ndarray) -> bytes:
     """XXH3-128 digest of an array's dtype, shape and content (text arrays by their values)."""
-    h = xxhash.xxh3_128()
     if a.dtype.kind in "OUS":  # text: the same digest whichever way numpy holds it (a NetCDF read gives objects)
-        h.update(f"text{a.shape}".encode())
+        h = xxhash.xxh3_128(f"text{a.shape}".encode())
         h.update(repr([str(v) for v in a.ravel().tolist()]).encode())
-    else:
-        h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(memoryview(np.ascontiguousarray(a)).cast("B"))  # no copy for contiguous data
+    else:  # the bytes (no copy for contiguous data) of any dtype, datetimes included (no buffer of their own)
+        h = xxhash.xxh3_128(_head(a.dtype, a.shape))
+        h.update(np.ascontiguousarray(a).reshape(-1).view(np.uint8))
     return h.digest()
 
 
