@@ -257,7 +257,7 @@ def _private_copy(obj):
 
     if isinstance(obj, xr.DataArray):
         return obj._replace(own(None, obj.variable), {k: own(k, v) for k, v in obj._coords.items()})
-    return obj._replace({k: own(k, v) for k, v in obj._variables.items()}, attrs=dict(obj.attrs))
+    return obj._replace({k: own(k, v) for k, v in obj._variables.items()})  # attrs, encoding copied
 
 
 class Cache:
