@@ -40,6 +40,7 @@ measures hits against computing).
 from __future__ import annotations
 
 import collections
+import functools
 import hashlib
 import json
 import os
@@ -73,15 +74,20 @@ _lock = threading.Lock()
 _digests: dict[int, tuple] = {}  # id(array) -> (weakref to array, digest)
 
 
+@functools.lru_cache(maxsize=1024)
+def _head(dtype: np.dtype, shape: tuple) -> bytes:
+    """What identifies an array's layout (formatting it took half of hashing a small array)."""
+    return f"{dtype.str}{shape}".encode()
+
+
 def _hash_array(a: np.ndarray) -> bytes:
     """XXH3-128 digest of an array's dtype, shape and content (text arrays by their values)."""
-    h = xxhash.xxh3_128()
     if a.dtype.kind in "OUS":  # text: the same digest whichever way numpy holds it (a NetCDF read gives objects)
-        h.update(f"text{a.shape}".encode())
+        h = xxhash.xxh3_128(f"text{a.shape}".encode())
         h.update(repr([str(v) for v in a.ravel().tolist()]).encode())
-    else:
-        h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(memoryview(np.ascontiguousarray(a)).cast("B"))  # no copy for contiguous data
+    else:  # the bytes (no copy for contiguous data) of any dtype, datetimes included (no buffer of their own)
+        h = xxhash.xxh3_128(_head(a.dtype, a.shape))
+        h.update(np.ascontiguousarray(a).reshape(-1).view(np.uint8))
     return h.digest()
 
 
@@ -121,7 +127,7 @@ def checksum(ds: Annotated[xr.Dataset | xr.DataArray, Data()]) -> str:
     return h.hexdigest()
 
 
-#: parameter values keyed by their ``repr`` (exact for these types: 1, 1.0 and True differ)
+#: parameter types keyed by ``repr`` (exact: 1, 1.0 and True differ; a tenth of a ``tokenize``)
 _PLAIN = (str, int, float, bool, type(None))
 
 
@@ -129,13 +135,10 @@ def _key(func, data_sum: str, params: dict) -> str:
     """Key of ``func(ds, **params)``: function (with its own code, :mod:`xtopo._tokens`) and parameters by content.
 
     A name or ``repr`` is not enough: every lambda is ``<lambda>``, closures of one factory share
-    a qualified name, and numpy abbreviates the repr of large arrays. Parameters that are all plain
-    scalars and text are keyed by their ``repr`` (a tenth of a ``tokenize``), others by ``tokenize``.
+    a qualified name, and numpy abbreviates the repr of large arrays (``tokenize`` them, the [dask] extra).
     """
-    if all(type(v) in _PLAIN for v in params.values()):
-        token = repr(sorted(params.items()))
-    else:
-        token = require("dask.base", "the result cache").tokenize(params)  # the [dask] extra, loaded on first use
+    token = repr(sorted(params.items())) if all(type(v) in _PLAIN for v in params.values()) else require(
+        "dask.base", "the result cache").tokenize(params)
     return hashlib.sha256("\0".join((callable_token(func), data_sum, token, __version__)).encode()).hexdigest()
 
 
@@ -244,11 +247,8 @@ def _restore(stored: xr.Dataset, key: str):
 
 
 def _private_copy(obj):
-    """``obj`` with its own data arrays and attribute dicts; the (immutable) indexes are shared.
-
-    What ``copy(deep=True)`` gives of what a caller can change, at half of ``copy(deep=False)``'s cost
-    (which rebuilds the indexes): the object is built by xarray's private ``_replace``.
-    """
+    """``obj`` with its own data arrays and attribute dicts, sharing the (immutable) indexes: xarray's private
+    ``_replace`` at half the cost of ``copy(deep=False)``, which rebuilds them."""
     indexes = obj._indexes
 
     def own(name, var):  # new attrs and encoding dicts (the constructor copies them), new data
@@ -257,7 +257,7 @@ def _private_copy(obj):
 
     if isinstance(obj, xr.DataArray):
         return obj._replace(own(None, obj.variable), {k: own(k, v) for k, v in obj._coords.items()})
-    return obj._replace({k: own(k, v) for k, v in obj._variables.items()}, attrs=dict(obj.attrs))
+    return obj._replace({k: own(k, v) for k, v in obj._variables.items()})  # attrs, encoding copied
 
 
 class Cache:
