@@ -13,6 +13,7 @@ Dataset or the exception that ended its task.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import os
 import uuid
@@ -46,7 +47,7 @@ def fft_env(threads):
 def _active_client():
     try:
         from distributed import get_client
-    except ImportError:  # pragma: no cover - distributed is a dependency
+    except ImportError:  # distributed comes with the [dask] extra
         return None
     try:
         return get_client()
@@ -113,6 +114,9 @@ def _client_for(client, scheduler, workers):
 #: ``XTOPO_BATCH_TASK_SECONDS`` overrides it, 0 gives every chunk a task of its own
 TASK_SECONDS = 0.25
 
+#: times a task whose result was lost (its worker died after finishing it) is submitted again
+LOST_RESUBMITS = 3
+
 
 def _group_size(seconds: float, remaining: int, workers: int) -> int:
     """Chunks per task: enough for :data:`TASK_SECONDS` of work at ``seconds`` per chunk, but at least
@@ -128,14 +132,13 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
     often, or it raised) runs again in a task of its own."""
     from distributed import as_completed
 
-    token = uuid.uuid4().hex[:8]
     workers = max(1, sum(client.nthreads().values()))  # tasks that run at once
     pending = list(chunks)
-    out, spent = {}, []
+    out, spent, lost = {}, [], collections.Counter()
 
-    def submit(group, retry=retries):
-        return client.submit(run_chunks, group, key=f"xtopo-batch-{group[0].key[:16]}-{len(group)}-{token}",
-                             pure=False, retries=retry), group
+    def submit(group, retry=retries):  # a key of its own each time: a resubmitted group is a new task
+        key = f"xtopo-batch-{group[0].key[:16]}-{len(group)}-{uuid.uuid4().hex[:8]}"
+        return client.submit(run_chunks, group, key=key, pure=False, retries=retry), group
 
     # two probes a worker: a worker's first chunk may carry its imports; the group size is taken from the
     # quickest of the first workers + 1 chunks
@@ -161,13 +164,20 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
                     continue
                 out[key] = res
                 spent.append(seconds)
+        elif fut.status == "lost" and lost[group[0].key, len(group)] < LOST_RESUBMITS:
+            # the worker holding the finished result died: run it again (its chunks' files in the store,
+            # written before the task returned, are read back)
+            lost[group[0].key, len(group)] += 1
+            waiting.add(_resubmit(submit, groups, group))
         elif len(group) > 1:  # isolate the chunk that failed the group
             for c in group:
                 waiting.add(_resubmit(submit, groups, [c]))
+        elif fut.status == "error":
+            out[group[0].key] = fut.exception()
         else:
-            exc = fut.exception() if fut.status == "error" else None
-            out[group[0].key] = exc if isinstance(exc, BaseException) else XtopoError(
-                "task was cancelled (the scheduler lost it)" if fut.status == "cancelled" else str(exc))
+            out[group[0].key] = XtopoError("task was cancelled (the scheduler lost it)" if fut.status == "cancelled"
+                                           else f"the task's result was lost {LOST_RESUBMITS + 1} times (the "
+                                           "workers holding it died)")
         fut.release()
         if pending and (len(spent) > workers or not groups):  # timed (or the probes failed: one chunk a task)
             size = _group_size(min(spent), len(pending), workers) if spent else 1
