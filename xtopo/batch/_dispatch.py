@@ -134,18 +134,19 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
 
     workers = max(1, sum(client.nthreads().values()))  # tasks that run at once
     pending = list(chunks)
-    out, spent, lost = {}, [], collections.Counter()
+    out, spent, lost, groups = {}, [], collections.Counter(), {}  # groups: each running future's chunks
 
     def submit(group, retry=retries):  # a key of its own each time: a resubmitted group is a new task
         key = f"xtopo-batch-{group[0].key[:16]}-{len(group)}-{uuid.uuid4().hex[:8]}"
-        return client.submit(run_chunks, group, key=key, pure=False, retries=retry), group
+        fut = client.submit(run_chunks, group, key=key, pure=False, retries=retry)
+        groups[fut] = group
+        return fut
 
     # two probes a worker: a worker's first chunk may carry its imports; the group size is taken from the
     # quickest of the first workers + 1 chunks
-    probes = dict(submit([c]) for c in pending[:2 * workers])
+    probes = [submit([c]) for c in pending[:2 * workers]]
     pending = pending[2 * workers:]
-    waiting = as_completed(list(probes))
-    groups = dict(probes)
+    waiting = as_completed(probes)
 
     def show(futures):  # distributed's bar (blocks until they are done) over every task of the batch
         if progress and futures:
@@ -154,13 +155,13 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
             _progress(futures)
 
     if not pending:
-        show(list(probes))
+        show(probes)
     for fut in waiting:
         group = groups.pop(fut)
         if fut.status == "finished":
             for key, res, seconds in fut.result():
                 if isinstance(res, BaseException) and len(group) > 1:
-                    waiting.add(_resubmit(submit, groups, [c for c in group if c.key == key]))
+                    waiting.add(submit([c for c in group if c.key == key]))
                     continue
                 out[key] = res
                 spent.append(seconds)
@@ -168,10 +169,10 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
             # the worker holding the finished result died: run it again (its chunks' files in the store,
             # written before the task returned, are read back)
             lost[group[0].key, len(group)] += 1
-            waiting.add(_resubmit(submit, groups, group))
+            waiting.add(submit(group))
         elif len(group) > 1:  # isolate the chunk that failed the group
             for c in group:
-                waiting.add(_resubmit(submit, groups, [c]))
+                waiting.add(submit([c]))
         elif fut.status == "error":
             out[group[0].key] = fut.exception()
         else:
@@ -181,18 +182,11 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
         fut.release()
         if pending and (len(spent) > workers or not groups):  # timed (or the probes failed: one chunk a task)
             size = _group_size(min(spent), len(pending), workers) if spent else 1
-            new = dict(submit(pending[i:i + size]) for i in range(0, len(pending), size))
+            new = [submit(pending[i:i + size]) for i in range(0, len(pending), size)]
             pending = []
-            groups.update(new)
-            waiting.update(list(new))
-            show([f for f in probes if f in groups] + list(new))
+            waiting.update(new)
+            show([f for f in probes if f in groups] + new)
     return out
-
-
-def _resubmit(submit, groups, group):
-    fut, group = submit(group)
-    groups[fut] = group
-    return fut
 
 
 def _execute_local(chunks, scheduler, workers, progress) -> dict:
