@@ -191,16 +191,12 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
 
 def _execute_local(chunks, scheduler, workers, progress) -> dict:
     import dask
+    from dask.diagnostics import ProgressBar
 
     if not chunks:
         return {}
     tasks = [dask.delayed(run_chunk, pure=False)(chunk) for chunk in chunks]
-    bar = contextlib.nullcontext()
-    if progress:
-        from dask.diagnostics import ProgressBar
-
-        bar = ProgressBar()
-    with bar:
+    with ProgressBar() if progress else contextlib.nullcontext():
         results = dask.compute(*tasks, scheduler=scheduler or "threads", num_workers=workers)
     return {chunk.key: r for chunk, r in zip(chunks, results)}
 
