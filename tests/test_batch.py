@@ -241,6 +241,32 @@ def test_distributed_worker_killed_mid_run(tmp_path, cluster):
     assert (res.fft_threads == 1).all()  # workers ran FFTs single-threaded
 
 
+@pytest.mark.parametrize("stored", [False, True])
+def test_distributed_lost_result_is_resubmitted(tmp_path, cluster, monkeypatch, stored):
+    """A task whose finished result is lost (the worker holding it was killed: distributed's client marks the
+    future "lost") runs again; its chunk's file, written before the task returned, is read back. It used to
+    end the chunk as "XtopoError: None"."""
+    distributed = pytest.importorskip("distributed")
+    _, client = cluster
+    lost = []
+
+    class LosingFirst(distributed.as_completed):  # what the client does on the scheduler's "lost-data"
+        def __next__(self):
+            fut = super().__next__()
+            if not lost:
+                lost.append(fut.key)
+                fut._state.lose()
+            return fut
+
+    monkeypatch.setattr(distributed, "as_completed", LosingFirst)
+    ms = _surfaces(2)
+    store = tmp_path / "store" if stored else None
+    res = batch.run(fft_work, ms, LOADS, client=client, store=store, progress=False)
+    assert lost and res.attrs["n_failed"] == 0, res.attrs["failed_items"]
+    xr.testing.assert_allclose(_data(res), _data(batch.run(fft_work, ms, LOADS, scheduler="sync", progress=False)),
+                               rtol=1e-12)
+
+
 def test_distributed_active_client_and_resume(tmp_path, cluster):
     _, client = cluster
     ms = _surfaces(4)

@@ -13,6 +13,7 @@ Dataset or the exception that ended its task.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import os
 import uuid
@@ -46,7 +47,7 @@ def fft_env(threads):
 def _active_client():
     try:
         from distributed import get_client
-    except ImportError:  # pragma: no cover - distributed is a dependency
+    except ImportError:  # distributed comes with the [dask] extra
         return None
     try:
         return get_client()
@@ -113,6 +114,9 @@ def _client_for(client, scheduler, workers):
 #: ``XTOPO_BATCH_TASK_SECONDS`` overrides it, 0 gives every chunk a task of its own
 TASK_SECONDS = 0.25
 
+#: times a task whose result was lost (its worker died after finishing it) is submitted again
+LOST_RESUBMITS = 3
+
 
 def _group_size(seconds: float, remaining: int, workers: int) -> int:
     """Chunks per task: enough for :data:`TASK_SECONDS` of work at ``seconds`` per chunk, but at least
@@ -128,21 +132,21 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
     often, or it raised) runs again in a task of its own."""
     from distributed import as_completed
 
-    token = uuid.uuid4().hex[:8]
     workers = max(1, sum(client.nthreads().values()))  # tasks that run at once
     pending = list(chunks)
-    out, spent = {}, []
+    out, spent, lost, groups = {}, [], collections.Counter(), {}  # groups: each running future's chunks
 
-    def submit(group, retry=retries):
-        return client.submit(run_chunks, group, key=f"xtopo-batch-{group[0].key[:16]}-{len(group)}-{token}",
-                             pure=False, retries=retry), group
+    def submit(group, retry=retries):  # a key of its own each time: a resubmitted group is a new task
+        key = f"xtopo-batch-{group[0].key[:16]}-{len(group)}-{uuid.uuid4().hex[:8]}"
+        fut = client.submit(run_chunks, group, key=key, pure=False, retries=retry)
+        groups[fut] = group
+        return fut
 
     # two probes a worker: a worker's first chunk may carry its imports; the group size is taken from the
     # quickest of the first workers + 1 chunks
-    probes = dict(submit([c]) for c in pending[:2 * workers])
+    probes = [submit([c]) for c in pending[:2 * workers]]
     pending = pending[2 * workers:]
-    waiting = as_completed(list(probes))
-    groups = dict(probes)
+    waiting = as_completed(probes)
 
     def show(futures):  # distributed's bar (blocks until they are done) over every task of the batch
         if progress and futures:
@@ -151,52 +155,48 @@ def _execute_distributed(client, chunks, progress, retries) -> dict:
             _progress(futures)
 
     if not pending:
-        show(list(probes))
+        show(probes)
     for fut in waiting:
         group = groups.pop(fut)
         if fut.status == "finished":
             for key, res, seconds in fut.result():
                 if isinstance(res, BaseException) and len(group) > 1:
-                    waiting.add(_resubmit(submit, groups, [c for c in group if c.key == key]))
+                    waiting.add(submit([c for c in group if c.key == key]))
                     continue
                 out[key] = res
                 spent.append(seconds)
+        elif fut.status == "lost" and lost[group[0].key, len(group)] < LOST_RESUBMITS:
+            # the worker holding the finished result died: run it again (its chunks' files in the store,
+            # written before the task returned, are read back)
+            lost[group[0].key, len(group)] += 1
+            waiting.add(submit(group))
         elif len(group) > 1:  # isolate the chunk that failed the group
             for c in group:
-                waiting.add(_resubmit(submit, groups, [c]))
+                waiting.add(submit([c]))
+        elif fut.status == "error":
+            out[group[0].key] = fut.exception()
         else:
-            exc = fut.exception() if fut.status == "error" else None
-            out[group[0].key] = exc if isinstance(exc, BaseException) else XtopoError(
-                "task was cancelled (the scheduler lost it)" if fut.status == "cancelled" else str(exc))
+            out[group[0].key] = XtopoError("task was cancelled (the scheduler lost it)" if fut.status == "cancelled"
+                                           else f"the task's result was lost {LOST_RESUBMITS + 1} times (the "
+                                           "workers holding it died)")
         fut.release()
         if pending and (len(spent) > workers or not groups):  # timed (or the probes failed: one chunk a task)
             size = _group_size(min(spent), len(pending), workers) if spent else 1
-            new = dict(submit(pending[i:i + size]) for i in range(0, len(pending), size))
+            new = [submit(pending[i:i + size]) for i in range(0, len(pending), size)]
             pending = []
-            groups.update(new)
-            waiting.update(list(new))
-            show([f for f in probes if f in groups] + list(new))
+            waiting.update(new)
+            show([f for f in probes if f in groups] + new)
     return out
-
-
-def _resubmit(submit, groups, group):
-    fut, group = submit(group)
-    groups[fut] = group
-    return fut
 
 
 def _execute_local(chunks, scheduler, workers, progress) -> dict:
     import dask
+    from dask.diagnostics import ProgressBar
 
     if not chunks:
         return {}
     tasks = [dask.delayed(run_chunk, pure=False)(chunk) for chunk in chunks]
-    bar = contextlib.nullcontext()
-    if progress:
-        from dask.diagnostics import ProgressBar
-
-        bar = ProgressBar()
-    with bar:
+    with ProgressBar() if progress else contextlib.nullcontext():
         results = dask.compute(*tasks, scheduler=scheduler or "threads", num_workers=workers)
     return {chunk.key: r for chunk, r in zip(chunks, results)}
 

@@ -88,12 +88,8 @@ def _solved_scans(ds: xr.Dataset) -> dict:
     if SCAN not in ds.data_vars:  # every item failed
         return {}
     solved = ds[SCAN].where(ds[ERROR] == "", "").transpose(MEASUREMENT, ...)
-    kinds = {}
-    for name, row in zip(ds[MEASUREMENT].values, solved.values.reshape(solved.shape[0], -1)):
-        found = [str(k) for k in row if k]
-        if found:
-            kinds[str(name)] = found[0]
-    return kinds
+    rows = zip(ds[MEASUREMENT].values, solved.values.reshape(solved.shape[0], -1))
+    return {str(name): str(next(k for k in row if k)) for name, row in rows if any(row)}
 
 
 def _refuse(ds: xr.Dataset, wrong, message: str) -> xr.Dataset:

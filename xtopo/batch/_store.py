@@ -114,13 +114,10 @@ class Store:
 
     def reusable(self, key: str) -> xr.Dataset | None:
         """Chunk ``key`` if it is stored, readable, has the same key and no failed item; else None."""
-        path = self.path(key)
-        if not os.path.exists(path):
-            return None
         try:
             with IO_LOCK:  # read with h5netcdf (HDF5), written with netCDF4 (netCDF-C): see IO_LOCK
-                ds = read_netcdf(path)
-        except Exception:  # a damaged file is recomputed, never trusted
+                ds = read_netcdf(self.path(key))
+        except Exception:  # an absent or damaged file is computed, never trusted
             return None
         if ds.attrs.get(KEY_ATTR) != key or int(ds.attrs.get(FAILED_ATTR, 1)) != 0:
             return None

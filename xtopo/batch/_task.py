@@ -11,6 +11,7 @@ becomes an ``error`` entry; the chunk's other items go on.
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 from typing import Callable, NamedTuple
@@ -108,9 +109,7 @@ def _run_item(func, source, params, dim, read_options, steps=()):
                      coords="minimal", compat="override"), errors
 
 
-_MALLOC_TUNED = False
-
-
+@functools.cache  # once a process
 def _tune_malloc() -> None:
     """Undo the cost of distributed's ``MALLOC_TRIM_THRESHOLD_`` in a worker process (glibc only, once).
 
@@ -120,11 +119,7 @@ def _tune_malloc() -> None:
     process on the reference machine. Raising both thresholds (64 MiB mmap, 128 MiB trim)
     restores plain-process speed. Set ``XTOPO_BATCH_MALLOC_TUNE=0`` to leave malloc alone.
     """
-    global _MALLOC_TUNED
-    if _MALLOC_TUNED or os.environ.get("XTOPO_BATCH_MALLOC_TUNE", "1") == "0":
-        return
-    _MALLOC_TUNED = True
-    if "MALLOC_TRIM_THRESHOLD_" not in os.environ:
+    if os.environ.get("XTOPO_BATCH_MALLOC_TUNE", "1") == "0" or "MALLOC_TRIM_THRESHOLD_" not in os.environ:
         return
     try:
         import ctypes

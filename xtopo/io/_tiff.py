@@ -47,11 +47,8 @@ def head_tags(head: bytes) -> dict[int, tuple[int, int, bytes]]:
     try:
         (off,) = struct.unpack_from(e + "I", head, 4)
         (n,) = struct.unpack_from(e + "H", head, off)
-        out = {}
-        for i in range(n):
-            tag, typ, count, val = struct.unpack_from(e + "HHI4s", head, off + 2 + 12 * i)
-            out[tag] = (typ, count, val)
-        return out
+        entries = (struct.unpack_from(e + "HHI4s", head, off + 2 + 12 * i) for i in range(n))
+        return {tag: (typ, count, val) for tag, typ, count, val in entries}
     except struct.error:
         return {}
 
@@ -144,13 +141,10 @@ class TiffFile:
         raw = self.raw(ifd, tag)
         if typ == 2:
             return raw.split(b"\0", 1)[0].decode("latin-1", errors="replace")
-        code, size = _TYPES[typ]
+        vals = np.frombuffer(raw, dtype=np.dtype(_TYPES[typ][0]).newbyteorder(self.endian))
         if typ in (5, 10):  # rationals
-            a = np.frombuffer(raw, dtype=np.dtype(code).newbyteorder(self.endian)).astype(float)
             with np.errstate(divide="ignore", invalid="ignore"):
-                vals = a[0::2] / np.where(a[1::2] == 0, np.nan, a[1::2])
-        else:
-            vals = np.frombuffer(raw, dtype=np.dtype(code).newbyteorder(self.endian))
+                vals = vals[0::2].astype(float) / np.where(vals[1::2] == 0, np.nan, vals[1::2])
         if count == 1:
             return vals[0].item()
         return vals.astype(vals.dtype.newbyteorder("="))

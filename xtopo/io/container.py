@@ -305,7 +305,9 @@ class _Archive:
     """An open container: its metadata and safe, size-checked extraction of members."""
 
     def __init__(self, path):
-        self.path = path
+        if not os.path.isfile(path):
+            raise ReaderError(path, "no such file")
+        self.path, self.sha = path, sha256(path)
         self.zf = open_zip(path, "container")
         try:
             infos = self.zf.infolist()
@@ -390,7 +392,7 @@ def _surface_name(surface: dict, index: int) -> str:
     return _text(surface.get("name")) or f"surface{index}"
 
 
-def _twin(archive: _Archive, index: int, sha: str) -> xr.DataTree:
+def _twin(archive: _Archive, index: int) -> xr.DataTree:
     surface = archive.meta["surfaces"][index]
     name = _surface_name(surface, index)
     nodes = {}
@@ -402,7 +404,7 @@ def _twin(archive: _Archive, index: int, sha: str) -> xr.DataTree:
         where = f"surface {name!r}, topography {j} ({label!r})"
         ds = _measurement(archive, meta, where)
         nodes[unique_name(safe_name(os.path.splitext(label)[0]), nodes)] = ds
-    return make_twin(nodes, name=name, **_surface_attrs(archive.meta, surface, archive.path, sha))
+    return make_twin(nodes, name=name, **_surface_attrs(archive.meta, surface, archive.path, archive.sha))
 
 
 def _budget(archive: _Archive, surfaces) -> None:
@@ -417,13 +419,6 @@ def _budget(archive: _Archive, surfaces) -> None:
     if total > MAX_TOTAL:
         raise ReaderError(archive.path, f"the container's data files declare {total} bytes, more than the {MAX_TOTAL} "
                                         "accepted (zip bomb?)")
-
-
-def _open(path):
-    if not os.path.isfile(path):
-        raise ReaderError(path, "no such file")
-    sha = sha256(path)
-    return _Archive(path), sha
 
 
 _FILE = Path("file path")
@@ -450,13 +445,12 @@ def open_container(path: Annotated[str, _FILE]) -> dict[str, xr.DataTree]:
         An unreadable or hostile archive, invalid metadata, or a data file that is missing or unreadable
         (the message names the container, the surface, the topography and the file).
     """
-    archive, sha = _open(path)
-    with archive:
+    with _Archive(path) as archive:
         surfaces = range(len(archive.meta["surfaces"]))
         _budget(archive, surfaces)
         out = {}
         for i in surfaces:
-            out[unique_name(_surface_name(archive.meta["surfaces"][i], i), out)] = _twin(archive, i, sha)
+            out[unique_name(_surface_name(archive.meta["surfaces"][i], i), out)] = _twin(archive, i)
     return out
 
 
@@ -471,8 +465,7 @@ def container_twin(path: Annotated[str, _FILE], surface=None) -> xr.DataTree:
     surface : str or int, optional
         The surface's name or index; needed when the container holds several.
     """
-    archive, sha = _open(path)
-    with archive:
+    with _Archive(path) as archive:
         surfaces = archive.meta["surfaces"]
         names = [_surface_name(s, i) for i, s in enumerate(surfaces)]
         if not surfaces:
@@ -494,7 +487,7 @@ def container_twin(path: Annotated[str, _FILE], surface=None) -> xr.DataTree:
             raise ValidationError(f"surface={surface!r} is not in {archive.path}; its surfaces are "
                                   f"{', '.join(map(repr, names))} (or give an index)")
         _budget(archive, [index])
-        return _twin(archive, index, sha)
+        return _twin(archive, index)
 
 
 # --- writing ------------------------------------------------------------------------------------
@@ -538,7 +531,7 @@ def _topography_meta(name: str, ds: xr.Dataset, member: str) -> dict:
 
 def _surfaces(twins) -> list[tuple[str, xr.DataTree]]:
     if isinstance(twins, xr.DataTree):
-        return [(str(twins.attrs.get("title") or "surface0"), twins)]
+        twins = [twins]
     if isinstance(twins, Mapping):
         items = list(twins.items())
     elif isinstance(twins, (list, tuple)):
