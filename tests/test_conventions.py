@@ -267,3 +267,12 @@ def test_a_unit_that_is_not_a_string_is_refused():
         with pytest.raises(UnitsError, match=rf"a length unit must be a string such as 'm' or 'um', not "
                                              rf"{type(units).__name__}$"):
             normalize_units(units)
+
+
+def test_common_length_units_need_no_pint_and_equal_its_factors():
+    """The fixed table of common length units gives pint's factors exactly (pint is only built for others)."""
+    from xtopo import _units
+
+    ureg = _units._ureg()
+    for unit, metres in _units._METRES.items():
+        assert metres == float(ureg.Quantity(1.0, unit).to("m").magnitude), unit
