@@ -253,6 +253,18 @@ def test_to_container_round_trip_through_surfacetopography(tmp_path):
     assert back["afm"].attrs["description"] == "an AFM map"
 
 
+def test_tags_survive_a_read_and_write(tmp_path):
+    """Tags of a surface and of a measurement are written back as contact.engineering reads them (a list)."""
+    tree = _small_twin()
+    tree.attrs["tags"] = json.dumps(["steel", "polished"])
+    tree["afm"].attrs["tags"] = "blasted"  # a plain text: one tag
+    back = xtopo.open_twin(xtopo.to_container(tree, tmp_path / "tags.zip"))
+    assert json.loads(back.attrs["tags"]) == ["steel", "polished"]
+    assert json.loads(back["afm"].attrs["tags"]) == ["blasted"]
+    again = xtopo.open_twin(xtopo.to_container(back, tmp_path / "again.zip"))
+    assert again.attrs["tags"] == back.attrs["tags"] and again["afm"].attrs["tags"] == back["afm"].attrs["tags"]
+
+
 def test_to_container_without_nonuniform_scans_writes_index_json(tmp_path):
     tree = _small_twin()
     tree = xtopo.twin({"afm": tree["afm"].to_dataset(), "stylus": tree["stylus"].to_dataset()}, name="s")

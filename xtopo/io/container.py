@@ -501,8 +501,13 @@ def _date(value) -> str | None:
 
 
 def _described_meta(attrs, keys: tuple) -> dict:
-    """The text entries ``keys`` of ``attrs`` and their creator (``created_by``) as container metadata."""
+    """The text entries ``keys`` of ``attrs``, their ``tags`` and creator (``created_by``) as container metadata."""
     out = {key: attrs[key] for key in keys if isinstance(attrs.get(key), str)}
+    if isinstance(attrs.get("tags"), str) and attrs["tags"]:  # read as JSON (_described); a plain text is one tag
+        try:
+            out["tags"] = json.loads(attrs["tags"])
+        except ValueError:
+            out["tags"] = [attrs["tags"]]
     if attrs.get("creator_name"):
         out["created_by"] = {key: str(attrs[f"creator_{key}"]) for key in ("name", "orcid")
                              if attrs.get(f"creator_{key}")}
