@@ -189,8 +189,14 @@ class _Stdout:
         self._stream = stream
         self._gone = False
 
-    def _quiet(self) -> None:
-        self._gone = True
+    def _call(self, method, *args):
+        """``self._stream.method(*args)`` until the reader has gone; then nothing (None)."""
+        if self._gone:
+            return None
+        try:
+            return getattr(self._stream, method)(*args)
+        except BrokenPipeError:
+            self._gone = True
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, self._stream.fileno())
@@ -199,19 +205,11 @@ class _Stdout:
             pass
 
     def write(self, text):
-        if not self._gone:
-            try:
-                return self._stream.write(text)
-            except BrokenPipeError:
-                self._quiet()
-        return len(text)
+        written = self._call("write", text)
+        return len(text) if written is None else written
 
     def flush(self):
-        if not self._gone:
-            try:
-                self._stream.flush()
-            except BrokenPipeError:
-                self._quiet()
+        self._call("flush")
 
     def __getattr__(self, name):
         return getattr(self._stream, name)

@@ -375,7 +375,7 @@ class _Spec:
             return None
         return kind.check(value, name, self.error)
 
-    def apply(self, args: tuple, kwargs: dict):
+    def apply(self, args: tuple, kwargs: dict, rules: bool = True):
         entries = self.entries or self.parse()
         n = len(args)
         if n:
@@ -385,7 +385,7 @@ class _Spec:
                 kwargs[name] = self.one(kind, kwargs[name], name, none_ok)
             elif position is not None and position < n:
                 args[position] = self.one(kind, args[position], name, none_ok)
-        if self.rules:
+        if rules and self.rules:
             params = self.signature.parameters
             values = {name: kwargs[name] if name in kwargs else args[i] if i < n else params[name].default
                       for name, i in self.ruled.items()}
@@ -450,18 +450,11 @@ def preflight(func, kwargs: Mapping, where: str | None = None, *, rules: bool = 
     if unknown:
         raise XtopoError(f"{where + ' ' if where else ''}has no option {', '.join(map(repr, unknown))}; its options: "
                          f"{', '.join(options) or 'none'}")
-    out = dict(kwargs)
     if spec is None:
-        return out
+        return dict(kwargs)
     try:
-        for name, _, kind, none_ok in spec.entries or spec.parse():
-            if name in out:
-                out[name] = spec.one(kind, out[name], name, none_ok)
-        if rules:
-            for rule in spec.rules:
-                rule.check({n: out.get(n, parameters[n].default) for n in rule.names}, spec.error)
+        return spec.apply((), dict(kwargs), rules)[1]
     except XtopoError as exc:
         if where:
             raise type(exc)(f"{prefix}{exc}") from None
         raise
-    return out
