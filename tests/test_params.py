@@ -41,3 +41,18 @@ def test_preflight_checks_a_call_without_making_it():
     with pytest.raises(ContactError, match=r"^opts: give exactly one"):
         preflight(_demo, {"x": 2}, "opts")
     assert set(declarations(_demo)) == {"n", "x", "unit", "width", "load", "penetration"}
+
+
+def test_preflight_refuses_what_is_not_an_option():
+    """A positional parameter without a default is the data each item brings, not an option: given once for
+    many items (``read_options={"path": ...}``, a step's ``{"obj": ...}``) it failed later, in every item, with
+    a TypeError."""
+    from xtopo.io import open_topography
+    from xtopo.preprocess import checked_steps
+
+    with pytest.raises(XtopoError, match=r"^opts has no option 'n'"):
+        preflight(_demo, {"n": 3, "x": 2}, "opts")
+    with pytest.raises(XtopoError, match=r"^read_options has no option 'path'"):
+        preflight(open_topography, {"path": "a.txt"}, "read_options")
+    with pytest.raises(XtopoError, match=r"step 'detrend' has no option 'obj'"):
+        checked_steps([("detrend", {"obj": 1})])

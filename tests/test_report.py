@@ -140,6 +140,28 @@ def test_cli_report_and_analyze_report(tmp_path, capsys, monkeypatch):
     assert "wrote a.html" in capsys.readouterr().out
 
 
+def test_cli_report_shows_every_analysis_of_the_registry(tmp_path, monkeypatch):
+    """`xtopo report` defaulted to psd,acf,vbm,sdrp: an analysis added to the registry (curvature_kurtosis)
+    was in report() but not on the command line (issue 25)."""
+    from xtopo import report as rep
+    from xtopo.errors import XtopoError
+    from xtopo.stitching import ANALYSES
+
+    asked = []
+
+    def stitch(tree, name):  # fast: which analyses the page asks for, each shown as "not available"
+        asked.append(name)
+        raise XtopoError("not needed here")
+
+    monkeypatch.setattr(rep, "_stitch", stitch)
+    f = tmp_path / "m.nc"
+    xtopo.to_netcdf(fractal_surface((32, 32), 1e-6, hurst=0.7), f)
+    assert main(["report", str(f), "-o", str(tmp_path / "r.html"), "-q"]) == 0
+    page = (tmp_path / "r.html").read_text(encoding="utf-8")
+    assert asked == list(ANALYSES) and "curvature_kurtosis" in asked
+    assert all(f"{a.title}: not available" in page for a in ANALYSES.values())
+
+
 def test_cli_report_help():
     r = subprocess.run([sys.executable, "-m", "xtopo.cli", "report", "--help"], capture_output=True, text=True,
                        cwd=REPO)

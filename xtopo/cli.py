@@ -125,19 +125,17 @@ def _cmd_analyze(args) -> int:
 
 
 def _cmd_report(args) -> int:
-    from .report import ANALYSES, report  # deferred: xtopo --version/--help load no numpy
+    from .params import preflight  # deferred: xtopo --version/--help load no numpy
+    from .report import report
 
-    analyses = [] if args.analyses == "none" else [a.strip() for a in args.analyses.split(",") if a.strip()]
-    unknown = [a for a in analyses if a not in ANALYSES]
-    if unknown:
-        print(f"xtopo: error: unknown analysis {unknown[0]!r} in --analyses; choose from {', '.join(ANALYSES)} "
-              "or 'none'", file=sys.stderr)
-        return 2
+    names = {} if args.analyses is None else {"analyses": [] if args.analyses == "none" else
+                                              [a.strip() for a in args.analyses.split(",") if a.strip()]}
+    options = preflight(report, names, "--analyses")  # before any file is read
     measurements, what, failed = _read_inputs(args)
     if not measurements:
         return 2
-    report(measurements, args.output, title=args.title or f"xtopo report: {what}", analyses=analyses,
-           iso=iso_options(args), progress=_progress(args))
+    report(measurements, args.output, title=args.title or f"xtopo report: {what}", iso=iso_options(args),
+           progress=_progress(args), **options)
     print(f"wrote {args.output} ({len(measurements)} measurements, {what})")
     return 1 if failed else 0
 
@@ -167,12 +165,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report", metavar="HTML", help="also write a standalone HTML report (see `xtopo report`)")
     r = sub.add_parser("report", help="write a standalone HTML report (default: the built-in example twin)",
                        description="Read measurement files (or use the built-in example twin), and write one "
-                                   "HTML page with the summary table, the stitched PSD/ACF/VBM/curvature "
-                                   "averages and a map of every measurement. Opens offline in any browser.")
+                                   "HTML page with the summary table, the stitched averages of every analysis "
+                                   "of xtopo.stitching.ANALYSES and a map of every measurement. Opens offline "
+                                   "in any browser.")
     _add_inputs(r, _cmd_report, "xtopo-report.html", "output HTML file")
     r.add_argument("--title", help="page title")
-    r.add_argument("--analyses", default="psd,acf,vbm,sdrp",
-                   help="stitched averages to show, comma-separated, or 'none' (default: %(default)s)")
+    r.add_argument("--analyses", help="stitched averages to show, comma-separated (names of xtopo.stitching."
+                                      "ANALYSES, e.g. psd,acf,vbm,sdrp), or 'none' (default: all of them)")
 
     add_commands(sub)
     return parser
@@ -190,8 +189,14 @@ class _Stdout:
         self._stream = stream
         self._gone = False
 
-    def _quiet(self) -> None:
-        self._gone = True
+    def _call(self, method, *args):
+        """``self._stream.method(*args)`` until the reader has gone; then nothing (None)."""
+        if self._gone:
+            return None
+        try:
+            return getattr(self._stream, method)(*args)
+        except BrokenPipeError:
+            self._gone = True
         try:
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, self._stream.fileno())
@@ -200,19 +205,11 @@ class _Stdout:
             pass
 
     def write(self, text):
-        if not self._gone:
-            try:
-                return self._stream.write(text)
-            except BrokenPipeError:
-                self._quiet()
-        return len(text)
+        written = self._call("write", text)
+        return len(text) if written is None else written
 
     def flush(self):
-        if not self._gone:
-            try:
-                self._stream.flush()
-            except BrokenPipeError:
-                self._quiet()
+        self._call("flush")
 
     def __getattr__(self, name):
         return getattr(self._stream, name)

@@ -219,12 +219,9 @@ def _cmd_info(args) -> int:
 
 
 def _scene_kwargs(args) -> dict:
-    scene = {"modulus": args.modulus}
-    if args.hardness is not None:
-        scene["hardness"] = args.hardness
-    if args.periodic is not None:
-        scene["periodic"] = args.periodic == "yes"
-    return scene
+    periodic = None if args.periodic is None else args.periodic == "yes"
+    return {k: v for k, v in (("modulus", args.modulus), ("hardness", args.hardness), ("periodic", periodic))
+            if v is not None}
 
 
 def _solve_kwargs(args) -> dict:
@@ -392,26 +389,24 @@ def _add_batch_options(p) -> None:
 
 def add_commands(sub) -> None:
     """Register ``info``, ``contact``, ``batch contact|analyze`` and ``convert`` on ``sub``."""
-    p = sub.add_parser("info", help="channels, sizes and metadata of a measurement file",
+    one = argparse.ArgumentParser(add_help=False)  # what info, contact and convert share: one file, how to read it
+    one.add_argument("file", help="measurement file (any supported format)")
+    one.add_argument("--channel", type=parse_channel, help="channel index or name (default: the first height channel)")
+    add_read_options(one)
+    p = sub.add_parser("info", parents=[one], help="channels, sizes and metadata of a measurement file",
                        description="Print the channels, grid, physical size and metadata of a measurement file.")
-    p.add_argument("file", help="measurement file (any supported format)")
-    p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name (default: the first height channel)")
-    add_read_options(p)
     add_iso_options(p)
     p.set_defaults(func=_cmd_info)
 
-    p = sub.add_parser("contact", help="contact mechanics of one measurement at several loads",
+    p = sub.add_parser("contact", parents=[one], help="contact mechanics of one measurement at several loads",
                        description="Solve the contact of a rigid flat with the measured topography at each "
                                    "load (or mean pressure); print the scalars and write the results (maps included) to NetCDF.")
-    p.add_argument("file", help="measurement file")
     _add_control_options(p)
-    p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
     p.add_argument("--maps", action="store_true",
                    help="keep the pressure/gap/displacement/contact maps of every step (large; compressed)")
     p.add_argument("-o", "--output", default="xtopo-contact.nc", help="output NetCDF file (default: %(default)s)")
     _add_scene_options(p)
     add_preprocess_options(p)
-    add_read_options(p)
     p.set_defaults(func=_cmd_contact)
 
     pb = sub.add_parser("batch", help="many measurements on a Dask cluster (resumable)",
@@ -437,16 +432,13 @@ def add_commands(sub) -> None:
     _add_batch_options(p)
     p.set_defaults(func=_cmd_batch_analyze)
 
-    p = sub.add_parser("convert", help="convert a measurement file to NetCDF",
+    p = sub.add_parser("convert", parents=[one], help="convert a measurement file to NetCDF",
                        description="Read any supported file and write it as xtopo NetCDF (CF/ACDD) or in the "
                                    "SurfaceTopography/contact.engineering NetCDF layout.")
-    p.add_argument("file", help="measurement file")
     p.add_argument("-o", "--output", required=True, help="output NetCDF file")
     p.add_argument("--layout", choices=("xtopo", "surfacetopography"), default="xtopo",
                    help="file layout (default: %(default)s)")
-    p.add_argument("--channel", type=parse_channel, default=None, help="channel index or name")
     p.add_argument("--units", default="m", help="length unit of the output (default: %(default)s)")
     add_preprocess_options(p)
-    add_read_options(p)
     add_probe_options(p)
     p.set_defaults(func=_cmd_convert)

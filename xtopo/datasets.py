@@ -153,8 +153,8 @@ class FractalPSD:
         bottom = min(self.q_long if self.q_long > 0 else np.inf, 1.0 / ell.max()) * 1e-4
         lq = np.linspace(np.log(bottom), np.log(top), nodes)
         q = np.exp(lq)
-        c = self.c1d(np.geomspace(bottom, top, 300))
-        c = np.exp(np.interp(lq, np.log(np.geomspace(bottom, top, 300)), np.log(np.maximum(c, 1e-300))))
+        grid = np.geomspace(bottom, top, 300)
+        c = np.exp(np.interp(lq, np.log(grid), np.log(np.maximum(self.c1d(grid), 1e-300))))
         integrand = c[None, :] * (1 - np.cos(q[None, :] * ell[:, None])) * q[None, :]
         return np.trapezoid(integrand, lq, axis=-1) / np.pi
 
@@ -266,14 +266,11 @@ def fractal_surface(shape: Annotated[tuple, Shape()], size, *, hurst: Annotated[
     c = psd.c_native(qabs)
     area = float(np.prod(gsize))
     weights = _rfft_weights(gshape)
-    # Expected measured quantity per unit prefactor (discrete Parseval, paper eq. 1-2)
-    if rms_slope is not None:
-        d2 = sum(np.abs(fourier_first(q, dx)) ** 2 for q, dx in symbols)
-        expected = np.sum(weights * c * d2) / area
-        target = rms_slope
-    else:
-        expected = np.sum(weights * c) / area
-        target = rms_height
+    # Expected measured quantity per unit prefactor (discrete Parseval, paper eq. 1-2): Sq², or SΔq² with the
+    # squared symbols of the forward difference
+    d2 = 1.0 if rms_slope is None else sum(np.abs(fourier_first(q, dx)) ** 2 for q, dx in symbols)
+    expected = np.sum(weights * c * d2) / area
+    target = rms_height if rms_slope is None else rms_slope
     if prefactor is None:
         if expected <= 0:
             raise XtopoError(f"the requested spectrum has no power on a grid of {shape} points: it needs a nonzero "
@@ -282,13 +279,11 @@ def fractal_surface(shape: Annotated[tuple, Shape()], size, *, hurst: Annotated[
         prefactor = target**2 / expected
     psd = dataclasses.replace(psd, prefactor=float(prefactor))
     h = _synthesize(gshape, gsize, psd.c_native(qabs), np.random.default_rng(seed))
-    if rms_height is not None or rms_slope is not None:
-        if rms_slope is not None:
-            meas = np.sqrt(sum(np.mean(forward_difference(h, dx, periodic=True, axis=ax) ** 2)
-                               for ax, (_, dx) in zip(range(-dim, 0), symbols)))
-        else:
-            meas = np.sqrt(np.mean(h**2))
-        h = h * (target / meas)
+    if rms_slope is not None:
+        h = h * (target / np.sqrt(sum(np.mean(forward_difference(h, dx, periodic=True, axis=ax) ** 2)
+                                      for ax, (_, dx) in zip(range(-dim, 0), symbols))))
+    elif rms_height is not None:
+        h = h * (target / np.sqrt(np.mean(h**2)))
     if not periodic:
         h = h[tuple(slice(0, n) for n in shape)]
     ds = make_measurement(h, spacing=tuple(spacings) if dim == 2 else spacings[0], units=units, periodic=periodic,
@@ -655,20 +650,13 @@ def _example_twin_cached(seed: int):
         s = seed * 1000 + 10 * k + r
         rng = np.random.default_rng(s)
         extra = {key: v for key, v in extra.items() if key != "replicates"}
-        if kind == "area":
-            n = pixels * over
-            dx = size / n
-            surf = make_measurement(_area_truth(truth, n, dx, rng), spacing=dx, units="m")
+        n = (pixels[-1] if kind == "profiles" else pixels) * over  # points of the ground truth along x
+        dx, dy = size / n, size * _PROFILE_SPACING
+        if kind in ("area", "profiles"):
+            surf = (make_measurement(_area_truth(truth, n, dx, rng), spacing=dx, units="m") if kind == "area" else
+                    make_measurement(_profiles_truth(truth, pixels[0], dy, n, dx, rng), spacing=(dy, dx), units="m"))
             meas = measure(surf, pixels=pixels, tip_radius=tip, seed=s, instrument=instrument, **extra)
-        elif kind == "profiles":
-            rows, points = pixels
-            n = points * over
-            dx, dy = size / n, size * _PROFILE_SPACING
-            surf = make_measurement(_profiles_truth(truth, rows, dy, n, dx, rng), spacing=(dy, dx), units="m")
-            meas = measure(surf, pixels=(rows, points), tip_radius=tip, seed=s, instrument=instrument, **extra)
         else:  # cross-section contour digitised at irregular positions (jittered about a regular step)
-            n = pixels * over
-            dx = size / n
             line = _profiles_truth(truth, 1, 0.0, n, dx, rng)[0]
             step = (n - 1) * dx / (pixels - 1)
             x = (np.arange(pixels) + np.concatenate([[0.0], rng.uniform(-0.35, 0.35, pixels - 2), [0.0]])) * step
@@ -676,10 +664,7 @@ def _example_twin_cached(seed: int):
             resolution = extra["resolution_spacings"] * float(np.mean(np.diff(x)))
             meas = make_measurement(h, x=x, units="m", instrument=instrument, resolution=resolution,
                                     source="xtopo.datasets.example_twin")
-        meas.attrs.update(truth.to_attrs())
-        meas.attrs["title"] = name
-        meas.attrs["measurement_kind"] = kind
-        nodes[name] = meas
+        nodes[name] = meas.assign_attrs(truth.to_attrs(), title=name, measurement_kind=kind)
     root = xr.Dataset(attrs={"title": "example digital surface twin",
                              "summary": "A campaign of 24 simulated measurements (stylus profiles, optical, AFM, cross-sections) of "
                                         "one self-affine surface (H = 0.8, roll-off at 200 µm) spanning 5 mm down to "

@@ -379,7 +379,7 @@ class _Spec:
             return None
         return kind.check(value, name, self.error)
 
-    def apply(self, args: tuple, kwargs: dict):
+    def apply(self, args: tuple, kwargs: dict, rules: bool = True):
         entries = self.entries or self.parse()
         n = len(args)
         if n:
@@ -389,7 +389,7 @@ class _Spec:
                 kwargs[name] = self.one(kind, kwargs[name], name, none_ok)
             elif position is not None and position < n:
                 args[position] = self.one(kind, args[position], name, none_ok)
-        if self.rules:
+        if rules and self.rules:
             params = self.signature.parameters
             values = {name: kwargs[name] if name in kwargs else args[i] if i < n else params[name].default
                       for name, i in self.ruled.items()}
@@ -439,30 +439,26 @@ def preflight(func, kwargs: Mapping, where: str | None = None, *, rules: bool = 
     """``kwargs`` of a call of ``func`` checked and normalised without making the call.
 
     For options given once for many items (a batch, a CLI run): a bad value fails before any work.
-    Names ``func`` does not take are refused; ``where`` (e.g. ``"read_options"``) prefixes the
-    messages. ``rules=False`` skips the :class:`OneOf` rules (an item adds the missing argument later).
+    Names that are not options of ``func`` are refused: names it does not take, and its positional
+    parameters without a default (the data each item brings; a dataclass's fields are all options).
+    ``where`` (e.g. ``"read_options"``) prefixes the messages. ``rules=False`` skips the :class:`OneOf`
+    rules (an item adds the missing argument later).
     """
     spec = getattr(func, "__xtopo_params__", None)
     parameters = inspect.signature(func).parameters
-    options = [n for n, p in parameters.items() if p.default is not p.empty]  # not the data, nor **kwargs
+    options = [n for n, p in parameters.items()  # not the data, nor **kwargs
+               if p.default is not p.empty or p.kind is p.KEYWORD_ONLY or isinstance(func, type)]
     takes_any = any(p.kind is p.VAR_KEYWORD for p in parameters.values())
-    unknown = [k for k in kwargs if k not in parameters and not takes_any]
+    unknown = [k for k in kwargs if k not in options and (k in parameters or not takes_any)]
     prefix = f"{where}: " if where else ""
     if unknown:
         raise XtopoError(f"{where + ' ' if where else ''}has no option {', '.join(map(repr, unknown))}; its options: "
                          f"{', '.join(options) or 'none'}")
-    out = dict(kwargs)
     if spec is None:
-        return out
+        return dict(kwargs)
     try:
-        for name, _, kind, none_ok in spec.entries or spec.parse():
-            if name in out:
-                out[name] = spec.one(kind, out[name], name, none_ok)
-        if rules:
-            for rule in spec.rules:
-                rule.check({n: out.get(n, parameters[n].default) for n in rule.names}, spec.error)
+        return spec.apply((), dict(kwargs), rules)[1]
     except XtopoError as exc:
         if where:
             raise type(exc)(f"{prefix}{exc}") from None
         raise
-    return out

@@ -313,16 +313,12 @@ def _curve_dim(da) -> str:
 
 def _cutoff_of(da, cutoff):
     """Reliability cutoff (length) of a result: the argument, the coordinate, or the attribute."""
-    if cutoff is None:
-        if "reliability_cutoff" in da.coords and da.coords["reliability_cutoff"].ndim == 0:
-            cutoff = da.coords["reliability_cutoff"]
-        else:
-            cutoff = da.attrs.get("reliability_cutoff")
-        if cutoff is None:
-            return None
-        value = float(np.asarray(getattr(cutoff, "values", cutoff)))
-        return value if np.isfinite(value) and value > 0 else None
-    return Positive().check(getattr(cutoff, "values", cutoff), "cutoff (a length in the curve's length unit)")
+    if cutoff is not None:
+        return Positive().check(getattr(cutoff, "values", cutoff), "cutoff (a length in the curve's length unit)")
+    coord = da.coords.get("reliability_cutoff")
+    cutoff = coord if coord is not None and coord.ndim == 0 else da.attrs.get("reliability_cutoff")
+    value = np.nan if cutoff is None else float(np.asarray(getattr(cutoff, "values", cutoff)))
+    return value if np.isfinite(value) and value > 0 else None
 
 
 def _positive(x, y):
@@ -338,26 +334,22 @@ def _safe_label(label, *dims) -> str:
     return label + "\u00a0" if label in {d.name for d in dims} else label
 
 
-def _line(data, xdim, ydim, label, width, **common):
-    """An hv.Curve ``width`` wide with the options ``common`` (colour, alpha, ...) on both backends."""
+def _line(data, xdim, ydim, label, width, dashed=False, **common):
+    """An hv.Curve ``width`` wide (``dashed``) with the options ``common`` (colour, alpha, ...) on both backends."""
     el = _hv().Curve(data, kdims=[xdim], vdims=[ydim], label=label)
-    return _style(el, common=common, bokeh=dict(line_width=width), matplotlib=dict(linewidth=width))
+    return _style(el, common=common, bokeh=dict(line_width=width, **({"line_dash": "dashed"} if dashed else {})),
+                  matplotlib=dict(linewidth=width, **({"linestyle": "--"} if dashed else {})))
 
 
 def _line_elements(x, y, *, xdim, ydim, label, color, unreliable, line_width=2):
     """One or two hv.Curve elements: reliable part solid, ``unreliable`` (bool mask) part dashed."""
-    hv = _hv()
     label = _safe_label(label, xdim, ydim)
     out = [_line((x, np.where(unreliable, np.nan, y)), xdim, ydim, label, line_width, color=color)]
     if unreliable.any():
         # overlap by one point so the dashed part joins the solid one
-        edge = unreliable.copy()
-        edge[1:] |= unreliable[:-1]
-        edge[:-1] |= unreliable[1:]
-        dashed = np.where(edge, y, np.nan)
-        out.append(_style(hv.Curve((x, dashed), kdims=[xdim], vdims=[ydim], label=f"{label} (unreliable)"),
-                          common=dict(color=color), bokeh=dict(line_width=line_width, line_dash="dashed"),
-                          matplotlib=dict(linewidth=line_width, linestyle="--")))
+        edge = unreliable | np.r_[False, unreliable[:-1]] | np.r_[unreliable[1:], False]
+        out.append(_line((x, np.where(edge, y, np.nan)), xdim, ydim, f"{label} (unreliable)", line_width, True,
+                         color=color))
     return out
 
 
@@ -408,19 +400,14 @@ def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title:
     if others:
         keys = [", ".join(str(da[d].values[i]) if d in da.coords else f"{d}={i}" for d, i in zip(others, idx))
                 for idx in np.ndindex(*[da.sizes[d] for d in others])]
-    elements = []
+    elements, wave = [], CURVE_COORDS[coord] == "wavevector"
     for k, (key, row) in enumerate(zip(keys, rows)):
         xs, ys = _positive(x, row.astype(float))
-        if cut is None:
-            bad = np.zeros(xs.shape, dtype=bool)
-        elif CURVE_COORDS[coord] == "wavevector":
-            bad = xs > 2 * np.pi / cut
-        else:
-            bad = xs < cut
+        # scales below the cutoff: wavevectors above 2π/cut, lengths below cut
+        bad = np.zeros(xs.shape, dtype=bool) if cut is None else xs > 2 * np.pi / cut if wave else xs < cut
         lab = f"{label or ''} {key}".strip()
         col = color if color is not None and len(rows) == 1 else PALETTE[k % len(PALETTE)]
-        elements += _line_elements(xs, ys, xdim=xdim, ydim=ydim, label=lab, color=col,
-                                   unreliable=bad)
+        elements += _line_elements(xs, ys, xdim=xdim, ydim=ydim, label=lab, color=col, unreliable=bad)
     return _style(hv.Overlay(elements), **_axes_opts(_title(da, title)))
 
 
@@ -473,7 +460,8 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
     names = [str(n) for n in np.asarray(curves["measurement"].values)]
     group_of = {n: str(groups.get(n, n)) for n in names}  # the name is its own group unless ``groups`` say
     colours = group_colours(group_of)
-    elements, shown = [], set()
+    elements = []
+    first = {g: n for n, g in reversed(group_of.items())}  # replicates share their group's one legend entry
     values = curves.values
     avg = ds["average"].values.astype(float)
     if "uncertainty" in ds:  # the band: average ± its standard error (clipped above zero for log axes)
@@ -489,10 +477,8 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
         xs, ys = _positive(x, values[k].astype(float))
         group = group_of[name]
         label = _safe_label(labels.get(group, group), xdim, ydim)
-        first = group not in shown
-        shown.add(group)
-        # replicates share their group's legend entry: only the first of a group carries it
-        elements.append(_line((xs, ys), xdim, ydim, label, 1.2, color=colours[group], alpha=0.8, show_legend=first))
+        elements.append(_line((xs, ys), xdim, ydim, label, 1.2, color=colours[group], alpha=0.8,
+                              show_legend=first[group] == name))
     elements.append(_line(_positive(x, avg), xdim, ydim, "average", 4, color="black"))
     opts = _axes_opts(title or long_name, legend_outside=True)
     overlay = _style(hv.Overlay(elements), **opts)
@@ -517,7 +503,7 @@ def twin_figure(tree, *, analyses: Annotated[tuple | None, Names(*ANALYSES)] = N
     tree : xarray.DataTree
         A twin (:func:`xtopo.twin`).
     analyses : sequence of str, optional
-        Names from :data:`xtopo.stitching.ANALYSES` (default: all four).
+        Names from :data:`xtopo.stitching.ANALYSES` (default: all).
     groups : dict, optional
         Legend group per measurement name (default: its ``instrument`` attr).
     labels : dict, optional
@@ -638,17 +624,15 @@ def contact_maps(ds: Annotated[xr.Dataset, Data("Dataset")], *, variables=("pres
                          f"got {step!r}")
     if dim is not None:
         ds = ds.isel({dim: step})
-    panels = []
+    missing = [v for v in variables if v not in ds]
+    if missing:
+        raise XtopoError(f"the contact result has no map {missing[0]!r} (variables: {list(ds.data_vars)})")
     at = ""
     if "mean_pressure" in ds:
         at = f" at p = {float(ds['mean_pressure']):.3g} {unit_label(ds['mean_pressure'].attrs.get('units', ''))}"
     cmaps = {"pressure": "inferno", "gap": "viridis", "contact": "gray_r", "displacement": "viridis"}
-    for v in variables:
-        if v not in ds:
-            raise XtopoError(f"the contact result has no map {v!r} (variables: {list(ds.data_vars)})")
-        panels.append(topography(ds[v], max_pixels=max_pixels, cmap=cmaps.get(v, "viridis"),
-                                 title=f"{ds[v].attrs.get('long_name', v)}{at}"))
-    return hv.Layout(panels).cols(3)
+    return hv.Layout([topography(ds[v], max_pixels=max_pixels, cmap=cmaps.get(v, "viridis"),
+                                 title=f"{ds[v].attrs.get('long_name', v)}{at}") for v in variables]).cols(3)
 
 
 # --------------------------------------------------------------------------- twins

@@ -1,8 +1,8 @@
 """A standalone HTML report of a digital surface twin (``xtopo report``).
 
 One file, no network needed to view it (bokeh resources inline): the summary table
-of the measurements, the stitched averages (PSD, ACF, VBM, scale-dependent
-curvature; each measurement coloured, the average thick black) and a map or
+of the measurements, the stitched averages of :data:`xtopo.stitching.ANALYSES` (each
+measurement coloured, the average thick black) and a map or
 profile of every measurement. Maps are block-averaged to ``max_pixels`` per side,
 which keeps the report of a 1024² measurement well under 5 MB.
 """
@@ -64,11 +64,10 @@ def _stitch(tree: xr.DataTree, name: str) -> xr.Dataset:
 
 
 def _as_twin(source) -> xr.DataTree:
-    if isinstance(source, xr.DataTree):
-        return source
+    """A twin as is; one measurement (or one file) as a twin of one."""
     if isinstance(source, xr.Dataset):
-        return twin({str(source.attrs.get("title") or "measurement"): source})
-    if isinstance(source, (str, os.PathLike)):
+        source = {str(source.attrs.get("title") or "measurement"): source}
+    elif isinstance(source, (str, os.PathLike)):
         source = [source]
     return twin(source)
 
@@ -133,12 +132,9 @@ def _legend_html(groups: dict, labels: dict) -> str:
 
 def _labels(table: xr.Dataset) -> dict:
     """Legend text per measurement: name plus instrument where it says more than the name."""
-    _, rows = table_rows(table)
     out = {}
-    for i, row in enumerate(rows):
-        name = row[0]
-        inst = str(table["instrument"].values[i])
-        extra = ", ".join(v for v in (inst if inst and inst != name else "", row[2]) if v)
+    for (name, _, size, *_), inst in zip(table_rows(table)[1], map(str, table["instrument"].values)):
+        extra = ", ".join(v for v in (inst if inst != name else "", size) if v)
         out[name] = f"{name} ({extra})" if extra else name
     return out
 
@@ -186,10 +182,10 @@ def report(source, path: Annotated[str | None, Path("file path")] = None, *, tit
         Where to write the page (atomically). Without it the HTML text is returned.
     title : str, optional
         Page title (default: the twin's ``title``).
-    analyses : sequence of {"psd", "acf", "vbm", "sdrp"}, or one of them
-        Stitched averages to show (``sdrp`` is the scale-dependent curvature, as in
-        the paper's figure 5). An analysis that fails for these data is reported
-        on the page with its error message instead of a plot.
+    analyses : sequence of str, or one str
+        Stitched averages to show, names of :data:`xtopo.stitching.ANALYSES` (default: all;
+        ``sdrp`` is the scale-dependent curvature, as in the paper's figure 5). An analysis
+        that fails for these data is reported on the page with its error message instead of a plot.
     max_pixels : int
         Largest number of pixels per side of a map in the page.
     maps : bool
