@@ -136,10 +136,8 @@ def slope_sums(z, dy, dx, periodic):
     cells whose corners, touch NaN are skipped; nonperiodic maps have slopes from the fourth
     sample from each edge inwards.
     """
-    ny, nx = z.shape
     sx, nxs = _rows_x(z, 0.0, 0, periodic)
-    zt = np.ascontiguousarray(z.T)
-    sy, nys = _rows_x(zt, 0.0, 0, periodic)
+    sy, nys = _rows_x(np.ascontiguousarray(z.T), 0.0, 0, periodic)
     area, cells = _cells(z, dy, dx, periodic)
     return sx / (60.0 * dx) ** 2, nxs, sy / (60.0 * dy) ** 2, nys, area, cells
 
@@ -235,8 +233,7 @@ def _angular(amp, ny, nx, dy, dx, nbins):
             th = math.degrees(math.atan2(fy, fx)) / step  # in bins
             half = max(cell / math.hypot(fx, fy) / step, 1.0)
             if half >= nbins / 2:
-                for b in range(nbins):
-                    out[b] += w / nbins
+                out += w / nbins
                 continue
             lo = int(math.ceil(th - half))
             hi = int(math.floor(th + half))
