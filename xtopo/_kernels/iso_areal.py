@@ -197,10 +197,7 @@ def decay_lengths(z: np.ndarray, dy: float, dx: float, periodic: bool, s: float)
     ``z[ny, nx]`` finite, mean removed. Nonperiodic maps are zero padded (linear correlation).
     """
     ny, nx = z.shape
-    if periodic:
-        shape = (ny, nx)
-    else:
-        shape = (sfft.next_fast_len(2 * ny - 1, real=True), sfft.next_fast_len(2 * nx - 1, real=True))
+    shape = (ny, nx) if periodic else tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in (ny, nx))
     # single precision: the correlation at a lag with N pairs is off by ~1e-6·n/N of C(0), far below
     # any threshold s, and the transforms run twice as fast
     p = _power(_fft.rfftn(z.astype(np.float32), s=shape, axes=(-2, -1), backend=_BACKEND))
