@@ -24,10 +24,7 @@ __all__ = ["vbm_levels", "vbm"]
 
 def vbm_levels(sizes, min_pixels: int = 4) -> np.ndarray:
     """Magnifications ``ζ = 1, 2, 4, …`` whose blocks keep at least ``min_pixels`` along every axis."""
-    n = min(sizes)
-    k = 0
-    while n // 2 ** (k + 1) >= min_pixels:
-        k += 1
+    k = max((int(min(sizes)) // int(min_pixels)).bit_length() - 1, 0)  # the largest k with n // 2**k >= min_pixels
     return 2 ** np.arange(k + 1)
 
 

@@ -103,9 +103,7 @@ def nonuniform_parameters(h: np.ndarray, x: np.ndarray) -> np.ndarray:
     q = np.sqrt(np.sum((da**2 + da * db + db**2) / 3 * dxs, -1) / length)
     # |.| and higher moments by trapezoid of the node deviations
     d = h - mean[..., None]
-    w = np.zeros_like(x)
-    w[:-1] += dxs / 2
-    w[1:] += dxs / 2
+    w = np.pad(dxs / 2, (0, 1)) + np.pad(dxs / 2, (1, 0))  # trapezoid weight of each node
     ra = np.sum(np.abs(d) * w, -1) / length
     with np.errstate(invalid="ignore", divide="ignore"):
         sk = np.where(q > 0, np.sum(d**3 * w, -1) / length / q**3, np.nan)
