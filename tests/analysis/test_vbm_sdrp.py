@@ -9,9 +9,9 @@ from xtopo.errors import ChunkError
 from ..conftest import batch
 
 
-def _tilt_corrected_sq(h):
+def _tilt_corrected_sq(h, dy=1.0, dx=1.0):
     ny, nx = h.shape
-    yy, xx = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    yy, xx = np.meshgrid(np.arange(ny) * dy, np.arange(nx) * dx, indexing="ij")
     a = np.c_[np.ones(h.size), xx.ravel(), yy.ravel()]
     coef, *_ = np.linalg.lstsq(a, h.ravel(), rcond=None)
     return np.sqrt(np.mean((h.ravel() - a @ coef) ** 2))
@@ -38,6 +38,21 @@ def test_vbm_blocks_match_direct_and_line():
         np.testing.assert_allclose(got, np.mean(vals), rtol=1e-10)
     line = ds.isel(y=0)
     assert line.topo.vbm().sizes["bandwidth"] >= 3
+
+
+def test_vbm_on_non_square_pixels_fits_planes_in_physical_coordinates():
+    """The kernel fits each block's plane in pixel units and is given no spacing: right for any pixel aspect,
+    since a plane in x/Δx, y/Δy is a plane in x, y (the same residuals). Checked against planes fitted in
+    physical coordinates on pixels 20 times longer in x than in y."""
+    ds = fractal_surface((40, 24), (0.2, 2.4), hurst=0.6, periodic=False, seed=5)
+    dy, dx = (float(ds[d][1] - ds[d][0]) for d in ("y", "x"))
+    assert dx / dy == pytest.approx(20)
+    v, h = ds.topo.vbm(reliable=False), ds.height.values
+    for zeta in v.magnification.values:
+        by, bx = (np.append((np.arange(zeta) * n) // zeta, n) for n in h.shape)
+        vals = [_tilt_corrected_sq(h[by[i]:by[i + 1], bx[j]:bx[j + 1]], dy, dx)
+                for i in range(zeta) for j in range(zeta)]
+        np.testing.assert_allclose(v.values[v.magnification.values == zeta], np.mean(vals), rtol=1e-10)
 
 
 @pytest.mark.parametrize("shape", [(24, 256), (1, 512)])

@@ -24,10 +24,7 @@ __all__ = ["vbm_levels", "vbm"]
 
 def vbm_levels(sizes, min_pixels: int = 4) -> np.ndarray:
     """Magnifications ``ζ = 1, 2, 4, …`` whose blocks keep at least ``min_pixels`` along every axis."""
-    n = min(sizes)
-    k = 0
-    while n // 2 ** (k + 1) >= min_pixels:
-        k += 1
+    k = max((int(min(sizes)) // int(min_pixels)).bit_length() - 1, 0)  # the largest k with n // 2**k >= min_pixels
     return 2 ** np.arange(k + 1)
 
 
@@ -65,50 +62,35 @@ def _geometry(n, zeta):
     return b, w, centre, np.arange(n) - np.repeat(centre, w)
 
 
-def _finest(h, axis, zeta):
-    """Sums Σh, Σx̂h over blocks along ``axis`` (x̂ about the block centre, in pixels) and block geometry."""
-    b, w, centre, xl = _geometry(h.shape[axis], zeta)
-    shape = [1] * h.ndim
-    shape[axis] = h.shape[axis]
-    s0 = np.add.reduceat(h, b, axis=axis)
-    s1 = np.add.reduceat(h * xl.reshape(shape), b, axis=axis)
-    return s0, s1, w.astype(float), centre
-
-
 def _merge(arrs, w, centre, axis):
     """Merge pairs of neighbouring blocks along ``axis``: moments about the parent centre.
 
-    ``arrs`` maps moment name to arrays; names ending in ``"1"`` hold first moments
-    along ``axis`` (Σx̂h) and get the shift term; ``"s0"`` holds Σh.
+    ``arrs`` maps moment name to arrays: ``"s0"`` Σh, ``"s2"`` Σh², an axis number its first
+    moments Σx̂h along that axis (these get the shift term).
     """
-    def pair(a):
-        a0 = np.take(a, np.arange(0, a.shape[axis], 2), axis=axis)
-        a1 = np.take(a, np.arange(1, a.shape[axis], 2), axis=axis)
-        return a0 + a1
-
     wp = w[0::2] + w[1::2]
     start = centre[0::2] - (w[0::2] - 1) / 2
     cp = start + (wp - 1) / 2
     shape = [1] * arrs["s0"].ndim
     shape[axis] = len(centre)
     shift = (centre - np.repeat(cp, 2)).reshape(shape)
+    even, odd = ((slice(None),) * axis + (slice(k, None, 2),) for k in (0, 1))
     out = {}
     for name, a in arrs.items():
-        if name == f"s1_{axis}":
-            out[name] = pair(a + shift * arrs["s0"])
-        else:
-            out[name] = pair(a)
-    return out, wp, cp
+        a = a + shift * arrs["s0"] if name == axis else a
+        out[name] = a[even] + a[odd]
+    return out, (wp, cp)
 
 
-def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None, quadratic: bool = False) -> np.ndarray:
+def vbm(h: np.ndarray, levels, *, ndim: int, quadratic: bool = False) -> np.ndarray:
     """Mean tilt-corrected RMS height ⟨h_rms⟩ at each magnification ``ζ`` in ``levels``.
+
+    The plane is fitted in pixel units: its residuals, and so the result, do not depend on the
+    spacings (a plane in ``x/Δx``, ``y/Δy`` is a plane in ``x``, ``y``), square pixels or not.
 
     Parameters
     ----------
     h : ndarray, shape (..., [ny,] nx)
-    dx, dy : float
-        Spacings (the fit is done in pixel units; heights are unaffected).
     levels : sequence of int
         Powers of two, ascending (see :func:`vbm_levels`).
     ndim : int
@@ -127,33 +109,29 @@ def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None,
     h = h - h.mean(axis=axes, keepdims=True)
     levels = [int(z) for z in levels]
     zmax = levels[-1]
-    geo = {}
     # reduce along the last axis first (the expensive pass: one compiled sweep), then along y
+    ax = h.ndim - 1
     bx, wx, cx, xl = _geometry(h.shape[-1], zmax)
     s0, s1x, s2 = (s.reshape(h.shape[:-1] + (zmax,))
                    for s in _row_blocks(h.reshape(-1, h.shape[-1]), bx.astype(np.int64), xl))
-    wx = wx.astype(float)
-    geo[h.ndim - 1] = (wx, cx)
+    m = {"s0": s0, ax: s1x, "s2": s2}
+    geo = {ax: (wx.astype(float), cx)}
     if ndim == 2:
-        ay = h.ndim - 2
-        by = (np.arange(zmax) * h.shape[ay]) // zmax
-        t0, t1y, wy, cy = _finest(s0, ay, zmax)
-        m = {"s0": t0, "s1_" + str(ay): t1y, "s1_" + str(h.ndim - 1): np.add.reduceat(s1x, by, axis=ay),
-             "s2": np.add.reduceat(s2, by, axis=ay)}
-        geo[ay] = (wy, cy)
-    else:
-        m = {"s0": s0, "s1_" + str(h.ndim - 1): s1x, "s2": s2}
+        by, wy, cy, yl = _geometry(h.shape[-2], zmax)
+        m = {"s0": s0, ax - 1: s0 * yl[:, None], ax: s1x, "s2": s2}
+        m = {name: np.add.reduceat(a, by, axis=ax - 1) for name, a in m.items()}
+        geo[ax - 1] = (wy.astype(float), cy)
     results = {}
     zeta = zmax
     while True:
         # block widths along each axis, broadcastable against the block sums
-        widths = {ax: w.reshape([-1 if a == ax else 1 for a in range(m["s0"].ndim)]) for ax, (w, _) in geo.items()}
+        widths = {a: w.reshape([-1 if b == a else 1 for b in range(h.ndim)]) for a, (w, _) in geo.items()}
         count = functools.reduce(operator.mul, widths.values(), 1.0)
         ss = m["s2"] - m["s0"] ** 2 / count
-        for ax, w in widths.items():
+        for a, w in widths.items():
             sxx = (w**3 - w) / 12.0 * (count / w)  # Σ (x - centre)² over the block, pixels²
             with np.errstate(invalid="ignore", divide="ignore"):
-                ss = ss - np.where(sxx > 0, m["s1_" + str(ax)] ** 2 / np.where(sxx > 0, sxx, 1.0), 0.0)
+                ss = ss - np.where(sxx > 0, m[a] ** 2 / np.where(sxx > 0, sxx, 1.0), 0.0)
         if quadratic:
             pixels = np.broadcast_to(count, ss.shape).sum(axis=axes)
             results[zeta] = np.sqrt(np.maximum(ss, 0.0).sum(axis=axes) / pixels)
@@ -161,9 +139,7 @@ def vbm(h: np.ndarray, dx: float, levels, *, ndim: int, dy: float | None = None,
             results[zeta] = np.sqrt(np.maximum(ss, 0.0) / count).mean(axis=axes)
         if zeta == 1:
             break
-        for ax in list(geo):
-            w, c = geo[ax]
-            m, w, c = _merge(m, w, c, ax)
-            geo[ax] = (w, c)
+        for a in list(geo):
+            m, geo[a] = _merge(m, *geo[a], a)
         zeta //= 2
     return np.stack([results[z] for z in levels], axis=-1)

@@ -33,8 +33,7 @@ def interp_loglog(y: np.ndarray, x: np.ndarray, xnew: np.ndarray) -> np.ndarray:
     rows = int(np.prod(y.shape[:-1]))                  # explicit: a curve without samples is all NaN
     flat_y = y.reshape(rows, y.shape[-1])
     flat_o = out.reshape(rows, xnew.size)
-    for i in range(flat_y.shape[0]):
-        row = flat_y[i]
+    for i, row in enumerate(flat_y):
         ok = np.isfinite(row) & (row > 0) & np.isfinite(lx_all)
         if ok.sum() < 2:
             if ok.sum() == 1:

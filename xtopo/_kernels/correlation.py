@@ -84,17 +84,15 @@ def acf_map(h: np.ndarray, *, periodic: bool) -> np.ndarray:
     ny, nx = h.shape[-2:]
     d = h - h.mean(axis=(-2, -1), keepdims=True)
     sq = d * d
+    # circular (periodic) or, zero padded, linear correlation Σ d(r) d(r + Δr)
+    shape = (ny, nx) if periodic else tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in (ny, nx))
+    c = _fft.irfftn(power(_fft.rfftn(d, s=shape, axes=(-2, -1), backend=_BACKEND)), s=shape, axes=(-2, -1),
+                    backend=_BACKEND)
     if periodic:
-        p = power(_fft.rfftn(d, axes=(-2, -1), backend=_BACKEND))
-        c = _fft.irfftn(p, s=(ny, nx), axes=(-2, -1), backend=_BACKEND)
         a = sq.mean(axis=(-2, -1), keepdims=True) - c / (nx * ny)
         a[..., 0, 0] = 0.0
         return _nonnegative(a)
-    py = sfft.next_fast_len(2 * ny - 1, real=True)
-    px = sfft.next_fast_len(2 * nx - 1, real=True)
-    p = power(_fft.rfftn(d, s=(py, px), axes=(-2, -1), backend=_BACKEND))
-    c = _fft.irfftn(p, s=(py, px), axes=(-2, -1), backend=_BACKEND)
-    del p
+    px = shape[1]
     c = np.concatenate([c[..., :ny, px - (nx - 1):], c[..., :ny, :nx]], axis=-1)
     # Σ of h² over the rows a pair's first point (rows < ny-Δy) or second point (rows ≥ Δy) can take,
     # then prefix sums over columns: every rectangle sum below is a difference of two column views.

@@ -136,10 +136,8 @@ def slope_sums(z, dy, dx, periodic):
     cells whose corners, touch NaN are skipped; nonperiodic maps have slopes from the fourth
     sample from each edge inwards.
     """
-    ny, nx = z.shape
     sx, nxs = _rows_x(z, 0.0, 0, periodic)
-    zt = np.ascontiguousarray(z.T)
-    sy, nys = _rows_x(zt, 0.0, 0, periodic)
+    sy, nys = _rows_x(np.ascontiguousarray(z.T), 0.0, 0, periodic)
     area, cells = _cells(z, dy, dx, periodic)
     return sx / (60.0 * dx) ** 2, nxs, sy / (60.0 * dy) ** 2, nys, area, cells
 
@@ -199,10 +197,7 @@ def decay_lengths(z: np.ndarray, dy: float, dx: float, periodic: bool, s: float)
     ``z[ny, nx]`` finite, mean removed. Nonperiodic maps are zero padded (linear correlation).
     """
     ny, nx = z.shape
-    if periodic:
-        shape = (ny, nx)
-    else:
-        shape = (sfft.next_fast_len(2 * ny - 1, real=True), sfft.next_fast_len(2 * nx - 1, real=True))
+    shape = (ny, nx) if periodic else tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in (ny, nx))
     # single precision: the correlation at a lag with N pairs is off by ~1e-6·n/N of C(0), far below
     # any threshold s, and the transforms run twice as fast
     p = _power(_fft.rfftn(z.astype(np.float32), s=shape, axes=(-2, -1), backend=_BACKEND))
@@ -235,8 +230,7 @@ def _angular(amp, ny, nx, dy, dx, nbins):
             th = math.degrees(math.atan2(fy, fx)) / step  # in bins
             half = max(cell / math.hypot(fx, fy) / step, 1.0)
             if half >= nbins / 2:
-                for b in range(nbins):
-                    out[b] += w / nbins
+                out += w / nbins
                 continue
             lo = int(math.ceil(th - half))
             hi = int(math.floor(th + half))

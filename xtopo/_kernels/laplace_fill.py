@@ -99,8 +99,7 @@ def _fill_one(h, periodic, wy, wx, method):
         known = h[~missing]
         middle = 0.5 * (known.min() + known.max())
         unknown, iy, ix, A, rhs = _system(h - middle, missing, periodic, wy, wx)
-        ny, nx = h.shape
-        anisotropy = wy / wx if ny > 1 and nx > 1 else 1.0
+        anisotropy = wy / wx if min(h.shape) > 1 else 1.0
         if method == "iterative":
             big = np.ones(unknown.size, dtype=bool)
         else:  # islands (connected sets of missing pixels, wrapping on periodic maps) by size

@@ -124,10 +124,8 @@ class Distribution:
         self.lo, self.hi = lo - mean - c, hi - mean - c
         self.edges = np.linspace(self.lo, self.hi, m + 1)
         self.counts = counts
-        self.above = np.zeros(m + 1, np.int64)
-        self.above[:m] = np.cumsum(counts[::-1])[::-1]
-        self.sum_above = np.zeros(m + 1)
-        self.sum_above[:m] = np.cumsum((sums - c * counts)[::-1])[::-1]
+        self.above = np.append(np.cumsum(counts[::-1])[::-1], 0)
+        self.sum_above = np.append(np.cumsum((sums - c * counts)[::-1])[::-1], 0.0)
 
     def _locate(self, c):
         """Class index and position inside it (0..1) of levels ``c``; levels outside are clipped."""

@@ -15,6 +15,7 @@ import numpy as np
 
 from .derivatives import forward_difference, second_difference
 from ..errors import UndefinedValueWarning
+from .profile_iso import _nan  # nanmean of all-NaN slices: NaN without a warning
 
 __all__ = ["AREA_PARAMETERS", "LINE_PARAMETERS", "area_parameters", "profile_parameters", "nonuniform_parameters"]
 
@@ -24,12 +25,6 @@ AREA_PARAMETERS = ("Sq", "Sdq", "Sddq", "Sa", "Sz", "Ssk", "Sku")
 LINE_PARAMETERS = ("Rq", "Rdq", "Rddq", "Ra", "Rz", "Rsk", "Rku")
 #: how each parameter (both lists) scales with the heights: h¹, skewness and kurtosis h⁰
 HEIGHT_POWERS = (1, 1, 1, 1, 1, 0, 0)
-
-
-def _nanmean(a, axis):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return np.nanmean(a, axis=axis)
 
 
 def _moments(d, axes):
@@ -62,32 +57,32 @@ def area_parameters(h: np.ndarray, dy: float, dx: float, periodic: bool) -> np.n
     """
     h = np.asarray(h, dtype=float)
     flat = h.reshape(h.shape[:-2] + (-1,))
-    d = flat - _nanmean(flat, -1)[..., None]
+    d = flat - _nan(np.nanmean, flat, -1)[..., None]
     sq, sa, sz, ssk, sku = _moments(d, (-1,))
     gx = forward_difference(h, dx, periodic=periodic, axis=-1)
     gy = forward_difference(h, dy, periodic=periodic, axis=-2)
-    sdq = np.sqrt(_nanmean(gx.reshape(gx.shape[:-2] + (-1,)) ** 2, -1)
-                  + _nanmean(gy.reshape(gy.shape[:-2] + (-1,)) ** 2, -1))
+    sdq = np.sqrt(_nan(np.nanmean, gx.reshape(gx.shape[:-2] + (-1,)) ** 2, -1)
+                  + _nan(np.nanmean, gy.reshape(gy.shape[:-2] + (-1,)) ** 2, -1))
     cx = second_difference(h, dx, periodic=periodic, axis=-1)
     cy = second_difference(h, dy, periodic=periodic, axis=-2)
     if not periodic:
         cx = cx[..., 1:-1, :]
         cy = cy[..., :, 1:-1]
     lap = cx + cy
-    sddq = np.sqrt(_nanmean(lap.reshape(lap.shape[:-2] + (-1,)) ** 2, -1) / 4)
+    sddq = np.sqrt(_nan(np.nanmean, lap.reshape(lap.shape[:-2] + (-1,)) ** 2, -1) / 4)
     return np.stack([sq, sdq, sddq, sa, sz, ssk, sku], axis=-1)
 
 
 def profile_parameters(h: np.ndarray, dx: float, periodic: bool, rows: int) -> np.ndarray:
     """R-parameters of the profiles along the last axis, averaged over ``rows`` preceding axes."""
     h = np.asarray(h, dtype=float)
-    d = h - _nanmean(h, -1)[..., None]
+    d = h - _nan(np.nanmean, h, -1)[..., None]
     axes = tuple(range(-1 - rows, 0))
     q, a, z, sk, ku = _moments(d, axes)
     g = forward_difference(h, dx, periodic=periodic, axis=-1)
-    dq = np.sqrt(_nanmean(g**2, axes))
+    dq = np.sqrt(_nan(np.nanmean, g**2, axes))
     c = second_difference(h, dx, periodic=periodic, axis=-1)
-    ddq = np.sqrt(_nanmean(c**2, axes))
+    ddq = np.sqrt(_nan(np.nanmean, c**2, axes))
     return np.stack([q, dq, ddq, a, z, sk, ku], axis=-1)
 
 
@@ -108,9 +103,7 @@ def nonuniform_parameters(h: np.ndarray, x: np.ndarray) -> np.ndarray:
     q = np.sqrt(np.sum((da**2 + da * db + db**2) / 3 * dxs, -1) / length)
     # |.| and higher moments by trapezoid of the node deviations
     d = h - mean[..., None]
-    w = np.zeros_like(x)
-    w[:-1] += dxs / 2
-    w[1:] += dxs / 2
+    w = np.pad(dxs / 2, (0, 1)) + np.pad(dxs / 2, (1, 0))  # trapezoid weight of each node
     ra = np.sum(np.abs(d) * w, -1) / length
     with np.errstate(invalid="ignore", divide="ignore"):
         sk = np.where(q > 0, np.sum(d**3 * w, -1) / length / q**3, np.nan)

@@ -9,8 +9,6 @@ lies inside the data.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from ._lazy import LazyJit
 
@@ -21,13 +19,21 @@ njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (
 __all__ = ["scaled_difference", "sdrp_rms", "max_negative_curvature"]
 
 
-def _shifted(h: np.ndarray, eta: float, start: int, count: int, sign: int) -> np.ndarray:
-    """Linear interpolant of ``h`` at ``m + sign·η`` for ``m = start..start+count-1`` (no wrap)."""
-    k = int(np.floor(eta + 1e-12))
-    f = eta - k
-    if f < 1e-12:
-        f = 0.0
-    a = start + sign * k
+def _stencil(eta, order: int, periodic: bool, n: int, pad: int):
+    """``(k, f, start, count)`` of scale factor(s) ``eta``: ``η = k + f`` (``f`` in [0, 1)) and the stencil
+    positions ``m = start..start+count-1`` of a profile of ``n`` points (wrapped by ``pad`` values each side when
+    periodic; ``count ≤ 0``: no stencil fits)."""
+    k = np.floor(eta + 1e-12).astype(np.int64)
+    f = np.where(eta - k < 1e-12, 0.0, eta - k)
+    if periodic:
+        return k, f, np.full_like(k, pad), np.full_like(k, n)
+    reach = np.ceil(eta - 1e-12).astype(np.int64)
+    start = reach if order == 2 else np.zeros_like(k)
+    return k, f, start, n - reach - start
+
+
+def _shifted(h: np.ndarray, a: int, f: float, count: int, sign: int) -> np.ndarray:
+    """Linear interpolant of ``h`` at ``m + sign·f`` for ``m = a..a+count-1`` (no wrap)."""
     out = h[..., a:a + count]
     if f:
         b = a + sign
@@ -41,37 +47,19 @@ def scaled_difference(h: np.ndarray, eta: float, *, order: int, periodic: bool) 
     Multiply by ``1/Δx`` (order 1) or ``1/Δx²`` (order 2) for physical units.
     """
     n = h.shape[-1]
-    reach = int(np.ceil(eta - 1e-12))
+    pad = int(np.ceil(eta - 1e-12)) + 1
     if periodic:
-        pad = reach + 1
         h = np.concatenate([h[..., n - pad:], h, h[..., :pad]], axis=-1) if pad <= n else np.pad(
             h, [(0, 0)] * (h.ndim - 1) + [(pad, pad)], mode="wrap")
-        start, count = pad, n
-    else:
-        start = reach if order == 2 else 0
-        count = n - reach - start
-        if count <= 0:
-            return np.empty(h.shape[:-1] + (0,))
+    k, f, start, count = (v.item() for v in _stencil(np.float64(eta), order, periodic, n, pad))
+    if count <= 0:
+        return np.empty(h.shape[:-1] + (0,))
     centre = h[..., start:start + count]
-    fwd = _shifted(h, eta, start, count, +1)
+    fwd = _shifted(h, start + k, f, count, +1)
     if order == 1:
         return (fwd - centre) / eta
-    bwd = _shifted(h, eta, start, count, -1)
+    bwd = _shifted(h, start - k, f, count, -1)
     return (fwd - 2 * centre + bwd) / eta**2
-
-
-@njit(inline="always")
-def _stencil(eta, order, periodic, n, pad):
-    """``(k, f, start, count)`` of scale factor ``eta`` as :func:`scaled_difference` takes them."""
-    k = int(math.floor(eta + 1e-12))
-    f = eta - k
-    if f < 1e-12:
-        f = 0.0
-    if periodic:
-        return k, f, pad, n
-    reach = int(math.ceil(eta - 1e-12))
-    start = reach if order == 2 else 0
-    return k, f, start, n - reach - start
 
 
 _SUM = dict(nogil=True, cache=True, fastmath={"reassoc", "nsz"})   # sums may be vectorised (reordered)
@@ -102,40 +90,38 @@ def _diff(row, start, a, b, count, g, f, squares, second):
 
 
 @njit(nogil=True, cache=True)
-def _row_stats(row, etas, order, periodic, n, pad, squares, out):
-    """Fold the scaled differences of one profile ``row`` (wrapped by ``pad`` values on each side when
-    periodic) into ``out[e]``: ``Σ d²`` (``squares``) or ``min d``, with ``d`` not yet divided by
-    ``η^order``. The profile stays in cache over all the scales; no temporaries."""
-    for e in range(etas.size):
-        k, f, start, count = _stencil(etas[e], order, periodic, n, pad)
-        if count <= 0:
-            continue
-        acc = _diff(row, start, start + k, start - k, count, 1.0 - f, f, squares, order == 2)
-        if squares:
-            out[e] += acc
-        else:
-            out[e] = min(out[e], acc)
-
-
-@njit(nogil=True, cache=True)
-def _scaled_stats(h, etas, order, periodic, squares):
-    """Per leading index ``l`` of ``h`` (shape ``(L, R, n)``) and scale ``η``: ``Σ d²`` over all ``R`` profiles
-    (``squares``) or ``min d``, ``d`` the order-``order`` difference at ``η`` without its ``1/η^order``."""
+def _scaled_stats(h, k, f, start, count, second, pad, squares):
+    """Per leading index ``l`` of ``h`` (shape ``(L, R, n)``) and scale ``η`` (its :func:`_stencil` arrays
+    ``k, f, start, count``): ``Σ d²`` over all ``R`` profiles (``squares``) or ``min d``, ``d`` the difference
+    (``second``: of order 2) at ``η`` without its ``1/η^order``. Periodic profiles (``pad > 0``) are wrapped by
+    ``pad`` values each side into one buffer, which stays in cache over all the scales."""
     n_lead, n_rows, n = h.shape
-    pad = 0
-    if periodic:
-        pad = int(math.ceil(np.max(etas) - 1e-12)) + 1 if etas.size else 1
-    out = np.zeros((n_lead, etas.size)) if squares else np.full((n_lead, etas.size), np.inf)
+    out = np.zeros((n_lead, k.size)) if squares else np.full((n_lead, k.size), np.inf)
     row = np.empty(n + 2 * pad)
     for lead in range(n_lead):
         for r in range(n_rows):
             src = h[lead, r]
-            if periodic:
+            if pad:
                 for j in range(n + 2 * pad):
                     row[j] = src[(j - pad) % n]
                 src = row
-            _row_stats(src, etas, order, periodic, n, pad, squares, out[lead])
+            for e in range(k.size):
+                if count[e] <= 0:
+                    continue
+                acc = _diff(src, start[e], start[e] + k[e], start[e] - k[e], count[e], 1.0 - f[e], f[e], squares,
+                            second)
+                out[lead, e] = out[lead, e] + acc if squares else min(out[lead, e], acc)
     return out
+
+
+def _stats(h, etas, order, periodic, rows, squares):
+    """``h`` as ``(L, R, n)`` profiles (:func:`_profiles`), its leading shape, the scale factors ``etas`` as an
+    array, their stencil counts per profile and :func:`_scaled_stats` of them."""
+    h3, lead = _profiles(h, rows)
+    etas = np.asarray(etas, dtype=float).reshape(-1)
+    pad = int(np.ceil(etas.max() - 1e-12)) + 1 if periodic and etas.size else 0
+    k, f, start, count = _stencil(etas, order, periodic, h3.shape[-1], pad)
+    return h3, lead, etas, count, _scaled_stats(h3, k, f, start, count, order == 2, pad, squares)
 
 
 def _profiles(h, rows):
@@ -143,12 +129,6 @@ def _profiles(h, rows):
     h = np.ascontiguousarray(h, dtype=float)
     lead = h.shape[: h.ndim - 1 - rows]
     return h.reshape(int(np.prod(lead, dtype=int)), -1, h.shape[-1]), lead
-
-
-def _counts(etas, order, periodic, n):
-    """Stencil positions per profile at each ``η`` (the same rule as :func:`scaled_difference`)."""
-    reach = np.ceil(np.asarray(etas, dtype=float) - 1e-12)
-    return np.full(reach.shape, float(n)) if periodic else n - reach - (reach if order == 2 else 0)
 
 
 def sdrp_rms(h: np.ndarray, dx: float, etas, *, order: int, periodic: bool, rows: int) -> np.ndarray:
@@ -159,10 +139,8 @@ def sdrp_rms(h: np.ndarray, dx: float, etas, *, order: int, periodic: bool, rows
     those of :func:`scaled_difference` (to rounding).
     """
     check_finite(h, "sdrp")
-    h3, lead = _profiles(h, rows)
-    etas = np.asarray(etas, dtype=float).reshape(-1)
-    sums = _scaled_stats(h3, etas, order, periodic, True)
-    count = _counts(etas, order, periodic, h3.shape[-1]) * h3.shape[1]
+    h3, lead, etas, count, sums = _stats(h, etas, order, periodic, rows, True)
+    count = count * h3.shape[1]
     with np.errstate(invalid="ignore", divide="ignore"):
         rms = np.where(count > 0, np.sqrt(sums / np.maximum(count, 1)) / etas**order, np.nan)
     return rms.reshape(lead + (etas.size,)) / dx**order
@@ -174,7 +152,5 @@ def max_negative_curvature(h: np.ndarray, dx: float, etas, *, periodic: bool, ro
     ``-inf`` where no stencil fits; one compiled pass as in :func:`sdrp_rms`.
     """
     check_finite(h, "reliability")
-    h3, lead = _profiles(h, rows)
-    etas = np.asarray(etas, dtype=float).reshape(-1)
-    low = _scaled_stats(h3, etas, 2, periodic, False)
+    _, lead, etas, _, low = _stats(h, etas, 2, periodic, rows, False)
     return (-low / etas**2).reshape(lead + (etas.size,)) / dx**2

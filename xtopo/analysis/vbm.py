@@ -78,7 +78,7 @@ def vbm(obj, *, min_pixels: Annotated[int, Count(min=2)] = 4, reliable: Annotate
         raise XtopoError(f"min_pixels must be an integer >= 3 for a line scan, got {min_pixels!r}")
     sizes = [h.sizes[d] for d in prep.lat]
     levels = _k.vbm_levels(sizes, min_pixels)
-    kwargs = dict(dx=prep.spacing(X), levels=levels, ndim=len(prep.lat), quadratic=average == "rms")
+    kwargs = dict(levels=levels, ndim=len(prep.lat), quadratic=average == "rms")
     out = apply_lateral(_k.vbm, h, output_core_dims=[["bandwidth"]], output_sizes={"bandwidth": levels.size},
                         kwargs=kwargs, height_power=(1,), what="vbm")
     length = float(np.prod([prep.size(d) for d in prep.lat]) ** (1 / len(prep.lat)))  # sqrt(Lx Ly), or L

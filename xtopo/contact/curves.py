@@ -64,18 +64,17 @@ def curve(scene, *, loads: Annotated[object, _VALUES] = None, mean_pressures: An
     name, values = ONE_SEQUENCE.given(dict(loads=loads, mean_pressures=mean_pressures, penetrations=penetrations))
     values = np.atleast_1d(values)
     tol, maxiter = solver_settings(scene, tol, maxiter, preset)
-    key = name[:-1]
+    dim = name[:-1]  # the curve runs along the control the user gave
     # every value checked before the first solve (a bad last value must not cost the whole curve)
-    controls = [_control(scene, **{key: v}) for v in values]
+    controls = [_control(scene, **{dim: v}) for v in values]
     steps, previous = [], None
     for v, (load, pen) in zip(values, controls):
         res = run_solver(scene, load=load, penetration=pen, tol=tol, maxiter=maxiter, initial=previous)
         if not res.converged:
-            warn(f"contact solve at {name[:-1]}={v:g} did not converge in {res.iterations} iterations "
+            warn(f"contact solve at {dim}={v:g} did not converge in {res.iterations} iterations "
                  f"(residual {res.residual:.3g} > tol {tol:g}); flagged converged=False", ConvergenceWarning)
         previous = res.pressure if np.any(res.pressure) else None
         steps.append(to_dataset(scene, res, tol))
-    dim = key  # the curve runs along the control the user gave
     ds = xr.concat([st.set_coords(dim) for st in steps], dim=dim, data_vars="all", coords="minimal",
                    compat="override", combine_attrs="override")
     # penetrations are known to the solver tolerance (relative to the roughness, or the pixel for a flat)

@@ -123,12 +123,8 @@ class Scene:
                       f"({int(per_counter)}): periodic only when both are")
             per_attr = per_attr and per_counter
             values = values + np.asarray(h2.values, dtype=np.float64)
-        if periodic is None:
-            self.periodic = bool(per_attr)
-            self._boundary_reason = source
-        else:
-            self.periodic = periodic
-            self._boundary_reason = "as requested"
+        self.periodic = bool(per_attr) if periodic is None else periodic
+        self._boundary_reason = source if periodic is None else "as requested"
         self._reasons = [] if counter is None else ["compound topography h1 + h2 (counter surface given)"]
         self.coords = {d: h.coords[d] for d in self.dims}
         #: what the results carry of the measurement: its file, checksum and processing history

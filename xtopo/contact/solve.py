@@ -59,9 +59,8 @@ def solver_parameters(tol, maxiter) -> tuple:
 def result_units(scene) -> dict:
     """Units strings of the outputs of ``scene`` (pressure, length, load, area)."""
     pu, lu = scene.modulus_units, scene.length_units
-    if scene.line:
-        return {"pressure": pu, "length": lu, "load": f"{pu} {lu}", "area": lu}
-    return {"pressure": pu, "length": lu, "load": f"{pu} {lu}2", "area": f"{lu}2"}
+    area = lu if scene.line else f"{lu}2"  # a line scan's contact "area" is a length, its load per unit length
+    return {"pressure": pu, "length": lu, "load": f"{pu} {area}", "area": area}
 
 
 #: The rule of every contact entry point, declared once (``@checked``): exactly one control, a value
