@@ -1,13 +1,10 @@
 """One measurement's analysis as one dask task (the per-measurement stage of a twin average).
 
-A twin average of lazy measurements needs, for each, the coordinates of its curves (they set the
-collocation points) and a graph that computes their values. Built with xarray on dask, that graph
-was dozens of small tasks per measurement, and building it cost the client more than a worker
-spent on the analysis. :func:`one_task` takes the coordinates from the lazy result of another
-measurement of the same shape (a template, built once) and computes the values by one task that
-reads the measurement and runs the in-memory analysis on it, with dask's synchronous scheduler:
-the measurement travels to the worker as its file path (or its graph), and only the small
-outputs come back. The task checks that its result has the template's coordinates.
+Built with xarray on dask, a twin average was dozens of small tasks per measurement, and building them
+cost the client more than the workers spent analysing. :func:`one_task` takes the coordinates from the
+lazy result of another measurement of the same shape (:func:`template`, built once) and computes the
+values by one task that reads the measurement and runs the in-memory analysis on it (dask's synchronous
+scheduler), checking that its result has the template's coordinates; only the small outputs come back.
 """
 
 from __future__ import annotations
