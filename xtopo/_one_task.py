@@ -1,21 +1,22 @@
-"""Lazy xarray objects whose dask graph runs as one task (the per-measurement stage of a twin average).
+"""One measurement's analysis as one dask task (the per-measurement stage of a twin average).
 
-A twin average builds, for every measurement, a chain of a few dozen small dask tasks (read,
-fill, spectrum, reliability masks, errors). On a distributed cluster each task costs a
-scheduler round trip and a transfer of its intermediate result, so a twin of a thousand
-measurements spent more time in the scheduler than in the analyses. :func:`one_task` keeps
-the objects lazy and their values the same, but computes the whole subgraph behind them in a
-single task with dask's synchronous scheduler: the graph travels to the worker (a file-backed
-measurement as its file path, not its array), and only the small outputs come back.
+Built with xarray on dask, a twin average was dozens of small tasks per measurement, and building them
+cost the client more than the workers spent analysing. :func:`one_task` takes the coordinates from the
+lazy result of another measurement of the same shape (:func:`template`, built once) and computes the
+values by one task that reads the measurement and runs the in-memory analysis on it (dask's synchronous
+scheduler), checking that its result has the template's coordinates; only the small outputs come back.
 """
 
 from __future__ import annotations
 
 import operator
 
+import numpy as np
 import xarray as xr
 
-__all__ = ["one_task"]
+from .errors import XtopoError
+
+__all__ = ["one_task", "template"]
 
 
 class _Opaque:
@@ -27,46 +28,69 @@ class _Opaque:
         self.items = items
 
 
-def _compute_here(held: _Opaque) -> tuple:
+def _dask_parts(obj) -> list:
+    """Names of ``obj``'s dask-backed data (None) and non-index coordinates."""
+    if not isinstance(obj, xr.DataArray):
+        return []
+    return ([None] if obj.chunks is not None else []) + [
+        name for name, c in obj.coords.items() if c.chunks is not None and name not in obj.dims]
+
+
+def _fingerprint(objs, parts) -> str:
+    """What a lazy result takes from its template: each object's dims, name, units and its numpy
+    data and coordinates (values and attrs); of its dask-backed ``parts``, the shapes."""
+    from dask.base import tokenize  # deferred, as all dask here: lazy data only (the core install has no dask)
+
+    return tokenize([None if o is None else (
+        o.dims, o.name, o.attrs.get("units"), o.attrs.get("long_name"),
+        [(n, (o.variable if n is None else o.coords[n].variable).shape) for n in p],
+        None if None in p else o.values,
+        [(n, c.dims, c.attrs, c.values) for n, c in o.coords.items() if n not in p]) for o, p in zip(objs, parts)])
+
+
+def _compute_here(fn, held: _Opaque, parts, check: str) -> list:
     import dask
 
-    from .batch._task import _tune_malloc
+    from .batch._task import _tune_malloc  # deferred: xtopo.batch imports the twin averages, which import this module
 
     _tune_malloc()  # in a distributed worker, FFT-sized temporaries were fresh mmaps: 1.4x the serial time
-    return dask.compute(*held.items, scheduler="sync")
+    (ds,) = dask.compute(held.items, scheduler="sync")
+    out = fn(ds)
+    if _fingerprint(out, parts) != check:
+        raise XtopoError("a measurement's analysis gave other coordinates than the lazy graph of another "
+                         "measurement of its shape (the coordinates depend on attributes outside "
+                         "conventions.MEASUREMENT_ATTRS); load the twin into memory (.compute()) first")
+    return [np.asarray(o.variable.data if n is None else o.coords[n].data) for o, p in zip(out, parts) for n in p]
 
 
-def _dask_parts(obj: xr.DataArray) -> list[tuple]:
-    """(coordinate name or None for the data, array) of ``obj``'s dask-backed data and coordinates."""
-    parts = [(None, obj.variable)] if obj.chunks is not None else []
-    parts += [(name, c.variable) for name, c in obj.coords.items() if c.chunks is not None and name not in obj.dims]
-    return parts
+def template(like: tuple) -> tuple:
+    """``like`` (lazy results of an analysis of one measurement), the names of their dask-backed parts and
+    their fingerprint: what :func:`one_task` needs of them, worked out once for all measurements of a shape."""
+    parts = [_dask_parts(o) for o in like]
+    return like, parts, _fingerprint(like, parts)
 
 
-def one_task(*objs):
-    """``objs`` (DataArrays or None) with all their dask data computed by one task.
+def one_task(fn, ds: xr.Dataset, like: tuple) -> tuple:
+    """The lazy results of :func:`template` ``like`` with their dask data and non-index coordinates replaced by
+    those of ``fn(ds)``, computed by one task.
 
-    Data and non-index coordinates that are dask arrays are replaced by arrays taken from
-    that task's output; numpy-backed objects (and None) come back unchanged.
+    The task computes ``ds`` there (dask's synchronous scheduler) and runs ``fn`` on it in memory.
     """
-    parts = [_dask_parts(o) if isinstance(o, xr.DataArray) else [] for o in objs]
-    arrays = [v.data for p in parts for _, v in p]
-    if not arrays:  # in memory (also where the [dask] extra is not installed)
-        return objs
     import dask  # deferred: the core install has no dask, and then no lazy data reach here
     import dask.array as da
     from dask.base import tokenize
 
-    name = "xtopo-one-task-" + tokenize(*[a.name for a in arrays])
-    task = dask.delayed(_compute_here, pure=True)(_Opaque(arrays), dask_key_name=name)
-    it = iter(range(len(arrays)))
-    out = []
-    for obj, p in zip(objs, parts):
-        for coord, var in p:
-            i = next(it)
-            a = arrays[i]
+    like, parts, check = like
+    lazy = [(o.variable if n is None else o.coords[n].variable) for o, p in zip(like, parts) for n in p]
+    name = "xtopo-one-task-" + tokenize(ds, [v.data.name for v in lazy])
+    task = dask.delayed(_compute_here, pure=True)(fn, _Opaque(ds), parts, check, dask_key_name=name)
+    out, i = [], 0
+    for obj, p in zip(like, parts):
+        for n in p:
+            a = lazy[i].data
             piece = dask.delayed(operator.getitem, pure=True)(task, i, dask_key_name=f"{name}-{i}")
-            new = var.copy(data=da.from_delayed(piece, a.shape, dtype=a.dtype, meta=a._meta, name=f"{name}-a{i}"))
-            obj = obj.copy(data=new.data) if coord is None else obj.assign_coords({coord: new})
+            new = da.from_delayed(piece, a.shape, dtype=a.dtype, meta=a._meta, name=f"{name}-a{i}")
+            obj = obj.copy(data=new) if n is None else obj.assign_coords({n: lazy[i].copy(data=new)})
+            i += 1
         out.append(obj)
     return tuple(out)

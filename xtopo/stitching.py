@@ -18,13 +18,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Annotated
 
 import numpy as np
 import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS
-from ._one_task import one_task
+from ._one_task import one_task, template
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
 from ._progress import progress_bar
 from .analysis._scale import provenance
@@ -35,7 +36,7 @@ from .analysis.reliability import reliability_cutoff
 from .analysis.sdrp import sdrp
 from .analysis.statistical_reliability import independent_samples, sampling_cutoff, stencil_error
 from .analysis.vbm import vbm
-from .conventions import convert_length, height_of, lateral_dims, length_factor
+from .conventions import MEASUREMENT_ATTRS, convert_length, height_of, lateral_dims, length_factor
 from .errors import GridError, UnitsError, XtopoError
 from .params import Choice, Count, Flag, Lengths, LengthUnit, Positive, checked
 from .preprocess import fill_missing
@@ -86,36 +87,40 @@ def _check_alike(curves: dict, coord: str) -> None:
                              "measurements in one length unit (.topo.to_units)")
 
 
-def _onto(curve: xr.DataArray, coord: str, grid: np.ndarray, method: str, error=None):
-    """``curve`` on the collocation ``grid``, and its predicted relative standard error there (or None).
+def _onto(curve: xr.DataArray, error, coord: str, grid: np.ndarray, method: str) -> xr.DataArray:
+    """``curve`` on the collocation ``grid`` by :func:`_on_grid` (its points marked :data:`UNRELIABLE` left
+    out), with its predicted relative error there and where the whole curve would reach: one apply_ufunc.
 
     Every collocation point inside the range of the curve's finite (reliable) points gets a
     value (:func:`~xtopo._kernels.collocation.collocate`). Spectra carry their independent
     modes: a bin holding ``N`` has ``1/√N``. Other curves: their ``error`` (on the curve's
-    points) brought onto the grid like the curve.
+    points, or None: unknown) brought onto the grid like the curve.
     """
-    x = np.asarray(curve[coord].values, dtype=float)
-
-    def on_grid(func, *arrays, **kw):
-        arrays = [a.drop_vars([c for c in a.coords if c != coord]) for a in arrays]
-        return xr.apply_ufunc(func, *arrays, input_core_dims=[[coord]] * len(arrays), output_core_dims=[["_grid"]],
-                              exclude_dims={coord}, kwargs=dict(x=x, xnew=grid, method=method, **kw),
-                              dask="parallelized", output_dtypes=[float],
-                              dask_gufunc_kwargs={"output_sizes": {"_grid": grid.size}})
-
-    out = on_grid(collocate, curve)
+    kw = {"x": np.asarray(curve[coord].values, dtype=float), "xnew": grid, "method": method}
+    if UNRELIABLE in curve.coords:
+        kw["unreliable"] = np.asarray(curve[UNRELIABLE].values)
     if method == "bin" and _MODES in curve.coords:  # spectra: independent modes add up within a bin
-        modes = np.asarray(curve[_MODES].values, dtype=float)
+        kw["modes"], error = np.asarray(curve[_MODES].values, dtype=float), None
+    args = [a.drop_vars([c for c in a.coords if c != coord]) for a in ((curve,) if error is None else (curve, error))]
+    return xr.apply_ufunc(_on_grid, *args, input_core_dims=[[coord]] * len(args),
+                          output_core_dims=[["_part", "_grid"]], exclude_dims={coord}, kwargs=kw,
+                          dask="parallelized", output_dtypes=[float],
+                          dask_gufunc_kwargs={"output_sizes": {"_part": 3, "_grid": grid.size}})
+
+
+def _on_grid(y, err=None, *, x, xnew, method, unreliable=None, modes=None):
+    """Values, predicted relative errors (NaN: unknown) and reach (1 where the curve with its ``unreliable``
+    points would have a value, NaN elsewhere) of a curve ``y`` at ``x`` on ``xnew``, stacked on a first axis."""
+    whole = y
+    if unreliable is not None:
+        y = np.where(unreliable, np.nan, y)
+    value = collocate(y, x, xnew, method)
+    if modes is not None:
         with np.errstate(divide="ignore"):
-            per_sample = np.where(modes > 0, 1 / np.sqrt(np.where(modes > 0, modes, 1.0)), np.nan)
-        return out, on_grid(_error_on_grid, curve, modes=modes, per_sample=per_sample)
-    if error is None:
-        return out, None
-    return out, on_grid(_error_on_grid, curve, error)
-
-
-def _error_on_grid(y, err=None, *, x, xnew, method, modes=None, per_sample=None):
-    return collocate_error(per_sample if err is None else err, y, x, xnew, method, modes=modes)
+            err = np.where(modes > 0, 1 / np.sqrt(np.where(modes > 0, modes, 1.0)), np.nan)
+    error = np.full_like(value, np.nan) if err is None else collocate_error(err, y, x, xnew, method, modes=modes)
+    reach = value if unreliable is None else collocate(whole, x, xnew, method)
+    return np.stack([value, error, np.where(np.isnan(reach), np.nan, 1.0)])
 
 
 #: collocation points per decade (10**30 raised numpy's 'Maximum allowed size exceeded')
@@ -203,21 +208,13 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
         grid = points
     names = list(curves)
     flagged = {n: c for n, c in curves.items() if UNRELIABLE in c.coords}
-    per = [_onto(curves[n].where(~curves[n][UNRELIABLE]) if n in flagged else curves[n], coord, grid, method,
-                 (errors or {}).get(n)) for n in names]
     dim = xr.DataArray(names, dims="measurement", name="measurement", attrs={"long_name": "measurement"})
-    coord_var = (coord, grid, dict(first[coord].attrs))
-
-    def stack(items):  # lazy: one chunk along measurement (apply_ufunc's own rechunk split the grid n ways)
-        out = xr.concat(items, dim=dim).rename({"_grid": coord}).assign_coords({coord: coord_var})
-        return out if out.chunks is None else out.chunk({"measurement": -1})
-
-    stacked = stack([v for v, _ in per])
-    err = stack([xr.full_like(v, np.nan) if e is None else e for v, e in per])
-    available = stacked.notnull()
-    # where a curve's unreliable points would have reached (the whole curve collocated, as the averaged part)
-    reach = stack([_onto(flagged[n].drop_vars(_MODES, errors="ignore"), coord, grid, method)[0] if n in flagged
-                   else v for n, (v, _) in zip(names, per)]).notnull()
+    parts = xr.concat([_onto(curves[n], (errors or {}).get(n), coord, grid, method) for n in names], dim=dim)
+    parts = parts.rename({"_grid": coord}).assign_coords({coord: (coord, grid, dict(first[coord].attrs))})
+    if parts.chunks is not None:  # one chunk along measurement (apply_ufunc's own rechunk split the grid n ways)
+        parts = parts.chunk({"measurement": -1})
+    stacked, err, reach = (parts.isel(_part=i, drop=True) for i in range(3))
+    available, reach = stacked.notnull(), reach.notnull()  # reach: where the unreliable points would have reached
     if tol is not None:
         used, sigma = xr.apply_ufunc(select_for_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
                                      output_core_dims=[["measurement"], []], dask="parallelized",
@@ -395,19 +392,44 @@ def _pool_errors(errors: dict, settings: dict) -> dict:
     return out
 
 
+def _curve(ds: xr.Dataset, *, name: str, func, extra: dict, units: str, reliable: bool, quantity, post, kw: dict):
+    """A measurement's curve (reliable scales marked, ``post`` applied) and its predicted error (or None)."""
+    ds = _complete(convert_length(ds, units), name)
+    curve = func(ds, **extra, **kw, reliable=False)
+    coord = _curve_coord(curve)
+    curve, err = _predicted_error(_reliable_part(curve, ds, coord, reliable), ds, coord, quantity)
+    return (curve if post is None else post(curve)), err
+
+
+def _shape_key(ds: xr.Dataset) -> str:
+    """What the coordinates of a measurement's curves rest on: its variables' dims, shapes, dtypes and attrs,
+    its coordinates and its :data:`~xtopo.conventions.MEASUREMENT_ATTRS` (not its provenance)."""
+    from dask.base import tokenize  # deferred: lazy measurements only (the core install has no dask)
+
+    return tokenize({n: (v.dims, v.shape, v.dtype.str, v.attrs, v.data if n in ds.coords else None)
+                     for n, v in ds.variables.items()},
+                    {k: v for k, v in ds.attrs.items() if k.startswith(MEASUREMENT_ATTRS) or k == "measurement_kind"})
+
+
 def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
-                     quantity: str = "psd", **kw) -> tuple[dict, dict]:
+                     quantity: str = "psd", post=None, **kw) -> tuple[dict, dict]:
+    """Curves and predicted errors of the measurements; lazy ones (dask) as one task each
+    (:func:`~xtopo._one_task.one_task`), their coordinates from one lazy graph per shape."""
     ms = _measurements(tree)
     units = _common_units(ms, units)
-    curves, errors, settings = {}, {}, {}
+    curves, errors, settings, templates = {}, {}, {}, {}
     for name, ds in ms.items():
-        ds = _complete(convert_length(ds, units), name)
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
-        curve = func(ds, **extra, **kw, reliable=False)
-        coord = _curve_coord(curve)
-        curves[name] = _reliable_part(curve, ds, coord, reliable)
-        curves[name], errors[name] = one_task(*_predicted_error(curves[name], ds, coord, quantity))
-        settings[name] = _setting(ds)
+        measure = partial(_curve, name=name, func=func, extra=extra, units=units, reliable=reliable,
+                          quantity=quantity, post=post, kw=kw)
+        if ds["height"].chunks is None:
+            curves[name], errors[name] = measure(ds)
+        else:
+            key = _shape_key(ds)
+            if key not in templates:
+                templates[key] = template(measure(ds))
+            curves[name], errors[name] = one_task(measure, ds, templates[key])
+        settings[name] = _setting(convert_length(ds, units))
     return curves, _pool_errors(errors, settings)
 
 
@@ -528,9 +550,7 @@ def _binned(tree, analysis: str, params: dict, func, area_kw: dict, line_kw: dic
     ``params``: the public function's arguments, in its order, for the provenance (``tree`` left out)."""
     params = {k: v for k, v in params.items() if k != "tree"}
     curves, errors = _per_measurement(tree, func, area_kw, line_kw, params["units"], params["reliable"],
-                                      quantity=quantity, **kw)
-    if post is not None:
-        curves = {n: post(c) for n, c in curves.items()}
+                                      quantity, post, **kw)
     out = average_curves(curves, per_decade=params["per_decade"], method="bin", errors=errors,
                          max_error=params["max_error"])
     return _with_provenance(out, tree, analysis, **params)
