@@ -13,15 +13,13 @@ import os
 from collections.abc import Iterable, Mapping
 from typing import Annotated
 
-import h5py
-import numpy as np
 import xarray as xr
 
 from ._tree import freeze, make_twin, measurements, name_of, unique_name
 from .conventions import safe_name, validate
 from .errors import ReaderError, ValidationError
 from .io.container import container_twin, is_container
-from .io.netcdf import READ_ENGINES, read_netcdf, tree_to_netcdf
+from .io.netcdf import READ_ENGINES, lazy_xtopo_netcdf, read_netcdf, tree_to_netcdf
 from .io.open import open_topography
 from .io.registry import detect
 from .params import Flag, Path, checked
@@ -33,7 +31,7 @@ def _open_lazily(path) -> xr.Dataset:
     """Open a file for a twin: xtopo NetCDF stays lazy (dask, where installed), other formats are read now."""
     if any(fmt.name == "netcdf" for fmt in detect(path)):
         lazy = importlib.util.find_spec("dask") is not None  # without the [dask] extra: read now
-        ds = _lazy_netcdf(path) if lazy else None
+        ds = lazy_xtopo_netcdf(path) if lazy else None
         if ds is not None:
             return ds
         ds = read_netcdf(path, lazy=lazy)
@@ -41,71 +39,6 @@ def _open_lazily(path) -> xr.Dataset:
             return ds.chunk() if lazy else ds
         ds.close()
     return open_topography(path)
-
-
-#: attrs by which xarray would decode a variable (then the file is opened by xarray)
-_DECODED = {"scale_factor", "add_offset", "missing_value", "_Unsigned", "calendar", "coordinates", "dtype"}
-_HIDDEN = {"REFERENCE_LIST", "CLASS", "DIMENSION_LIST", "NAME", "_Netcdf4Dimid", "_Netcdf4Coordinates",
-           "_nc3_strict", "_NCProperties", "_FillValue"}
-
-
-def _attrs(h5attrs) -> dict:
-    """HDF5 attributes as h5netcdf and xarray give them (strings decoded, one-element arrays as scalars)."""
-    out = {}
-    for key in h5attrs:
-        if key not in _HIDDEN:
-            v = h5attrs[key]
-            if isinstance(v, bytes):
-                v = v.decode("utf-8", "surrogateescape")
-            elif not isinstance(v, (str, np.number, np.ndarray)) or isinstance(v, np.ndarray) and v.dtype.kind in "OSU":
-                raise ValueError(f"attribute {key!r} of type {type(v).__name__}")
-            out[key] = v[0] if isinstance(v, np.ndarray) and v.shape == (1,) else v
-    return out
-
-
-def _read_variable(path, name):
-    """The values of variable ``name`` of an xtopo NetCDF file (in a worker, for :func:`_lazy_netcdf`)."""
-    with read_netcdf(path, lazy=True) as ds:
-        return ds[name].values
-
-
-def _lazy_netcdf(path) -> xr.Dataset | None:
-    """A measurement written by xtopo as a Dataset whose data dask reads when computed (:func:`read_netcdf`,
-    one task a variable); its coordinates and attributes are read now with h5py (a twin of a thousand files:
-    3 ms a file, xarray's open took 14). None for anything else (xarray opens it then)."""
-    import dask  # deferred: called where dask is installed (the core install has none)
-    import dask.array as da
-    from dask.base import tokenize
-
-    try:
-        with h5py.File(path, "r") as f:
-            if "xtopo_version" not in f.attrs or "height" not in f or not set(f) <= {"height", "mask", "x", "y"}:
-                return None
-            dims = {int(f[d].attrs["_Netcdf4Dimid"]): d for d in ("x", "y") if d in f}
-            coords, data = {}, {}
-            for name, v in f.items():
-                attrs = _attrs(v.attrs)
-                fill = v.attrs.get("_FillValue", np.nan)
-                dtype = np.dtype(bool) if attrs.get("dtype") == "bool" and v.dtype == np.int8 else v.dtype
-                if dtype == bool:  # a mask: int8 on disk, decoded to bool
-                    del attrs["dtype"]
-                if _DECODED & set(attrs) or dtype.kind not in "fb" or " since " in str(attrs.get("units", "")):
-                    return None
-                var_dims = tuple(dims[int(i)] for i in v.attrs["_Netcdf4Coordinates"])
-                if name in dims.values():
-                    values = v[()]
-                    if var_dims != (name,) or np.any(values == fill):
-                        return None
-                    coords[name] = (var_dims, values, attrs)
-                else:
-                    data[name] = (var_dims, v.shape, dtype, attrs)
-            stamp = os.stat(path)
-            key = tokenize(os.path.abspath(path), stamp.st_mtime_ns, stamp.st_size)
-            return xr.Dataset({name: (d, da.from_delayed(dask.delayed(_read_variable, pure=True)(
-                path, name, dask_key_name=f"xtopo-read-{name}-{key}"), shape, dtype=dtype, name=f"xtopo-{name}-{key}"),
-                a) for name, (d, shape, dtype, a) in data.items()}, coords=coords, attrs=_attrs(f.attrs))
-    except (OSError, ValueError, KeyError, TypeError):
-        return None  # xarray opens it, and says what is wrong
 
 
 def twin(measurements, *, name: str | None = None, **attrs) -> xr.DataTree:
