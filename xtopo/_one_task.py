@@ -14,6 +14,7 @@ import operator
 import numpy as np
 import xarray as xr
 
+from ._worker import tune_malloc
 from .errors import XtopoError
 
 __all__ = ["one_task", "template"]
@@ -51,9 +52,7 @@ def _fingerprint(objs, parts) -> str:
 def _compute_here(fn, held: _Opaque, parts, check: str) -> list:
     import dask
 
-    from .batch._task import _tune_malloc  # deferred: xtopo.batch imports the twin averages, which import this module
-
-    _tune_malloc()  # in a distributed worker, FFT-sized temporaries were fresh mmaps: 1.4x the serial time
+    tune_malloc()  # in a distributed worker, FFT-sized temporaries were fresh mmaps: 1.4x the serial time
     (ds,) = dask.compute(held.items, scheduler="sync")
     out = fn(ds)
     if _fingerprint(out, parts) != check:

@@ -11,13 +11,13 @@ becomes an ``error`` entry; the chunk's other items go on.
 
 from __future__ import annotations
 
-import functools
 import os
 import time
 from typing import Callable, NamedTuple
 
 import xarray as xr
 
+from .._worker import tune_malloc
 from ..errors import XtopoError
 from ..io.open import open_topography
 from ..preprocess import apply_steps
@@ -109,33 +109,11 @@ def _run_item(func, source, params, dim, read_options, steps=()):
                      coords="minimal", compat="override"), errors
 
 
-@functools.cache  # once a process
-def _tune_malloc() -> None:
-    """Undo the cost of distributed's ``MALLOC_TRIM_THRESHOLD_`` in a worker process (glibc only, once).
-
-    Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``; glibc then also
-    freezes the mmap threshold at 128 KiB, so every FFT-sized temporary is a fresh
-    ``mmap`` + page faults: FFT-bound work ran 2-4× slower in a worker than in a plain
-    process on the reference machine. Raising both thresholds (64 MiB mmap, 128 MiB trim)
-    restores plain-process speed. Set ``XTOPO_BATCH_MALLOC_TUNE=0`` to leave malloc alone.
-    """
-    if os.environ.get("XTOPO_BATCH_MALLOC_TUNE", "1") == "0" or "MALLOC_TRIM_THRESHOLD_" not in os.environ:
-        return
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL("libc.so.6")
-        libc.mallopt(-3, 64 << 20)  # M_MMAP_THRESHOLD
-        libc.mallopt(-1, 128 << 20)  # M_TRIM_THRESHOLD
-    except (OSError, AttributeError):  # not glibc: nothing to undo
-        pass
-
-
 def run_chunk(chunk: Chunk) -> xr.Dataset:
     """Run one chunk (top-level, picklable): every measurement × every parameter value of it.
 
     In a worker process FFT threads are set to ``chunk.fft_threads`` (``XTOPO_FFT_THREADS``)
-    and malloc is tuned (:func:`_tune_malloc`); the result is written to the store (when
+    and malloc is tuned (:func:`xtopo._worker.tune_malloc`); the result is written to the store (when
     there is one) before the task returns.
 
     Returns
@@ -144,7 +122,7 @@ def run_chunk(chunk: Chunk) -> xr.Dataset:
         The chunk's results (see :mod:`xtopo.batch._results`).
     """
     if os.getpid() != chunk.home_pid:  # a dedicated worker process
-        _tune_malloc()
+        tune_malloc()
         if chunk.fft_threads:
             os.environ["XTOPO_FFT_THREADS"] = str(int(chunk.fft_threads))
     results, errors = zip(*(_run_item(chunk.func, source, chunk.params, chunk.dim, options, chunk.preprocess)
