@@ -392,9 +392,10 @@ def _pool_errors(errors: dict, settings: dict) -> dict:
     return out
 
 
-def _curve(ds: xr.Dataset, *, name: str, func, extra: dict, units: str, reliable: bool, quantity, post, kw: dict):
-    """A measurement's curve (reliable scales marked, ``post`` applied) and its predicted error (or None)."""
-    ds = _complete(convert_length(ds, units), name)
+def _curve(ds: xr.Dataset, *, name: str, func, extra: dict, reliable: bool, quantity, post, kw: dict):
+    """A measurement's curve (reliable scales marked, ``post`` applied) and its predicted error (or None); ``ds``
+    in the twin's length ``units`` already."""
+    ds = _complete(ds, name)
     curve = func(ds, **extra, **kw, reliable=False)
     coord = _curve_coord(curve)
     curve, err = _predicted_error(_reliable_part(curve, ds, coord, reliable), ds, coord, quantity)
@@ -419,8 +420,9 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
     units = _common_units(ms, units)
     curves, errors, settings, templates = {}, {}, {}, {}
     for name, ds in ms.items():
+        ds = convert_length(ds, units)
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
-        measure = partial(_curve, name=name, func=func, extra=extra, units=units, reliable=reliable,
+        measure = partial(_curve, name=name, func=func, extra=extra, reliable=reliable,
                           quantity=quantity, post=post, kw=kw)
         if ds["height"].chunks is None:
             curves[name], errors[name] = measure(ds)
@@ -429,7 +431,7 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
             if key not in templates:
                 templates[key] = template(measure(ds))
             curves[name], errors[name] = one_task(measure, ds, templates[key])
-        settings[name] = _setting(convert_length(ds, units))
+        settings[name] = _setting(ds)
     return curves, _pool_errors(errors, settings)
 
 
