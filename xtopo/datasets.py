@@ -205,7 +205,7 @@ def _grid_q(shape, spacings):
 def _rfft_weights(shape):
     """Multiplicity of each rfft mode in the full spectrum (1 or 2)."""
     n = shape[-1]
-    return np.broadcast_to(rfft_multiplicity(1, n), tuple(shape[:-1]) + (n // 2 + 1,))
+    return np.broadcast_to(rfft_multiplicity(n), tuple(shape[:-1]) + (n // 2 + 1,))
 
 
 _HURST = Real(0.0, 1.0, closed=False)

@@ -26,7 +26,7 @@ from .analysis.reliability import reliability_cutoff
 from .conventions import MASK, length_factor
 from .errors import XtopoError
 from .io.netcdf import atomic_write
-from .params import Count, Dict, Flag, Names, Path, checked
+from .params import Count, Dict, Flag, Names, Path, Text, checked
 from .plot import group_colours
 from .preprocess import STEPS
 from .stitching import _complete
@@ -167,10 +167,10 @@ def _html_page(title: str, blocks: list) -> str:
 
 
 @checked
-def report(source, path: Annotated[str | None, Path("file path")] = None, *, title: str | None = None,
-           analyses: Annotated[tuple, Names(*ANALYSES)] = ANALYSES, max_pixels: Annotated[int, Count(min=2)] = 256,
-           maps: Annotated[bool, Flag()] = True, iso: Annotated[dict | None, Dict()] = None,
-           progress: bool | None = False) -> str:
+def report(source, path: Annotated[str | None, Path("file path")] = None, *,
+           title: Annotated[str | None, Text()] = None, analyses: Annotated[tuple, Names(*ANALYSES)] = ANALYSES,
+           max_pixels: Annotated[int, Count(min=2)] = 256, maps: Annotated[bool, Flag()] = True,
+           iso: Annotated[dict | None, Dict()] = None, progress: bool | None = False) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters
@@ -209,7 +209,7 @@ def report(source, path: Annotated[str | None, Path("file path")] = None, *, tit
     ms = measurements(tree)
     if not ms:
         raise XtopoError("the twin holds no measurements; nothing to report")
-    title = str(title) if title is not None else str(tree.attrs.get("title") or "xtopo report")
+    title = title if title is not None else str(tree.attrs.get("title") or "xtopo report")
     table = summary_table(ms)
     labels = _labels(table)
     groups = {n: str(ds.attrs.get("instrument") or n) for n, ds in ms.items()}

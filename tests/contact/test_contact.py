@@ -1,6 +1,7 @@
 """Contact mechanics: analytic solutions (Hertz, Westergaard, rigid-plastic), invariances, API."""
 
 import pickle
+import sys
 import warnings
 
 import numpy as np
@@ -359,7 +360,7 @@ def test_scene_choices_repr_and_pickle():
     np.testing.assert_allclose(clone.solve(load=1e-4).pressure, free.solve(load=1e-4).pressure)
 
 
-def test_errors():
+def test_errors(monkeypatch):
     ds = _sphere(16)
     with pytest.raises(ContactError, match="fill"):
         Scene(ds.assign(height=ds.height.where(ds.x > 0.1)))
@@ -407,6 +408,9 @@ def test_errors():
     with pytest.raises(ContactError, match="real numbers"):
         scene.solve(load=1e-3, initial=bad.astype(str))
     assert issubclass(ContactError, xtopo.XtopoError)
+    monkeypatch.setitem(sys.modules, "pyfftw", None)  # not installed: a ModuleNotFoundError on first solve
+    with pytest.raises(xtopo.XtopoError, match=r'pip install "xtopo\[fftw\]"'):
+        Scene(ds, backend="pyfftw")
 
 
 def test_heights_and_positions_in_different_units_are_an_error():

@@ -136,6 +136,9 @@ def test_channels_single_entry(real_data):
         ds = xtopo.open_topography(real_data / name, units=None)
         assert info.shape == ds.height.shape
         assert info.units == ds.height.attrs["units"]
+        for channel in (0.0, False, 1):  # 0.0 and False were taken as 0 by the dektak, hfm and sdf readers
+            with pytest.raises(xtopo.UnsupportedFormatError, match=re.escape(f"channel {channel!r} does not exist")):
+                xtopo.open_topography(real_data / name, channel=channel)
 
 
 def test_corrupt_first_data_row_is_an_error_not_a_header(real_data, tmp_path):

@@ -148,7 +148,7 @@ def rfft_abs_q(ny: int, nx: int, dy: float, dx: float) -> np.ndarray:
     return np.sqrt(qy[:, None] ** 2 + qx[None, :] ** 2)
 
 
-def rfft_multiplicity(ny: int, nx: int) -> np.ndarray:
+def rfft_multiplicity(nx: int) -> np.ndarray:
     """How many modes of the full spectrum each rfft mode stands for (1 or 2), shape ``(nx//2+1,)``."""
     m = np.full(nx // 2 + 1, 2.0)
     m[0] = 1.0

@@ -32,7 +32,7 @@ WINDOWS = Choice("auto", "hann", "none", None, False)
 def _iso_plan(ny, nx, dy, dx, nb_points):
     q = _k.rfft_abs_q(ny, nx, dy, dx)
     lo = min(2 * np.pi / (ny * dy) if ny > 1 else np.inf, 2 * np.pi / (nx * dx))
-    return log_plan(q, lo, float(q.max()), nb_points, _k.rfft_multiplicity(ny, nx))
+    return log_plan(q, lo, float(q.max()), nb_points, _k.rfft_multiplicity(nx))
 
 
 @checked

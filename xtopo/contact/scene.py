@@ -17,6 +17,7 @@ import xarray as xr
 from .._apply import scale_exponent
 from .._kernels.fft import choose_backend
 from .._kernels.greens import padded_shape
+from .._optional import require
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, provenance_of, shared_length_unit, spacing
 from ..errors import ContactError, GridError
 from ..params import Flag, checked
@@ -144,6 +145,8 @@ class Scene:
             self.backend = choose_backend(self.fft_shape, backend, planned=True)
         except ValueError as err:
             raise ContactError(str(err)) from None
+        if self.backend == "pyfftw":  # the [fftw] extra (auto takes pyFFTW only where it imports)
+            require("pyfftw", "backend='pyfftw'")
         self._conv = None
 
     @staticmethod

@@ -13,7 +13,8 @@ from __future__ import annotations
 import re
 
 from ...conventions import length_factor
-from ...errors import ReaderError, UnsupportedFormatError
+from ...errors import ReaderError
+from .._generic import single_channel
 from .._text import (column_precision, length_unit, line_measurement, looks_like_text, parse_quantity, parse_table,
                      read_text)
 from ..registry import Format, register
@@ -52,8 +53,7 @@ def _check_length(path, params, x, xu):
 
 def read_dektak(path, *, channel=None):
     """Read a Dektak CSV export into a line scan (see the module docstring)."""
-    if channel not in (None, 0):
-        raise UnsupportedFormatError(path, f"has a single profile; channel {channel!r} does not exist")
+    single_channel(path, channel)
     lines = [ln.strip() for ln in read_text(path).splitlines()]
     try:
         start = lines.index("Scan Data")

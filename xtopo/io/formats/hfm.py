@@ -18,7 +18,8 @@ import re
 import numpy as np
 
 from ...conventions import length_factor
-from ...errors import ReaderError, UnsupportedFormatError
+from ...errors import ReaderError
+from .._generic import single_channel
 from .._text import column_precision, length_unit, line_measurement, looks_like_text, parse_table, read_text
 from ..registry import Format, register
 
@@ -29,8 +30,7 @@ _UNIT_ROW = re.compile(rb"^\s*\[[^\]\r\n]*\](\s*;\s*\[[^\]\r\n]*\])+\s*$")
 
 def read_hfm(path, *, channel=None):
     """Read an ``X;Y;valid`` semicolon CSV line scan (see the module docstring)."""
-    if channel not in (None, 0):
-        raise UnsupportedFormatError(path, f"has a single profile; channel {channel!r} does not exist")
+    single_channel(path, channel)
     lines = read_text(path).splitlines()
     if len(lines) < 4:
         raise ReaderError(path, "too short: needs a name row, a unit row and at least 2 data rows")

@@ -18,6 +18,7 @@ import numpy as np
 from ...conventions import make_measurement
 from ...errors import ReaderError, UnsupportedFormatError
 from .._binary import BinaryReader, read_bytes
+from .._generic import single_channel
 from .._text import header_value, parse_table
 from ..registry import Format, register
 from ._common import clean_text, sniff_magic
@@ -88,8 +89,7 @@ def _read_binary(path, data: bytes):
 
 def read_sdf(path, *, channel=None):
     """Read an SDF file (ASCII or binary; see the module docstring)."""
-    if channel not in (None, 0):
-        raise UnsupportedFormatError(path, f"has a single channel; channel {channel!r} does not exist")
+    single_channel(path, channel)
     data = read_bytes(path)
     if data[:8] in _MAGICS_ASCII:
         return _read_ascii(path, data)
