@@ -372,10 +372,8 @@ def test_errors(monkeypatch):
         Scene(ds, counter=_sphere(8))
     with pytest.raises(ContactError, match="extra dims"):
         Scene(xr.concat([ds, ds], dim="sample"))
-    with pytest.raises(ContactError, match="unknown FFT backend 'cufft'"):
+    with pytest.raises(ContactError, match="backend must be one of"):  # the generated test covers periodic too
         Scene(ds, backend="cufft")
-    with pytest.raises(ContactError, match="periodic must be"):
-        Scene(ds, periodic="yes")
     for units in (1, "", ["GPa"]):   # were accepted: results labelled "1 m2", " m2", "['GPa'] m2"
         with pytest.raises(ContactError, match="modulus_units must be a units label"):
             Scene(ds, modulus_units=units)

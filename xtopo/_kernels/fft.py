@@ -50,7 +50,7 @@ def choose_backend(shape, backend: str = "auto", *, planned: bool = False) -> st
         return "scipy"
     try:
         import pyfftw  # noqa: F401
-    except ImportError:  # pragma: no cover - pyfftw is a dependency
+    except ImportError:  # the optional [fftw] extra is not installed
         return "scipy"
     return "pyfftw"
 

@@ -11,6 +11,8 @@ use and are not pickled. :func:`contact` solves a scene in one call.
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
 import xarray as xr
 
@@ -20,7 +22,7 @@ from .._kernels.greens import padded_shape
 from .._optional import require
 from ..conventions import LATERAL_DIMS, height_of, is_nonuniform, is_periodic, provenance_of, shared_length_unit, spacing
 from ..errors import ContactError, GridError
-from ..params import Flag, checked
+from ..params import Choice, Flag, checked
 from ..presets import resolve as resolve_preset
 from .curves import curve as _curve
 from .models import PlasticCap, scene_models
@@ -90,8 +92,11 @@ class Scene:
     solves give each thread its own scene, or use :func:`xtopo.batch.contact`.
     """
 
-    def __init__(self, topography, *, modulus: float = 1.0, hardness: float | None = None, periodic: bool | None = None,
-                 counter=None, dtype=None, modulus_units: str | None = None, backend: str = "auto",
+    @checked
+    def __init__(self, topography, *, modulus: float = 1.0, hardness: float | None = None,
+                 periodic: Annotated[bool | None, Flag(error=ContactError)] = None, counter=None, dtype=None,
+                 modulus_units: str | None = None,
+                 backend: Annotated[str, Choice("auto", "scipy", "pyfftw", error=ContactError)] = "auto",
                  preset: str | None = None, models=()):
         h = _heights(topography, "topography")
         dtype = resolve_preset("contact", preset, dtype=dtype)["dtype"]
@@ -100,8 +105,6 @@ class Scene:
         self.models = scene_models(modulus, hardness, modulus_units, models)
         self.modulus, self.modulus_units = self.models[0].modulus, self.models[0].units  # E* and the pressures' units
         self.hardness = next((m.hardness for m in self.models if isinstance(m, PlasticCap)), None)  # None: no cap
-        if periodic is not None:
-            periodic = Flag(error=ContactError).check(periodic, "periodic")
         try:
             floating = np.dtype(dtype) in (np.dtype("float32"), np.dtype("float64"))
         except TypeError:  # not a dtype at all ("foo", a list)
@@ -141,10 +144,7 @@ class Scene:
         self.nominal_area = self.pixel_area * int(np.prod(self.shape))
         self.backend_request = backend
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
-        try:
-            self.backend = choose_backend(self.fft_shape, backend, planned=True)
-        except ValueError as err:
-            raise ContactError(str(err)) from None
+        self.backend = choose_backend(self.fft_shape, backend, planned=True)
         if self.backend == "pyfftw":  # the [fftw] extra (auto takes pyFFTW only where it imports)
             require("pyfftw", "backend='pyfftw'")
         self._conv = None
