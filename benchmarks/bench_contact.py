@@ -23,6 +23,7 @@ Usage::
     python benchmarks/bench_contact.py --memory            # bytes per point of a scene set up and solved
     python benchmarks/bench_contact.py --cold --periodic 1024 2048 --free  # first solve vs warm ones
     python benchmarks/bench_contact.py --cold --periodic 2048 --free --threads 1 2 2 1  # FFT threads
+    python benchmarks/bench_contact.py --cold --new-machine --periodic 1024 --free 512  # + empty numba/FFTW caches
 
 Tolerances: xtopo ``tol`` (largest contact violation / peak-to-valley height); the same
 length ``tol·PtV`` is ContactMechanics' ``pentol``; tamaas gets its own relative ``tol``.
@@ -37,6 +38,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -285,6 +287,9 @@ def main():
                     help="first solve of a fresh process beside the warm median (--periodic/--free sizes)")
     ap.add_argument("--threads", type=int, nargs="*", default=None,
                     help="with --cold: run each case with these XTOPO_FFT_THREADS, interleaved")
+    ap.add_argument("--new-machine", action="store_true",
+                    help="with --cold: also run each case with empty numba and xtopo caches (no compiled kernels, no "
+                         "FFTW wisdom: a machine's first solve after installing)")
     ap.add_argument("--case", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
@@ -299,13 +304,21 @@ def main():
                 for threads in args.threads or [None]:
                     if threads is not None:
                         os.environ["XTOPO_FFT_THREADS"] = str(threads)
-                    r = case("cold", n, boundary, args.tol, args.repeat)
-                    if "error" in r:
-                        print(f"{boundary} {n}: failed: {r['error']}")
-                        continue
-                    print(f"{boundary + ' ' + str(n):>14} threads {r['threads']}: cold {r['cold']:7.2f} s, warm "
-                          f"{r['time']:7.2f} s [{r['min']:.2f}, {r['max']:.2f}], cold/warm {r['cold'] / r['time']:.2f}"
-                          f", {r['iterations']} iterations")
+                    for new in (False, True) if args.new_machine else (False,):
+                        with tempfile.TemporaryDirectory() as empty:
+                            saved = {k: os.environ.get(k) for k in ("NUMBA_CACHE_DIR", "XTOPO_CACHE_DIR")}
+                            if new:
+                                os.environ.update(NUMBA_CACHE_DIR=empty, XTOPO_CACHE_DIR=empty)
+                            r = case("cold", n, boundary, args.tol, args.repeat)
+                            for k, v in saved.items():
+                                os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
+                        if "error" in r:
+                            print(f"{boundary} {n}: failed: {r['error']}")
+                            continue
+                        print(f"{boundary + ' ' + str(n):>14} threads {r['threads']}: cold {r['cold']:7.2f} s, warm "
+                              f"{r['time']:7.2f} s [{r['min']:.2f}, {r['max']:.2f}], cold/warm "
+                              f"{r['cold'] / r['time']:.2f}, {r['iterations']} iterations"
+                              + ("  (empty caches: a new machine)" if new else ""))
         return
     if args.memory:
         print(f"peak memory over the process's memory before, per measurement point (tol {args.tol})")
