@@ -30,7 +30,9 @@ def spread(ts) -> str:
     return f"{statistics.median(ts):.4f} [{ts[0]:.4f}–{ts[-1]:.4f}]"
 
 
-def fresh_process_seconds(args: list[str], repeat: int) -> list[float]:
-    """Seconds printed (last line of stdout) by ``repeat`` fresh Python processes running ``args``."""
-    return sorted(float(subprocess.run([sys.executable, *args], check=True, capture_output=True,
-                                       text=True).stdout.split()[-1]) for _ in range(repeat))
+def fresh_process_seconds(args: list[str], repeat: int) -> list[tuple[float, ...]]:
+    """The numbers (seconds) on the last line of stdout of each of ``repeat`` fresh Python processes running
+    ``args``, in the order they ran."""
+    return [tuple(float(v) for v in subprocess.run([sys.executable, *args], check=True, capture_output=True,
+                                                   text=True).stdout.splitlines()[-1].split())
+            for _ in range(repeat)]
