@@ -8,6 +8,7 @@ predicted relative standard errors of this module (and, with ``max_error``, leav
 
 from __future__ import annotations
 
+import functools
 from typing import Annotated
 
 import numpy as np
@@ -121,6 +122,29 @@ def sampling_cutoff(obj, dim: str = X, *, factor: Annotated[float, Positive()] =
     return factor * prep.size(dim) / n
 
 
+def _stencil_error_rows(values, *, lags, lengths, nodes, n, dx, rows, dy, offsets, weights):
+    """:func:`stencil_error` of each row of ACF values (last axis: ``lags``) at ``lengths``, computed at ``nodes``
+    and interpolated log-log (a module-level function: dask tokenizes its partial by value, not by pickling)."""
+    flat = values.reshape(-1, values.shape[-1])
+    out = np.full((flat.shape[0], lengths.size), np.nan)
+    for i, row in enumerate(flat):
+        gamma = variogram_from_samples(row, lags)
+        if gamma is None:
+            continue
+        err = mean_square_relative_error(gamma, nodes, offsets=offsets, weights=weights, n=n, dx=dx,
+                                         rows=rows, row_spacing=dy)
+        if nodes is not lengths:
+            ok = np.isfinite(err) & (err > 0)
+            if ok.sum() >= 2:
+                inside = (lengths >= nodes[ok].min()) & (lengths <= nodes[ok].max())
+                err = np.where(inside, np.exp(np.interp(np.log(np.where(lengths > 0, lengths, 1.0)),
+                                                        np.log(nodes[ok]), np.log(err[ok]))), np.nan)
+            else:
+                err = np.full(lengths.size, np.nan)
+        out[i] = err
+    return out.reshape(values.shape[:-1] + (lengths.size,))
+
+
 @checked
 def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
                   quantity: Annotated[str, Choice("acf", "curvature", "slope")] = "acf", dim: str = X,
@@ -178,26 +202,8 @@ def stencil_error(obj, lengths: Annotated[np.ndarray, Lengths()], *,
     pos = lengths[lengths > 0]
     nodes = collocation_points(pos.min(), pos.max(), 10) if pos.size > 32 and pos.max() > pos.min() else lengths
 
-    def kernel(values):
-        flat = values.reshape(-1, values.shape[-1])
-        out = np.full((flat.shape[0], lengths.size), np.nan)
-        for i, row in enumerate(flat):
-            gamma = variogram_from_samples(row, lags)
-            if gamma is None:
-                continue
-            err = mean_square_relative_error(gamma, nodes, offsets=offsets, weights=weights, n=n, dx=dx,
-                                             rows=rows, row_spacing=dy)
-            if nodes is not lengths:
-                ok = np.isfinite(err) & (err > 0)
-                if ok.sum() >= 2:
-                    inside = (lengths >= nodes[ok].min()) & (lengths <= nodes[ok].max())
-                    err = np.where(inside, np.exp(np.interp(np.log(np.where(lengths > 0, lengths, 1.0)),
-                                                            np.log(nodes[ok]), np.log(err[ok]))), np.nan)
-                else:
-                    err = np.full(lengths.size, np.nan)
-            out[i] = err
-        return out.reshape(values.shape[:-1] + (lengths.size,))
-
+    kernel = functools.partial(_stencil_error_rows, lags=lags, lengths=lengths, nodes=nodes, n=n, dx=dx, rows=rows,
+                               dy=dy, offsets=offsets, weights=weights)
     err = xr.apply_ufunc(kernel, curve.drop_vars([c for c in curve.coords if c != "distance"]),
                          input_core_dims=[["distance"]], output_core_dims=[["_out"]], exclude_dims={"distance"},
                          dask="parallelized", output_dtypes=[float],
