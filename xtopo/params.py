@@ -53,16 +53,18 @@ class Kind:
     """A kind of parameter: :meth:`convert` returns the value normalised or raises :class:`Refused`.
 
     ``expects`` completes "<name> must be ..."; ``error`` (optional) is the XtopoError subclass raised;
-    ``takes_none``: ``None`` is a value of this kind (not only where the default is ``None``).
+    ``takes_none`` (``optional=True``): ``None`` is a value of this kind (not only where the default is ``None``).
     """
 
     expects = "valid"
     error: type[XtopoError] | None = None
     takes_none = False
 
-    def __init__(self, *, error: type[XtopoError] | None = None):
+    def __init__(self, *, error: type[XtopoError] | None = None, optional: bool = False):
         if error is not None:
             self.error = error
+        if optional:
+            self.takes_none = True
 
     def convert(self, value):
         return value
@@ -284,10 +286,6 @@ class LengthUnit(Kind):
 
     expects = "a length unit"
     error = UnitsError
-
-    def __init__(self, *, optional: bool = False, error=None):
-        super().__init__(error=error)
-        self.takes_none = optional
 
     def convert(self, value):
         try:

@@ -170,7 +170,8 @@ def _html_page(title: str, blocks: list) -> str:
 def report(source, path: Annotated[str | None, Path("file path")] = None, *,
            title: Annotated[str | None, Text()] = None, analyses: Annotated[tuple, Names(*ANALYSES)] = ANALYSES,
            max_pixels: Annotated[int, Count(min=2)] = 256, maps: Annotated[bool, Flag()] = True,
-           iso: Annotated[dict | None, Dict()] = None, progress: bool | None = False) -> str:
+           iso: Annotated[dict | None, Dict()] = None,
+           progress: Annotated[bool | None, Flag(optional=True)] = False) -> str:
     """Write (or return) a standalone HTML report of a digital surface twin.
 
     Parameters

@@ -763,7 +763,7 @@ ANALYSES: dict[str, TwinAnalysis] = {a.name: a for a in (
 
 @checked
 def analyze_twin(tree, *, per_decade: Annotated[int, _PER_DECADE] = PER_DECADE,
-                 progress: bool | None = False) -> xr.DataTree:
+                 progress: Annotated[bool | None, Flag(optional=True)] = False) -> xr.DataTree:
     """The main job: per-measurement summary and the averaged curves of a twin (:data:`ANALYSES`).
 
     Parameters
