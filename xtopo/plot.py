@@ -33,7 +33,7 @@ import xarray as xr
 from ._optional import require
 from .conventions import LATERAL_DIMS, X, Y, height_of, length_factor, normalize_units
 from .errors import GridError, UnitsError, XtopoError
-from .params import Count, Data, Dict, Names, Positive, Text, checked
+from .params import Count, Data, Dict, Flag, Names, Positive, Text, checked
 from .stitching import ANALYSES, PER_DECADE
 from .twins import measurements
 
@@ -420,7 +420,7 @@ def group_colours(groups: dict) -> dict:
 @checked
 def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated[dict | None, Dict()] = None,
                 title: Annotated[str | None, Text()] = None, groups: Annotated[dict | None, Dict()] = None,
-                legend: bool = True):
+                legend: Annotated[bool, Flag()] = True):
     """A twin average as in the paper's Figure 5: thin coloured measurements, the thick black average.
 
     Each measurement's curve is drawn thin over its reliable range (the values averaged),
