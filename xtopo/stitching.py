@@ -237,20 +237,19 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
     else:
         grid = points
     names = list(curves)
-    flagged = {n: c for n, c in curves.items() if UNRELIABLE in c.coords}
     dim = xr.DataArray(names, dims="measurement", name="measurement", attrs={"long_name": "measurement"})
     parts = xr.concat([_onto(curves[n], (errors or {}).get(n), coord, grid, method) for n in names], dim=dim)
     parts = parts.rename({"_grid": coord}).assign_coords({coord: (coord, grid, dict(first[coord].attrs))})
-    reasons = sorted({str(c[UNRELIABLE].attrs.get("criterion", "unreliable points of a curve"))
-                      for c in flagged.values()})
     kw = {"tol": tol, "attrs": {k: v for k, v in first.attrs.items() if k in ("units", "long_name")},
-          "name": first.attrs.get("long_name", first.name or ""), "reasons": reasons}
+          "name": first.attrs.get("long_name", first.name or ""), "reasons": sorted(
+              {str(c[UNRELIABLE].attrs.get("criterion", "unreliable points of a curve"))
+               for c in curves.values() if UNRELIABLE in c.coords})}
     if parts.chunks is None:
         out = _statistics(parts, **kw)
-    else:  # one task per block of the grid (many lazy variables from one source tripped pydata/xarray#11329)
-        parts = parts.chunk({"measurement": -1})
+    else:  # one task per grid block (pydata/xarray#11329 lost keys of many lazy variables derived from one source)
         like = _statistics(parts.copy(data=np.full(parts.shape, np.nan)), **kw)
-        out = xr.map_blocks(_statistics, parts, kwargs=kw, template=like.chunk({coord: parts.chunksizes[coord]}))
+        out = xr.map_blocks(_statistics, parts.chunk({"measurement": -1}), kwargs=kw,
+                            template=like.chunk({coord: parts.chunksizes[coord]}))
     cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else xr.Variable((), np.nan)
             for c in curves.values()]
     cut_units = next((c.coords["reliability_cutoff"].attrs.get("units") for c in curves.values()
