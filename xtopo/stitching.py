@@ -123,6 +123,36 @@ def _on_grid(y, err=None, *, x, xnew, method, unreliable=None, modes=None):
     return np.stack([value, error, np.where(np.isnan(reach), np.nan, 1.0)])
 
 
+def _statistics(parts: xr.DataArray, *, tol, attrs: dict, name: str, reasons: list) -> xr.Dataset:
+    """The average and its statistics (see :func:`average_curves`) of the curves on the collocation points in
+    memory, stacked in ``parts`` (values, predicted relative errors, reach) along ``measurement``; of a lazy
+    twin, one block of the grid (:func:`xarray.map_blocks`). ``attrs``: the curves' units and long_name,
+    ``name`` the long_name of the average, ``reasons`` why ``unreliable`` points of a curve were left out."""
+    stacked, err, reach = (parts.isel(_part=i, drop=True) for i in range(3))
+    available, reach = stacked.notnull(), reach.notnull()  # reach: where the unreliable points would have reached
+    if tol is not None:
+        used, sigma = xr.apply_ufunc(select_for_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
+                                     output_core_dims=[["measurement"], []])
+        stacked = stacked.where(used & (sigma <= tol))
+        reasons = [*reasons, f"predicted relative standard error of the average above {tol:g}"]
+    average, se, count = xr.apply_ufunc(equal_weight_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
+                                        output_core_dims=[[], [], []])
+    units = attrs.get("units", "1")
+    stacked.attrs = attrs
+    average.attrs = {"units": units, "long_name": f"average {name}".strip()}
+    count.attrs = {"units": "1", "long_name": "number of measurements averaged"}
+    se.attrs = {"units": units, "long_name": "predicted standard error of the average"}
+    rel = (se / average).assign_attrs(units="1", long_name="predicted relative standard error of the average")
+    err = err.where(available).assign_attrs(units="1", long_name="predicted relative standard error of each curve")
+    left = xr.where(available & stacked.isnull(), np.int8(_FLAGS["statistical_criterion"]),
+                    xr.where(reach & ~available, np.int8(_FLAGS["long_scale_criterion"]), np.int8(0)))
+    left = left.astype(np.int8).assign_attrs(
+        units="1", long_name="values left out of the average, and why (0: none)",
+        flag_values=np.array(list(_FLAGS.values()), dtype=np.int8), flag_meanings=" ".join(_FLAGS),
+        criterion="; ".join(reasons) or "none")
+    return xr.Dataset({"average": average, "uncertainty": se, "relative_error": rel, "count": count,
+                       "curves": stacked, "curve_error": err, "left_out": left})
+
 #: collocation points per decade (10**30 raised numpy's 'Maximum allowed size exceeded')
 _PER_DECADE = Count(1, MAX_SPARSE_BINS)
 #: the largest predicted relative error of an average point (None: no statistical criterion)
@@ -207,43 +237,19 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
     else:
         grid = points
     names = list(curves)
-    flagged = {n: c for n, c in curves.items() if UNRELIABLE in c.coords}
     dim = xr.DataArray(names, dims="measurement", name="measurement", attrs={"long_name": "measurement"})
     parts = xr.concat([_onto(curves[n], (errors or {}).get(n), coord, grid, method) for n in names], dim=dim)
     parts = parts.rename({"_grid": coord}).assign_coords({coord: (coord, grid, dict(first[coord].attrs))})
-    if parts.chunks is not None:  # one chunk along measurement (apply_ufunc's own rechunk split the grid n ways)
-        parts = parts.chunk({"measurement": -1})
-    stacked, err, reach = (parts.isel(_part=i, drop=True) for i in range(3))
-    available, reach = stacked.notnull(), reach.notnull()  # reach: where the unreliable points would have reached
-    if tol is not None:
-        used, sigma = xr.apply_ufunc(select_for_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
-                                     output_core_dims=[["measurement"], []], dask="parallelized",
-                                     output_dtypes=[bool, float], dask_gufunc_kwargs={"allow_rechunk": True})
-        stacked = stacked.where(used & (sigma <= tol))
-    average, se, count = xr.apply_ufunc(equal_weight_mean, stacked, err, input_core_dims=[["measurement"]] * 2,
-                                        output_core_dims=[[], [], []], dask="parallelized",
-                                        output_dtypes=[float, float, int],
-                                        dask_gufunc_kwargs={"allow_rechunk": True})
-    units = first.attrs.get("units", "1")
-    long_name = first.attrs.get("long_name", first.name or "")
-    stacked.attrs = {k: v for k, v in first.attrs.items() if k in ("units", "long_name")}
-    average.attrs = {"units": units, "long_name": f"average {long_name}".strip()}
-    count.attrs = {"units": "1", "long_name": "number of measurements averaged"}
-    se.attrs = {"units": units, "long_name": "predicted standard error of the average"}
-    rel = (se / average).assign_attrs(units="1", long_name="predicted relative standard error of the average")
-    err = err.where(available).assign_attrs(units="1", long_name="predicted relative standard error of each curve")
-    reasons = sorted({str(c[UNRELIABLE].attrs.get("criterion", "unreliable points of a curve"))
-                      for c in flagged.values()})
-    if tol is not None:
-        reasons.append(f"predicted relative standard error of the average above {tol:g}")
-    left = xr.where(available & stacked.isnull(), np.int8(_FLAGS["statistical_criterion"]),
-                    xr.where(reach & ~available, np.int8(_FLAGS["long_scale_criterion"]), np.int8(0)))
-    left = left.astype(np.int8).assign_attrs(
-        units="1", long_name="values left out of the average, and why (0: none)",
-        flag_values=np.array(list(_FLAGS.values()), dtype=np.int8), flag_meanings=" ".join(_FLAGS),
-        criterion="; ".join(reasons) or "none")
-    out = xr.Dataset({"average": average, "uncertainty": se, "relative_error": rel, "count": count,
-                      "curves": stacked, "curve_error": err, "left_out": left})
+    kw = {"tol": tol, "attrs": {k: v for k, v in first.attrs.items() if k in ("units", "long_name")},
+          "name": first.attrs.get("long_name", first.name or ""), "reasons": sorted(
+              {str(c[UNRELIABLE].attrs.get("criterion", "unreliable points of a curve"))
+               for c in curves.values() if UNRELIABLE in c.coords})}
+    if parts.chunks is None:
+        out = _statistics(parts, **kw)
+    else:  # one task per grid block (pydata/xarray#11329 lost keys of many lazy variables derived from one source)
+        like = _statistics(parts.copy(data=np.full(parts.shape, np.nan)), **kw)
+        out = xr.map_blocks(_statistics, parts.chunk({"measurement": -1}), kwargs=kw,
+                            template=like.chunk({coord: parts.chunksizes[coord]}))
     cuts = [c.coords["reliability_cutoff"].variable if "reliability_cutoff" in c.coords else xr.Variable((), np.nan)
             for c in curves.values()]
     cut_units = next((c.coords["reliability_cutoff"].attrs.get("units") for c in curves.values()
