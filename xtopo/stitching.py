@@ -143,7 +143,8 @@ def _statistics(parts: xr.DataArray, *, tol, attrs: dict, name: str, reasons: li
     count.attrs = {"units": "1", "long_name": "number of measurements averaged"}
     se.attrs = {"units": units, "long_name": "predicted standard error of the average"}
     rel = (se / average).assign_attrs(units="1", long_name="predicted relative standard error of the average")
-    err = err.where(available).assign_attrs(units="1", long_name="predicted relative standard error of each curve")
+    err = err.where(available)
+    err.attrs = {"units": "1", "long_name": "predicted relative standard error of each curve"}  # not a curve's own
     left = xr.where(available & stacked.isnull(), np.int8(_FLAGS["statistical_criterion"]),
                     xr.where(reach & ~available, np.int8(_FLAGS["long_scale_criterion"]), np.int8(0)))
     left = left.astype(np.int8).assign_attrs(
@@ -152,6 +153,7 @@ def _statistics(parts: xr.DataArray, *, tol, attrs: dict, name: str, reasons: li
         criterion="; ".join(reasons) or "none")
     return xr.Dataset({"average": average, "uncertainty": se, "relative_error": rel, "count": count,
                        "curves": stacked, "curve_error": err, "left_out": left})
+
 
 #: collocation points per decade (10**30 raised numpy's 'Maximum allowed size exceeded')
 _PER_DECADE = Count(1, MAX_SPARSE_BINS)
@@ -256,8 +258,9 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
                       if "reliability_cutoff" in c.coords), None)
     if cut_units is not None and all(v.ndim == 0 for v in cuts):
         # the cutoffs' own attrs (method, tip radius) differ between measurements: their criterion becomes a variable
-        out["reliability_cutoff"] = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").drop_attrs(
-            deep=False).assign_attrs(units=cut_units, long_name="short reliability cutoff")
+        cut = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").drop_attrs(deep=False).assign_attrs(
+            units=cut_units, long_name="short reliability cutoff")
+        out["reliability_cutoff"] = cut if cut.chunks is None else cut.chunk({"measurement": -1})  # as the curves
         out["reliability_criterion"] = ("measurement", [str(v.attrs.get("method", "none")) for v in cuts],
                                         {"units": "1", "long_name": "criterion of the short reliability cutoff (paper §4.9)"})
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
