@@ -78,7 +78,8 @@ def _hv():
 
 
 def _style(element, *, common=None, bokeh=None, matplotlib=None):
-    """Apply options per backend (only to the backends that are loaded)."""
+    """Apply options per backend (only to the backends that are loaded). Style a container empty, then fill it
+    (``.clone(elements)``): styling a full one walks its tree once per styled element in it (quadratic, seconds)."""
     hv = _hv()
     common = common or {}
     element = element.opts(**common, **(bokeh or {}), backend="bokeh")
@@ -408,7 +409,7 @@ def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title:
         lab = f"{label or ''} {key}".strip()
         col = color if color is not None and len(rows) == 1 else PALETTE[k % len(PALETTE)]
         elements += _line_elements(xs, ys, xdim=xdim, ydim=ydim, label=lab, color=col, unreliable=bad)
-    return _style(hv.Overlay(elements), **_axes_opts(_title(da, title)))
+    return _style(hv.Overlay(), **_axes_opts(_title(da, title))).clone(elements)
 
 
 def group_colours(groups: dict) -> dict:
@@ -481,10 +482,8 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
                               show_legend=first[group] == name))
     elements.append(_line(_positive(x, avg), xdim, ydim, "average", 4, color="black"))
     opts = _axes_opts(title or long_name, legend_outside=True)
-    overlay = _style(hv.Overlay(elements), **opts)
-    if not legend:
-        overlay = _style(overlay, common=dict(show_legend=False))
-    return overlay
+    opts["common"]["show_legend"] = legend
+    return _style(hv.Overlay(), **opts).clone(elements)
 
 
 @checked
@@ -526,7 +525,7 @@ def twin_figure(tree, *, analyses: Annotated[tuple | None, Names(*ANALYSES)] = N
     # the one legend sits right of the last panel of the first row, where it covers no other panel
     panels = [twin_curves(ANALYSES[a](tree, per_decade=per_decade).compute(), groups=groups, labels=labels,
                           title=ANALYSES[a].title, legend=k == min(cols, len(names)) - 1) for k, a in enumerate(names)]
-    return _style(hv.Layout(panels).cols(cols), common=dict(shared_axes=False))
+    return _style(hv.Layout(), common=dict(shared_axes=False)).clone(panels).cols(cols)
 
 
 # --------------------------------------------------------------------------- contact
@@ -589,7 +588,7 @@ def contact_area(results, *, labels: Annotated[dict | None, Dict()] = None, titl
             pts = hv.Scatter((xv[sel], yv[sel]), kdims=[xdim], vdims=[ydim], label=(name + suffix).strip())
             elements.append(_style(pts, common=dict(color=color, alpha=alpha),
                                    bokeh=dict(size=8, tools=["hover"]), matplotlib=dict(s=30)))
-    return _style(hv.Overlay(elements), **_axes_opts(title or "contact area", logx=True, logy=True))
+    return _style(hv.Overlay(), **_axes_opts(title or "contact area", logx=True, logy=True)).clone(elements)
 
 
 @checked
