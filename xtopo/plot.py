@@ -472,8 +472,9 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
             lo = np.maximum(avg - se, avg / 10)
             band = hv.Area((x[ok], lo[ok], (avg + se)[ok]), kdims=[xdim],
                            vdims=[ydim, hv.Dimension(f"{yname}_upper")], label="average ± standard error")
+            # matplotlib fills an Area with its default facecolor (a colour cycle) over ``color``: give it grey too
             elements.append(_style(band, common=dict(color="#888888", alpha=0.35),
-                                   bokeh=dict(line_alpha=0), matplotlib=dict(linewidth=0)))
+                                   bokeh=dict(line_alpha=0), matplotlib=dict(facecolor="#888888", linewidth=0)))
     for k, name in enumerate(names):
         xs, ys = _positive(x, values[k].astype(float))
         group = group_of[name]
