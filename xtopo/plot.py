@@ -526,7 +526,10 @@ def twin_figure(tree, *, analyses: Annotated[tuple | None, Names(*ANALYSES)] = N
     # the one legend sits right of the last panel of the first row, where it covers no other panel
     panels = [twin_curves(ANALYSES[a](tree, per_decade=per_decade).compute(), groups=groups, labels=labels,
                           title=ANALYSES[a].title, legend=k == min(cols, len(names)) - 1) for k, a in enumerate(names)]
-    return _style(hv.Layout(), common=dict(shared_axes=False)).clone(panels).cols(cols)
+    # matplotlib: panels large enough for their long axis labels, rows apart enough that no title meets the x label
+    # above, the letters (A, B, ...) above the panels, clear of the y labels
+    return _style(hv.Layout(), common=dict(shared_axes=False),
+                  matplotlib=dict(fig_size=150, vspace=0.4, sublabel_position=(-0.3, 1.08))).clone(panels).cols(cols)
 
 
 # --------------------------------------------------------------------------- contact
