@@ -51,8 +51,9 @@ def main() -> None:
     trees = sys.argv[1:3]
     with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
         for tree, out in zip(trees, (a, b)):
+            # in the tree: ``python -c`` puts its working directory before PYTHONPATH on sys.path
             subprocess.run([sys.executable, "-c", CHILD, out], check=True, capture_output=True,
-                           env=dict(os.environ, PYTHONPATH=os.path.abspath(tree)))
+                           cwd=os.path.abspath(tree), env=dict(os.environ, PYTHONPATH=os.path.abspath(tree)))
         same = {}
         for f in sorted(os.listdir(a)):
             pa, pb = os.path.join(a, f), os.path.join(b, f)

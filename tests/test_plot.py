@@ -286,17 +286,23 @@ def test_twin_plot_measurements_has_one_panel_per_measurement(area):
     assert axes_of(layout, "bokeh")
 
 
-def test_twin_plot_is_the_papers_figure_5():
-    """twin.topo.plot() drew 24 topography panels; it draws PSD, ACF, VBM and curvature averages on log-log
-    axes with units, thin curves coloured by instrument, the average thick black on top, and one legend
-    entry per instrument (12 measurements of 3 instruments: 3 entries, not 12)."""
+@pytest.fixture(scope="module")
+def figure_5():
+    """Figure 5 of a twin of 12 measurements by 3 instruments."""
     ms = {}
     for k, (size, inst) in enumerate([(1e-4, "stylus"), (1e-5, "AFM"), (1e-6, "TEM")]):
         for r in range(4):
             s = fractal_surface((32, 32), size, hurst=0.8, rms_height=size / 100, seed=4 * k + r, periodic=False)
             s.attrs.update(instrument=inst, resolution=size / 16, resolution_units="m")
             ms[f"{inst}-{r}"] = s
-    layout = xtopo.twin(ms).topo.plot()
+    return xtopo.twin(ms).topo.plot()
+
+
+def test_twin_plot_is_the_papers_figure_5(figure_5):
+    """twin.topo.plot() drew 24 topography panels; it draws PSD, ACF, VBM and curvature averages on log-log
+    axes with units, thin curves coloured by instrument, the average thick black on top, and one legend
+    entry per instrument (12 measurements of 3 instruments: 3 entries, not 12)."""
+    layout = figure_5
     assert len(layout) == len(ANALYSES)  # one panel per declared twin analysis, the paper's four first
     panels = axes_of(layout, "bokeh")
     assert [p[2:] for p in panels] == [(True, True)] * len(ANALYSES)
@@ -309,6 +315,24 @@ def test_twin_plot_is_the_papers_figure_5():
         lines = [r.glyph for r in f.renderers if type(r.glyph).__name__ == "Line" and r.glyph.line_color == "black"]
         assert len(lines) == 1 and lines[0].line_width == 4
         assert f.renderers[-1].glyph.line_color == "black"  # the average is drawn on top
+
+
+def test_figure_5_with_matplotlib_has_grey_bands_and_no_overlapping_text(figure_5):
+    """With matplotlib the uncertainty bands were light blue (the Area's default facecolor cycle) and panel
+    titles overlapped the x labels of the panels above."""
+    import matplotlib.colors as mc
+    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig = hv.render(figure_5, backend="matplotlib")
+    bands = [c.get_facecolor()[0] for ax in fig.axes for c in ax.collections]
+    assert len(bands) == len(ANALYSES) and all(mc.to_hex(c, keep_alpha=True) == "#88888859" for c in bands)
+    texts = [t for ax in fig.axes for t in (ax.title, ax.xaxis.label, ax.yaxis.label, *ax.texts) if t.get_text()]
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    boxes = [t.get_window_extent(renderer) for t in texts]
+    plt.close(fig)
+    assert not [(texts[i].get_text(), texts[j].get_text()) for i, a in enumerate(boxes) for j, b in enumerate(boxes)
+                if i < j and a.overlaps(b)]
 
 
 @pytest.mark.parametrize("units,label", [("um", "µm"), ("m-1", "m⁻¹"), ("m3", "m³"), ("E* m2", "E* m²"),

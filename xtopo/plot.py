@@ -472,8 +472,9 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
             lo = np.maximum(avg - se, avg / 10)
             band = hv.Area((x[ok], lo[ok], (avg + se)[ok]), kdims=[xdim],
                            vdims=[ydim, hv.Dimension(f"{yname}_upper")], label="average ± standard error")
+            # matplotlib fills an Area with its default facecolor (a colour cycle) over ``color``: give it grey too
             elements.append(_style(band, common=dict(color="#888888", alpha=0.35),
-                                   bokeh=dict(line_alpha=0), matplotlib=dict(linewidth=0)))
+                                   bokeh=dict(line_alpha=0), matplotlib=dict(facecolor="#888888", linewidth=0)))
     for k, name in enumerate(names):
         xs, ys = _positive(x, values[k].astype(float))
         group = group_of[name]
@@ -525,7 +526,10 @@ def twin_figure(tree, *, analyses: Annotated[tuple | None, Names(*ANALYSES)] = N
     # the one legend sits right of the last panel of the first row, where it covers no other panel
     panels = [twin_curves(ANALYSES[a](tree, per_decade=per_decade).compute(), groups=groups, labels=labels,
                           title=ANALYSES[a].title, legend=k == min(cols, len(names)) - 1) for k, a in enumerate(names)]
-    return _style(hv.Layout(), common=dict(shared_axes=False)).clone(panels).cols(cols)
+    # matplotlib: panels large enough for their long axis labels, rows apart enough that no title meets the x label
+    # above, the letters (A, B, ...) above the panels, clear of the y labels
+    return _style(hv.Layout(), common=dict(shared_axes=False),
+                  matplotlib=dict(fig_size=150, vspace=0.4, sublabel_position=(-0.3, 1.08))).clone(panels).cols(cols)
 
 
 # --------------------------------------------------------------------------- contact
