@@ -261,8 +261,11 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
         cut = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").drop_attrs(deep=False).assign_attrs(
             units=cut_units, long_name="short reliability cutoff")
         out["reliability_cutoff"] = cut if cut.chunks is None else cut.chunk({"measurement": -1})  # as the curves
-        out["reliability_criterion"] = ("measurement", [str(v.attrs.get("method", "none")) for v in cuts],
-                                        {"units": "1", "long_name": "criterion of the short reliability cutoff (paper §4.9)"})
+        crit = xr.concat([xr.DataArray(c.coords["reliability_criterion"].variable if "reliability_criterion" in c.coords
+                                       else str(v.attrs.get("method", "none"))) for c, v in zip(curves.values(), cuts)],
+                         dim="measurement").assign_attrs(units="1", long_name="criterion of the short reliability "
+                                                                               "cutoff (paper §4.9)")
+        out["reliability_criterion"] = crit if crit.chunks is None else crit.chunk({"measurement": -1})
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
                  "collocation_method": method,
                  "weighting": "arithmetic mean with equal weight per measurement over its reliable scales"
@@ -338,21 +341,17 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     if not reliable:
         return curve
     cut = reliability_cutoff(ds)
-    method = cut.attrs.get("method", "none")
-    if coord == "q":  # spectra also end where aliasing sets in
+    criterion = xr.DataArray(cut.attrs.pop("method", "none"))
+    if coord == "q":  # spectra also end where aliasing sets in; which criterion wins is data (lazy: at compute)
         sampling = sampling_cutoff(ds, curve.attrs.get("direction", "x"))
-        if cut.chunks is not None:
-            method = f"{method} or sampling"
-        elif not float(cut) >= sampling:
-            method = "sampling"
+        criterion = xr.where(cut >= sampling, criterion, "sampling")
         cut = np.fmax(cut, sampling)
-    cut.attrs["method"] = method
     out = xr.apply_ufunc(_mask_short_scales, curve, cut, input_core_dims=[[coord], []], output_core_dims=[[coord]],
                          kwargs={"x": np.asarray(curve[coord].values), "spectrum": coord == "q"},
                          dask="parallelized", output_dtypes=[curve.dtype])  # one dask array, not seven
     out = out.transpose(*curve.dims, ...)
     out.attrs = dict(curve.attrs, reliable=1)
-    return out.assign_coords(reliability_cutoff=cut.variable)
+    return out.assign_coords(reliability_cutoff=cut.variable, reliability_criterion=criterion.variable)
 
 
 def _setting(ds: xr.Dataset) -> tuple:
