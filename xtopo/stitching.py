@@ -215,7 +215,8 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
         (the values averaged, NaN elsewhere), ``curve_error`` (each curve's predicted
         relative error) and ``left_out`` (CF flags: 1 where a curve's ``unreliable`` points would
         have given a value, 2 where ``max_error`` dropped one; attr ``criterion`` says why). Per measurement
-        ``reliability_cutoff`` and ``reliability_criterion`` where the curves carry one.
+        ``reliability_cutoff`` and ``reliability_criterion`` where the curves carry one (the criterion: a curve's
+        0-d coordinate ``reliability_criterion``, else its cutoff's attr ``method``).
     """
     tol = max_error
     for what, given in (("curves", curves), ("errors", {} if errors is None else errors)):
