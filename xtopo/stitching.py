@@ -342,17 +342,17 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     if not reliable:
         return curve
     cut = reliability_cutoff(ds)
-    criterion = xr.DataArray(cut.attrs.pop("method", "none"))
+    criterion = cut.attrs.pop("method", "none")
     if coord == "q":  # spectra also end where aliasing sets in; which criterion wins is data (lazy: at compute)
         sampling = sampling_cutoff(ds, curve.attrs.get("direction", "x"))
-        criterion = xr.where(cut >= sampling, criterion, "sampling")
+        criterion = np.where(cut.data >= sampling, criterion, "sampling")  # dask's where on a lazy cutoff
         cut = np.fmax(cut, sampling)
     out = xr.apply_ufunc(_mask_short_scales, curve, cut, input_core_dims=[[coord], []], output_core_dims=[[coord]],
                          kwargs={"x": np.asarray(curve[coord].values), "spectrum": coord == "q"},
                          dask="parallelized", output_dtypes=[curve.dtype])  # one dask array, not seven
     out = out.transpose(*curve.dims, ...)
     out.attrs = dict(curve.attrs, reliable=1)
-    return out.assign_coords(reliability_cutoff=cut.variable, reliability_criterion=criterion.variable)
+    return out.assign_coords(reliability_cutoff=cut.variable, reliability_criterion=((), criterion))
 
 
 def _setting(ds: xr.Dataset) -> tuple:
