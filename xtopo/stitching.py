@@ -215,7 +215,8 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
         (the values averaged, NaN elsewhere), ``curve_error`` (each curve's predicted
         relative error) and ``left_out`` (CF flags: 1 where a curve's ``unreliable`` points would
         have given a value, 2 where ``max_error`` dropped one; attr ``criterion`` says why). Per measurement
-        ``reliability_cutoff`` and ``reliability_criterion`` where the curves carry one.
+        ``reliability_cutoff`` and ``reliability_criterion`` where the curves carry one (the criterion: a curve's
+        0-d coordinate ``reliability_criterion``, else its cutoff's attr ``method``).
     """
     tol = max_error
     for what, given in (("curves", curves), ("errors", {} if errors is None else errors)):
@@ -261,8 +262,11 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
         cut = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").drop_attrs(deep=False).assign_attrs(
             units=cut_units, long_name="short reliability cutoff")
         out["reliability_cutoff"] = cut if cut.chunks is None else cut.chunk({"measurement": -1})  # as the curves
-        out["reliability_criterion"] = ("measurement", [str(v.attrs.get("method", "none")) for v in cuts],
-                                        {"units": "1", "long_name": "criterion of the short reliability cutoff (paper §4.9)"})
+        crit = xr.DataArray(np.stack([  # np.stack: dask's on lazy curves (xr.concat cast each string: a task each)
+            c.coords["reliability_criterion"].data if "reliability_criterion" in c.coords
+            else np.array(str(v.attrs.get("method", "none"))) for c, v in zip(curves.values(), cuts)]),
+            dims="measurement", attrs={"units": "1", "long_name": "criterion of the short reliability cutoff (paper §4.9)"})
+        out["reliability_criterion"] = crit if crit.chunks is None else crit.chunk({"measurement": -1})
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
                  "collocation_method": method,
                  "weighting": "arithmetic mean with equal weight per measurement over its reliable scales"
@@ -338,21 +342,17 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     if not reliable:
         return curve
     cut = reliability_cutoff(ds)
-    method = cut.attrs.get("method", "none")
-    if coord == "q":  # spectra also end where aliasing sets in
+    criterion = cut.attrs.pop("method", "none")
+    if coord == "q":  # spectra also end where aliasing sets in; which criterion wins is data (lazy: at compute)
         sampling = sampling_cutoff(ds, curve.attrs.get("direction", "x"))
-        if cut.chunks is not None:
-            method = f"{method} or sampling"
-        elif not float(cut) >= sampling:
-            method = "sampling"
+        criterion = np.where(cut.data >= sampling, criterion, "sampling")  # dask's where on a lazy cutoff
         cut = np.fmax(cut, sampling)
-    cut.attrs["method"] = method
     out = xr.apply_ufunc(_mask_short_scales, curve, cut, input_core_dims=[[coord], []], output_core_dims=[[coord]],
                          kwargs={"x": np.asarray(curve[coord].values), "spectrum": coord == "q"},
                          dask="parallelized", output_dtypes=[curve.dtype])  # one dask array, not seven
     out = out.transpose(*curve.dims, ...)
     out.attrs = dict(curve.attrs, reliable=1)
-    return out.assign_coords(reliability_cutoff=cut.variable)
+    return out.assign_coords(reliability_cutoff=cut.variable, reliability_criterion=((), criterion))
 
 
 def _setting(ds: xr.Dataset) -> tuple:
