@@ -78,6 +78,7 @@ def one_task(fn, ds: xr.Dataset, like: tuple) -> tuple:
     import dask  # deferred: the core install has no dask, and then no lazy data reach here
     import dask.array as da
     from dask.base import tokenize
+    from dask.highlevelgraph import HighLevelGraph
 
     like, parts, check = like
     lazy = [(o.variable if n is None else o.coords[n].variable) for o, p in zip(like, parts) for n in p]
@@ -87,8 +88,11 @@ def one_task(fn, ds: xr.Dataset, like: tuple) -> tuple:
     for obj, p in zip(like, parts):
         for n in p:
             a = lazy[i].data
-            piece = dask.delayed(operator.getitem, pure=True)(task, i, dask_key_name=f"{name}-{i}")
-            new = da.from_delayed(piece, a.shape, dtype=a.dtype, meta=a._meta, name=f"{name}-a{i}")
+            # the array's one chunk is the task's i-th output: one task per part (from_delayed added a second)
+            key = f"{name}-a{i}"
+            graph = HighLevelGraph.from_collections(key, {(key,) + (0,) * a.ndim: (operator.getitem, name, i)},
+                                                    dependencies=[task])
+            new = da.Array(graph, key, tuple((s,) for s in a.shape), dtype=a.dtype, meta=a._meta)
             obj = obj.copy(data=new) if n is None else obj.assign_coords({n: lazy[i].copy(data=new)})
             i += 1
         out.append(obj)
