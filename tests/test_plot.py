@@ -286,6 +286,18 @@ def test_twin_plot_measurements_has_one_panel_per_measurement(area):
     assert axes_of(layout, "bokeh")
 
 
+def test_twin_maps_keep_their_own_axes_and_colour_scales(area):
+    """Measurements differ in extent and units: linked ranges drew each map on the union of the numbers (a 5 mm
+    scan shown on 0-1000 beside a µm one, one colour scale for mm and nm heights). On main before the fix: one
+    x range, one colour range for both."""
+    big = area.assign_coords(x=area.x * 3, y=area.y * 3).assign(height=area.height * 3)
+    fig = hv.render(xtopo.twin({"small": area, "big": big}).topo.plot_measurements(), backend="bokeh")
+    (small, *_), (large, *_) = fig.children
+    assert small.x_range is not large.x_range and small.x_range.end != large.x_range.end
+    mappers = [next(r.glyph.color_mapper for r in p.renderers if hasattr(r.glyph, "color_mapper")) for p in (small, large)]
+    assert mappers[0].high != mappers[1].high
+
+
 @pytest.fixture(scope="module")
 def figure_5():
     """Figure 5 of a twin of 12 measurements by 3 instruments."""

@@ -660,8 +660,11 @@ def measurement_maps(tree, *, max_pixels: Annotated[int, _PIXELS] = 256, cols: A
         raise XtopoError("measurement_maps() needs at least one measurement; the twin has none")
     for name, ds in ms.items():
         Data().check(ds, f"measurement_maps() measurement {name!r}")
-    panels = [topography(ds, max_pixels=max_pixels, title=name) for name, ds in ms.items()]
-    return hv.Layout(panels).cols(cols)
+    # each panel its own axes and colour scale: measurements differ in extent and in units (mm, µm, nm), and linked
+    # ranges showed every map on the union of the numbers (most of them as a dot in an empty frame)
+    panels = [topography(ds, max_pixels=max_pixels, title=name).opts(axiswise=True) for name, ds in ms.items()]
+    return _style(hv.Layout(), common=dict(shared_axes=False),
+                  matplotlib=dict(vspace=0.4, sublabel_position=(-0.35, 1.08))).clone(panels).cols(cols)
 
 
 # --------------------------------------------------------------------------- dispatch
