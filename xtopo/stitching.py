@@ -261,12 +261,12 @@ def average_curves(curves: dict, *, per_decade: Annotated[int, _PER_DECADE] = PE
         # the cutoffs' own attrs (method, tip radius) differ between measurements: their criterion becomes a variable
         cut = xr.concat([xr.DataArray(v) for v in cuts], dim="measurement").drop_attrs(deep=False).assign_attrs(
             units=cut_units, long_name="short reliability cutoff")
-        out["reliability_cutoff"] = cut if cut.chunks is None else cut.chunk({"measurement": -1})  # as the curves
         crit = xr.DataArray(np.stack([  # np.stack: dask's on lazy curves (xr.concat cast each string: a task each)
             c.coords["reliability_criterion"].data if "reliability_criterion" in c.coords
             else np.array(str(v.attrs.get("method", "none"))) for c, v in zip(curves.values(), cuts)]),
             dims="measurement", attrs={"units": "1", "long_name": "criterion of the short reliability cutoff (paper §4.9)"})
-        out["reliability_criterion"] = crit if crit.chunks is None else crit.chunk({"measurement": -1})
+        for var, v in (("reliability_cutoff", cut), ("reliability_criterion", crit)):  # lazy: one chunk, as the curves
+            out[var] = v if v.chunks is None else v.chunk({"measurement": -1})
     out.attrs = {"title": f"twin average of {first.name or 'curves'}", "collocation_points_per_decade": per_decade,
                  "collocation_method": method,
                  "weighting": "arithmetic mean with equal weight per measurement over its reliable scales"
