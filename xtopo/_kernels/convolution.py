@@ -28,7 +28,7 @@ the three plans of a 1024² solve costs 8 s, twice the solve: a grid FFTW's wisd
 user cache directory) does not know yet is planned by estimate, and measured once the operator
 has served :data:`_MEASURE_AFTER` solves (load curves, batches), which stores the wisdom for
 every later process. ``XTOPO_FFTW_PLANNER=estimate|measure`` overrides. One FFT thread unless
-``XTOPO_FFT_THREADS`` says otherwise (:func:`_threads`).
+``XTOPO_FFT_THREADS`` says otherwise (:func:`xtopo._kernels.fft.workers`).
 """
 
 from __future__ import annotations
@@ -51,18 +51,6 @@ _MEASURE_FROM = 256 * 256
 #: solves on one operator after which estimated plans are replaced by measured ones (saved as wisdom)
 _MEASURE_AFTER = 3
 _WISDOM = {"loaded": False}
-
-
-def _threads(fft_shape) -> int:
-    """FFT threads: ``XTOPO_FFT_THREADS`` when set, else one.
-
-    FFTW's threads synchronise every transform: where the cores are busy (other processes, a
-    batch of parallel solves) a thread that waits for a core stalls the others, and two threads
-    made 1024² solves 17–22× slower on a loaded 2-core machine (issue 27), while on an idle one
-    they gain at most 1.6× from 2048² on (benchmarks/bench_contact.py --threads). Parallel solves
-    (:func:`xtopo.batch.contact`) use the cores without that risk.
-    """
-    return _fft.workers()
 
 
 def _planner(fft_shape) -> str:
@@ -151,7 +139,7 @@ class Convolution:
         self._in_place = _owner is None or _in_place
         self.backend = _owner.backend if _owner is not None else _fft.choose_backend(self.fft_shape, backend,
                                                                                      planned=True)
-        self.workers = _threads(self.fft_shape)
+        self.workers = _fft.workers()   # one thread unless XTOPO_FFT_THREADS says otherwise (issue 27)
         m = float(np.prod(self.fft_shape))
         self._rows = self.fft_shape[0] if self.ndim == 2 else 1      # rows of the spectrum
         self._halve_last = self.fft_shape[-1] % 2 == 0
@@ -345,12 +333,12 @@ class Convolution:
 
     @property
     def input_flat(self) -> np.ndarray:
-        """The whole input buffer, flattened (index it with :meth:`buffer_index`)."""
+        """The whole input buffer, flattened (laid out as :attr:`buffer_layout` says)."""
         return self._ensure()["in"].reshape(-1)
 
     @property
     def output_flat(self) -> np.ndarray:
-        """The whole real output buffer of :meth:`inverse`, flattened (index it with :meth:`buffer_index`).
+        """The whole real output buffer of :meth:`inverse`, flattened (laid out as :attr:`buffer_layout` says).
 
         Valid after :meth:`inverse` (its values are those of the last call) until the next transform.
         """
@@ -364,10 +352,6 @@ class Convolution:
             return self.shape[-1], 0
         row = self._ensure()["in"].shape[-1]
         return self.shape[-1], row - self.shape[-1]
-
-    def buffer_index(self, flat_index: np.ndarray) -> np.ndarray:
-        """Positions in :attr:`input_flat` of flat indices of the active grid."""
-        return compiled.slots(np.asarray(flat_index, dtype=np.intp).reshape(-1), *self.buffer_layout)
 
     def forward(self) -> np.ndarray:
         """Spectrum of the input buffer on the FFT grid (unnormalised, ``rfft`` layout).

@@ -27,8 +27,10 @@ def workers() -> int:
     Threaded transforms synchronise on every call: where the cores are busy (other processes,
     parallel tasks) a waiting thread stalls the others. On the loaded 2-core development machine
     a 1024-point batch of 1024² row transforms took 2.8 ms at best on one thread and 12–20 ms on
-    two; contact solves were up to 22× slower (issue 27). Parallel work (:mod:`xtopo.batch`) uses
-    the cores without that risk; set ``XTOPO_FFT_THREADS`` on a machine of one's own.
+    two; contact solves were up to 22× slower (issue 27), while on an idle machine two threads gain
+    them at most 1.6× from 2048² on (benchmarks/bench_contact.py --threads). Parallel work
+    (:mod:`xtopo.batch`) uses the cores without that risk; set ``XTOPO_FFT_THREADS`` on a machine of
+    one's own.
     """
     env = os.environ.get("XTOPO_FFT_THREADS")
     return max(1, int(env)) if env else 1
