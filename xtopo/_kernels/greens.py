@@ -6,7 +6,7 @@ coefficients* of the discrete convolution operator in ``rfft`` layout, real-valu
 (the kernels are even), such that ``u = irfftn(G̃ · rfftn(p))`` on the grid that
 function describes — *folded*: the kernels are even along ``y`` too, so row ``r`` of an
 ``M``-row spectrum equals row ``M - r`` and only rows ``0 … M//2`` are stored (half the
-memory; :func:`unfold` gives the full layout). Units: ``G̃`` has units of length / modulus when the spacing is
+memory). Units: ``G̃`` has units of length / modulus when the spacing is
 given in length units and ``modulus`` in pressure units.
 
 * periodic, area: eq. (17), ``G̃(q) = 2/(E*|q|)`` on the native grid, ``G̃(0) = 0``
@@ -32,7 +32,7 @@ from .derivatives import wavevectors
 
 sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
 
-__all__ = ["love_rectangle", "strip_displacement", "periodic_greens", "free_greens", "padded_shape", "unfold"]
+__all__ = ["love_rectangle", "strip_displacement", "periodic_greens", "free_greens", "padded_shape"]
 
 
 def love_rectangle(x, y, a: float, b: float, modulus: float = 1.0) -> np.ndarray:
@@ -89,12 +89,6 @@ def strip_displacement(x, a: float, reference: float, modulus: float = 1.0) -> n
 def padded_shape(shape) -> tuple[int, ...]:
     """FFT grid of a free-boundary problem: ``2N`` along each axis (≥ ``2N-1``, Hockney)."""
     return tuple(2 * int(n) for n in shape)
-
-
-def unfold(folded: np.ndarray, rows: int) -> np.ndarray:
-    """The full ``rows``-row rfft layout of a folded 2D operator (row ``r`` is row ``min(r, rows - r)``)."""
-    r = np.arange(rows)
-    return folded[np.minimum(r, rows - r)]
 
 
 def periodic_greens(shape, spacing, modulus: float = 1.0, dtype=np.float64) -> np.ndarray:
