@@ -38,7 +38,7 @@ def acf_profiles(h: np.ndarray, dx: float, *, periodic: bool, rows: int) -> np.n
         k = n // 2 + 1
         a = (sq.sum(axis=-1, keepdims=True) - c[..., :k]) / (n * nrows)
         a[..., 0] = 0.0
-        return _nonnegative(a)
+        return np.maximum(a, 0, out=a)
     cs = np.zeros(sq.shape[:-1] + (n + 1,))
     np.cumsum(sq, axis=-1, out=cs[..., 1:])
     k = np.arange(n)
@@ -46,11 +46,6 @@ def acf_profiles(h: np.ndarray, dx: float, *, periodic: bool, rows: int) -> np.n
     tail = cs[..., -1:] - cs[..., k]   # Σ_{m >= k} h_m²
     a = (head + tail - 2 * c[..., :n]) / (2 * (n - k) * nrows)
     a[..., 0] = 0.0
-    return _nonnegative(a)
-
-
-def _nonnegative(a: np.ndarray) -> np.ndarray:
-    """Clip round-off below zero in place (A ≥ 0); returns ``a``."""
     return np.maximum(a, 0, out=a)
 
 
@@ -91,7 +86,7 @@ def acf_map(h: np.ndarray, *, periodic: bool) -> np.ndarray:
     if periodic:
         a = sq.mean(axis=(-2, -1), keepdims=True) - c / (nx * ny)
         a[..., 0, 0] = 0.0
-        return _nonnegative(a)
+        return np.maximum(a, 0, out=a)
     px = shape[1]
     c = np.concatenate([c[..., :ny, px - (nx - 1):], c[..., :ny, :nx]], axis=-1)
     # Σ of h² over the rows a pair's first point (rows < ny-Δy) or second point (rows ≥ Δy) can take,
@@ -112,4 +107,4 @@ def acf_map(h: np.ndarray, *, periodic: bool) -> np.ndarray:
     t -= 2 * c
     t /= 2 * npairs
     t[..., 0, nx - 1] = 0.0
-    return _nonnegative(t)
+    return np.maximum(t, 0, out=t)

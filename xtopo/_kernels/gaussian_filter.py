@@ -51,6 +51,11 @@ def transmission(wavelength, cutoff: float):
         return np.exp(-np.pi * (ALPHA * cutoff / np.asarray(wavelength, dtype=float)) ** 2)
 
 
+def _along(axis: int, ndim: int) -> list:
+    """The shape that lays a 1D array along ``axis`` (≥ 0) of ``ndim`` axes, broadcastable against them."""
+    return [-1 if i == axis else 1 for i in range(ndim)]
+
+
 def _correlate(a: np.ndarray, w: np.ndarray, axis: int) -> np.ndarray:
     """``sum_j w[j] a[i + j - half]`` along ``axis``, zero outside the data (same length; ``w`` of odd length)."""
     if w.size <= _DIRECT:
@@ -58,9 +63,7 @@ def _correlate(a: np.ndarray, w: np.ndarray, axis: int) -> np.ndarray:
     n, half = a.shape[axis], w.size // 2
     m = sfft.next_fast_len(n + w.size - 1, real=True)
     fa = sfft.rfft(a, m, axis=axis)
-    shape = [1] * a.ndim
-    shape[axis] = -1
-    fa *= sfft.rfft(w[::-1], m).reshape(shape)  # a convolution with the reversed kernel
+    fa *= sfft.rfft(w[::-1], m).reshape(_along(axis, a.ndim))  # a convolution with the reversed kernel
     out = sfft.irfft(fa, m, axis=axis)
     return np.take(out, np.arange(half, half + n), axis=axis)
 
@@ -69,10 +72,8 @@ def _periodic(a: np.ndarray, cutoff: float, dx: float, axis: int) -> np.ndarray:
     """Circular Gaussian low-pass along ``axis`` with the exact transfer function."""
     n = a.shape[axis]
     f = sfft.rfftfreq(n, dx)  # cycles per length
-    shape = [1] * a.ndim
-    shape[axis] = -1
-    return sfft.irfft(sfft.rfft(a, axis=axis) * np.exp(-np.pi * (ALPHA * cutoff * f) ** 2).reshape(shape), n,
-                      axis=axis)
+    return sfft.irfft(sfft.rfft(a, axis=axis) * np.exp(-np.pi * (ALPHA * cutoff * f) ** 2).reshape(
+        _along(axis, a.ndim)), n, axis=axis)
 
 
 def gaussian_lowpass(h: np.ndarray, cutoffs, spacings, periodic: bool = False, order: int = 0) -> np.ndarray:
@@ -158,7 +159,5 @@ def _weights_moment(present, shape, kernels, powers):
         return _moment(present, kernels, powers)
     out = 1.0
     for (axis, w, u), p in zip(kernels, powers):
-        line = [1] * len(shape)
-        line[axis] = -1
-        out = out * _correlate(np.ones(shape[axis]), w * u**p, 0).reshape(line)
+        out = out * _correlate(np.ones(shape[axis]), w * u**p, 0).reshape(_along(axis, len(shape)))
     return out
