@@ -150,19 +150,17 @@ class _ContactSet:
         self.p = p
         self.t = self.g = None   # made when first needed (the gaps' array at the first evaluation)
         self.grid = True
-        self._grid_arrays = (grid_c, grid_r)
         self.c, self.r = grid_c, grid_r
 
     def _compact(self):
         """Give ``c`` and ``r`` arrays of their own once the set holds at most :data:`_COMPACT` of the grid."""
-        grid_c, grid_r = self._grid_arrays
-        if not self.grid or self.n > _COMPACT * grid_c.size:
+        if not self.grid or self.n > _COMPACT * self.c.size:
             return
         idx = self.flat()
-        room = self.s.size
-        self.c, self.r = np.empty(room, self.p.dtype), np.empty(room, self.p.dtype)
-        self.c[:self.n] = grid_c[idx]
-        self.r[:self.n] = grid_r[idx]
+        for name in "cr":   # the grid's arrays, read at the points
+            own = np.empty(self.s.size, self.p.dtype)
+            own[:self.n] = getattr(self, name)[idx]
+            setattr(self, name, own)
         self.grid = False
 
     def _resize(self, size, small):
@@ -241,7 +239,6 @@ class _Displacements:
         self.support = _NONE
         self.delta_ref = 0.0
         self.fresh = True                                 # no increment since the last refresh
-        self.low.input_flat.fill(0)
         self._no_increment = np.zeros(1, self.low.dtype)
 
     # -- the reference ------------------------------------------------------------------------
@@ -364,11 +361,11 @@ class _Displacements:
         return gone, capped
 
     def energy_of(self, pairs):
-        """``Σ x (G*x)`` of a sparse field given as ``(points, values)`` pairs (one float32 forward
+        """``Σ x (G*x)`` of a sparse field given as ``(points, values, ...)`` tuples (one float32 forward
         transform in the direction operator, which the next :meth:`set_direction` rewrites)."""
         flat, nx, pad = self.direction.input_flat, self.nx, self.pad
         self.direction.input.fill(0)
-        for where, value in pairs:
+        for where, value, *_ in pairs:
             compiled.scatter(where, value, nx, pad, flat)
         self.counts["fft"] += 1
         return self.direction.energy(self.direction.forward())
@@ -567,27 +564,23 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
             if denom > 0 and slope > 0:
                 tau = slope / denom
         step = dtype.type(tau if tau > 0 else tau_fallback)
-        # joins: overlapping free points, plastic points whose gap opened → p ← p - step g
-        moving = [(over, g_over)] if over.size else []
+        # joins: overlapping free points (from 0), plastic points whose gap opened (from H) → p ← p - step g
+        moving = [(over, g_over, 0, False)] if over.size else []
         if pl.size and opened.any():
-            moving.append((pl[opened], g_pl[opened]))
-        if sum(m.size for m, _ in moving) > max(nI, 16):
+            moving.append((pl[opened], g_pl[opened], H, True))
+            pl = pl[~opened]
+        if sum(m.size for m, *_ in moving) > max(nI, 16):
             # more points join than the CG set holds (a warm start far from the solution, the first
             # iterations): the CG step says nothing about them and may push them all past the hardness
             # and back. Take the steepest-descent step of the joining points, Σ g² / Σ g (G*g), at most
             energy = disp.energy_of(moving)
             if energy > 0:
-                step = min(step, dtype.type(sum(_dot(g, g) for _, g in moving) / energy))
-        joined = []
-        if over.size:
-            joined.append((over, -step * g_over, False))
-        if pl.size and opened.any():
-            joined.append((pl[opened], H - step * g_pl[opened], True))
-            pl = pl[~opened]
+                step = min(step, dtype.type(sum(_dot(g, g) for _, g, *_ in moving) / energy))
         # joining points at H become plastic, plastic ones at 0 free; `changed` collects the points outside the set
         # whose pressure became 0 or H (the increment's input)
         changed, joins, capped_now = [], [], []
-        for where, value, was_plastic in joined:
+        for where, g, start, was_plastic in moving:
+            value = start - step * g
             if H is not None:
                 full = value >= H
                 if full.any():
