@@ -115,20 +115,15 @@ def _scaled_stats(h, k, f, start, count, second, pad, squares):
 
 
 def _stats(h, etas, order, periodic, rows, squares):
-    """``h`` as ``(L, R, n)`` profiles (:func:`_profiles`), its leading shape, the scale factors ``etas`` as an
-    array, their stencil counts per profile and :func:`_scaled_stats` of them."""
-    h3, lead = _profiles(h, rows)
+    """``h`` as float64 ``(L, R, n)`` profiles (leading, reduced ``rows`` and profile axes), its leading shape, the
+    scale factors ``etas`` as an array, their stencil counts per profile and :func:`_scaled_stats` of them."""
+    h = np.ascontiguousarray(h, dtype=float)
+    lead = h.shape[: h.ndim - 1 - rows]
+    h3 = h.reshape(int(np.prod(lead, dtype=int)), -1, h.shape[-1])
     etas = np.asarray(etas, dtype=float).reshape(-1)
     pad = int(np.ceil(etas.max() - 1e-12)) + 1 if periodic and etas.size else 0
     k, f, start, count = _stencil(etas, order, periodic, h3.shape[-1], pad)
     return h3, lead, etas, count, _scaled_stats(h3, k, f, start, count, order == 2, pad, squares)
-
-
-def _profiles(h, rows):
-    """``h`` as float64 ``(L, R, n)``: leading, reduced (``rows`` axes) and profile axes; and the leading shape."""
-    h = np.ascontiguousarray(h, dtype=float)
-    lead = h.shape[: h.ndim - 1 - rows]
-    return h.reshape(int(np.prod(lead, dtype=int)), -1, h.shape[-1]), lead
 
 
 def sdrp_rms(h: np.ndarray, dx: float, etas, *, order: int, periodic: bool, rows: int) -> np.ndarray:
