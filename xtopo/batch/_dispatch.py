@@ -47,11 +47,9 @@ def fft_env(threads):
 def _active_client():
     try:
         from distributed import get_client
-    except ImportError:  # distributed comes with the [dask] extra
-        return None
-    try:
+
         return get_client()
-    except ValueError:
+    except (ImportError, ValueError):  # distributed comes with the [dask] extra; ValueError: no client is running
         return None
 
 
