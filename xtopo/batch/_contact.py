@@ -17,12 +17,12 @@ from ..conventions import append_history, convert_length, height_of, length_unit
 from ..errors import ContactError, UnitsError, XtopoError
 from ..contact import Scene
 from ..contact.models import scene_models
-from ..contact.solve import ONE_SEQUENCE, control_value, solver_parameters
+from ..contact.solve import ONE_SEQUENCE, control_value, load_and_area, solver_parameters
 from ..params import Flag, LengthUnit, checked
 from ._engine import run_batch
 from ._inputs import (Progress, ReadOptions, Retries, StorePath, Workers, checked_read_options, names_and_sources,
                       run_options)
-from ._scans import SCAN, load_long_name, load_units, one_scan, scan_variable, wrong_scan_message
+from ._scans import SCAN, one_scan, scan_variable, wrong_scan_message
 
 __all__ = ["contact"]
 
@@ -231,10 +231,11 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     scan = one_scan(control, names, sources, units)
     func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units,
                              required_scan=scan)
-    long_name = {"load": load_long_name(scan), "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
+    load = load_and_area(scan == "line", units, "E*")[0]   # a load's labels depend on the scan (area or line)
+    long_name = {"load": load["long_name"], "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
     dim_attrs = {"long_name": f"{long_name} (imposed)"}
-    # the coordinate's units when no item gives them (all failed); a load's depend on the scan (area or line)
-    dim_units = {"mean_pressure": "E*", "penetration": units, "load": scan and load_units(scan, units)}[control]
+    # the coordinate's units when no item gives them (all failed)
+    dim_units = {"mean_pressure": "E*", "penetration": units, "load": scan and load["units"]}[control]
     if dim_units is not None:
         dim_attrs["units"] = dim_units
     return run_batch(func, measurements, values, dim=control, dim_attrs=dim_attrs, chunks=chunks, client=client,

@@ -14,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from ..contact.solve import load_and_area
 from ..errors import XtopoError
 from ._results import ERROR, HISTORY, MEASUREMENT
 
-__all__ = ["SCAN", "scan_variable", "load_units", "load_long_name", "one_scan", "wrong_scan_message", "settle_scans"]
+__all__ = ["SCAN", "scan_variable", "one_scan", "wrong_scan_message", "settle_scans"]
 
 SCAN = "scan"
 _SCAN_ATTRS = {"long_name": "kind of scan the item solved: 'line' (plane strain) or 'area' ('' where it failed)"}
@@ -38,16 +39,6 @@ def _scan_of(ds: xr.Dataset) -> str | None:
     """``"line"`` or ``"area"`` for a measurement Dataset (None where it has no height: its item fails)."""
     h = ds.get("height")
     return None if h is None else ("area" if "y" in h.dims else "line")
-
-
-def load_units(scan: str, units: str) -> str:
-    """Units of a load on a ``scan`` in lengths of ``units``: ``E* um2`` (area) or ``E* um`` (line)."""
-    return f"E* {units}" + ("2" if scan == "area" else "")
-
-
-def load_long_name(scan: str | None) -> str:
-    """``long_name`` of a load on a ``scan`` (None: not known yet)."""
-    return "normal load" + (" per unit length" if scan == "line" else "")
 
 
 def _a(scan: str) -> str:
@@ -148,8 +139,8 @@ def settle_scans(ds: xr.Dataset, *, control: str, units: str) -> xr.Dataset:
     ds = _refuse(ds, [m for m, k in kinds.items() if k != scan],
                  "XtopoError: " + wrong_scan_message(control, other, scan, "its first file solved", units))
     # the labels the items of the two kinds disagreed on (and lost when they were combined): the kept kind's
-    ds[control].attrs.update(units=load_units(scan, units), long_name=load_long_name(scan))
+    load_attrs, area_attrs = load_and_area(scan == "line", units, "E*")
+    ds[control].attrs.update(load_attrs)
     if "contact_area" in ds.data_vars:
-        ds["contact_area"].attrs.update(units=units + ("2" if scan == "area" else ""),
-                                        long_name="contact " + ("area" if scan == "area" else "length"))
+        ds["contact_area"].attrs.update(area_attrs)
     return ds

@@ -12,7 +12,7 @@ from ..errors import ContactError, ConvergenceWarning, warn
 from ..presets import resolve as resolve_preset
 
 __all__ = ["solve", "default_tol", "solver_settings", "solver_parameters", "ONE_CONTROL", "ONE_SEQUENCE",
-           "control_value", "result_units", "run_solver"]
+           "control_value", "load_and_area", "run_solver"]
 
 #: Default tolerance of the relative gap residual (see :mod:`xtopo._kernels.pk_solver`): the knee of the
 #: error-vs-time curve (benchmarks/tradeoffs.py, docs/tradeoffs.md); it was 1e-6 for float64 before issue 9.
@@ -56,11 +56,12 @@ def solver_parameters(tol, maxiter) -> tuple:
     return tol, maxiter
 
 
-def result_units(scene) -> dict:
-    """Units strings of the outputs of ``scene`` (pressure, length, load, area)."""
-    pu, lu = scene.modulus_units, scene.length_units
-    area = lu if scene.line else f"{lu}2"  # a line scan's contact "area" is a length, its load per unit length
-    return {"pressure": pu, "length": lu, "load": f"{pu} {area}", "area": area}
+def load_and_area(line: bool, length: str, pressure: str) -> tuple[dict, dict]:
+    """Attributes (units, long_name) of a load and of a contact area: on a line scan a force per unit length
+    and a contact length, on an area scan a force and an area; lengths in ``length``, pressures in ``pressure``."""
+    area = length if line else f"{length}2"
+    return ({"units": f"{pressure} {area}", "long_name": "normal load" + (" per unit length" if line else "")},
+            {"units": area, "long_name": "contact " + ("length" if line else "area")})
 
 
 #: The rule of every contact entry point, declared once (``@checked``): exactly one control, a value
@@ -200,25 +201,24 @@ def run_solver(scene, *, load, penetration, tol, maxiter, initial, callback=None
 
 def to_dataset(scene, res, tol) -> xr.Dataset:
     """Wrap a :class:`~xtopo._kernels.pk_solver.PKResult` of ``scene`` as a Dataset with units."""
-    u = result_units(scene)
+    pu, lu = scene.modulus_units, scene.length_units
+    load_attrs, area_attrs = load_and_area(scene.line, lu, pu)
     dims = scene.dims
     contact = res.pressure > 0
     n = contact.size
     data = {
-        "pressure": (dims, res.pressure, {"units": u["pressure"], "long_name": "contact pressure"}),
-        "displacement": (dims, res.displacement, {"units": u["length"], "long_name": "normal displacement of the "
+        "pressure": (dims, res.pressure, {"units": pu, "long_name": "contact pressure"}),
+        "displacement": (dims, res.displacement, {"units": lu, "long_name": "normal displacement of the "
                                                   "elastic surface (positive into the solid)"}),
-        "gap": (dims, res.gap, {"units": u["length"], "long_name": "gap between the surfaces"}),
+        "gap": (dims, res.gap, {"units": lu, "long_name": "gap between the surfaces"}),
         "contact": (dims, contact, {"units": "1", "long_name": "in contact (pressure > 0)"}),
-        "load": ((), res.load, {"units": u["load"], "long_name": "normal load"
-                                + (" per unit length" if scene.line else "")}),
-        "mean_pressure": ((), res.load / scene.nominal_area, {"units": u["pressure"],
+        "load": ((), res.load, load_attrs),
+        "mean_pressure": ((), res.load / scene.nominal_area, {"units": pu,
                                                               "long_name": "mean pressure over the nominal area"}),
         "area_fraction": ((), np.count_nonzero(contact) / n, {"units": "1",
                                                               "long_name": "relative contact area A/A0"}),
-        "contact_area": ((), np.count_nonzero(contact) * scene.pixel_area,
-                         {"units": u["area"], "long_name": "contact " + ("length" if scene.line else "area")}),
-        "penetration": ((), res.penetration, {"units": u["length"],
+        "contact_area": ((), np.count_nonzero(contact) * scene.pixel_area, area_attrs),
+        "penetration": ((), res.penetration, {"units": lu,
                                               "long_name": "rigid-body approach from first contact"}),
         "iterations": ((), res.iterations, {"units": "1", "long_name": "Polonsky-Keer iterations"}),
         "residual": ((), res.residual, {"units": "1", "long_name": "largest contact-condition violation / "
