@@ -50,14 +50,6 @@ def error_message(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def _load(source, read_options) -> xr.Dataset:
-    if isinstance(source, xr.Dataset):
-        return source
-
-    with IO_LOCK:  # see xtopo.batch._store.IO_LOCK
-        return open_topography(source, **read_options)
-
-
 def _call(func, ds, params, dim, preprocessed: bool = False) -> xr.Dataset:
     """``func`` on one measurement (and the parameter values ``params``), its result checked and loaded.
 
@@ -87,7 +79,10 @@ def _run_item(func, source, params, dim, read_options, steps=()):
     parameter value ('' where it worked), or one message for a batch without parameters."""
     n = 1 if params is None else len(params)
     try:
-        ds = apply_steps(_load(source, read_options), steps)
+        if not isinstance(source, xr.Dataset):
+            with IO_LOCK:  # see xtopo.batch._store.IO_LOCK
+                source = open_topography(source, **read_options)
+        ds = apply_steps(source, steps)
     except Exception as exc:
         return None, [error_message(exc)] * n
     try:
