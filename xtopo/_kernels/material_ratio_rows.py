@@ -125,9 +125,8 @@ def equivalent_line(d: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def _functional(d, n):
-    rows, size = d.shape
     span = n - 1.0
-    t = np.arange(size, dtype=float)[None, :]
+    t = np.arange(d.shape[-1], dtype=float)[None, :]
     upper, lower = equivalent_line(d, n)
     mr1 = material_ratio_at(d, n, upper)
     mr2 = material_ratio_at(d, n, lower)
