@@ -487,14 +487,12 @@ def _solve(conv, w, *, pixel_area, load, penetration, hardness, tol, maxiter, in
                         converged=bool(ok), convolutions=counts["conv"], transforms=counts["fft"],
                         exact_convolutions=counts["exact"], plastic=plastic)
 
-    if load_control and load <= 0:
+    p0 = None if load_control and load <= 0 else _initial_pressure(
+        conv, w, pixel_area=pixel_area, load=load, penetration=penetration, H=H, initial=initial)
+    if p0 is None:   # nothing touches
         z = np.zeros(shape, dtype)
-        return result(z, z.copy(), -w, 0.0, 0, 0.0, True)
-    p0 = _initial_pressure(conv, w, pixel_area=pixel_area, load=load, penetration=penetration, H=H,
-                           initial=initial)
-    if p0 is None:
-        z = np.zeros(shape, dtype)
-        return result(z, z.copy(), -w - dtype.type(penetration), penetration, 0, 0.0, True)
+        delta = 0.0 if load_control else penetration
+        return result(z, z.copy(), -w - dtype.type(delta), delta, 0, 0.0, True)
 
     # -- sets: indices into the flat grid, with the pressures of the elastic ones ----------------
     p0 = p0.reshape(-1)
