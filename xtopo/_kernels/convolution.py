@@ -154,7 +154,6 @@ class Convolution:
             if self.backend == "pyfftw":
                 g *= 1.0 / m
             self._gmul = g.astype(self.dtype, copy=False)
-            del g
         self._multipliers = {self.dtype: self._gmul}
         self._real_shape = self.shape[:-1] + (self.fft_shape[-1],)
         self._plan = None
@@ -206,8 +205,6 @@ class Convolution:
         contents only while they use them.
         """
         dtype = np.dtype(dtype or self.dtype)
-        if dtype.itemsize > self.dtype.itemsize:
-            raise ValueError(f"a {dtype} workspace does not fit the buffer of a {self.dtype} operator")
         key = (name, dtype.name, in_place)
         if key not in self._workspaces:
             spacing, modulus = self._geometry
