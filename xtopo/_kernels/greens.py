@@ -26,11 +26,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ._lazy import Lazy
 
 from .derivatives import wavevectors
-
-sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
+from .fft import sfft  # imported on first use (startup time, issue 26)
 
 __all__ = ["love_rectangle", "strip_displacement", "periodic_greens", "free_greens", "padded_shape"]
 

@@ -21,10 +21,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ._lazy import Lazy, LazyJit
+from ._lazy import LazyJit
 
-sfft = Lazy("scipy.fft")  # imported, and the kernels compiled, on first use (startup time, issue 26)
-njit = LazyJit(globals())
+njit = LazyJit(globals())  # numba imported, the kernels wrapped, on first use (startup time, issue 26)
 
 from . import fft as _fft
 from . import features as _features
@@ -197,7 +196,7 @@ def decay_lengths(z: np.ndarray, dy: float, dx: float, periodic: bool, s: float)
     ``z[ny, nx]`` finite, mean removed. Nonperiodic maps are zero padded (linear correlation).
     """
     ny, nx = z.shape
-    shape = (ny, nx) if periodic else tuple(sfft.next_fast_len(2 * n - 1, real=True) for n in (ny, nx))
+    shape = (ny, nx) if periodic else tuple(_fft.sfft.next_fast_len(2 * n - 1, real=True) for n in (ny, nx))
     # single precision: the correlation at a lag with N pairs is off by ~1e-6·n/N of C(0), far below
     # any threshold s, and the transforms run twice as fast
     p = _power(_fft.rfftn(z.astype(np.float32), s=shape, axes=(-2, -1), backend=_BACKEND))
