@@ -469,6 +469,9 @@ def test_contact_batch_refuses_loads_for_a_mix_of_line_and_area_scans(tmp_path, 
     assert res.contact_area.attrs == {"units": "um", "long_name": "contact length"}
     assert res.history.sel(measurement="area").item() == ""
     assert np.isnan(res.area_fraction.sel(measurement="area").item())
+    # a physical modulus: loads in Pa·length, as each item's scene labels them (were relabelled E*)
+    res = batch.contact({"line": files["line.nc"], "area": files["area.nc"]}, [0.01], modulus=2e9, **kw)
+    assert res["load"].attrs["units"] == "Pa um" and res["mean_pressure"].attrs["units"] == "Pa"
 
 
 def test_mixed_files_batch_records_its_refused_items_in_the_store(tmp_path):

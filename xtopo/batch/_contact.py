@@ -193,7 +193,7 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     modulus, hardness, periodic
         Passed to :class:`xtopo.contact.Scene` (``periodic=None``: from the measurement).
         ``modulus`` is the contact modulus ``E*``; pressures, loads and ``hardness`` are in
-        its units (labelled ``E*``).
+        its units (labelled ``E*`` for the default modulus 1, else ``Pa``, as by the scene).
     tol, maxiter
         Passed to ``Scene.solve`` when given.
     maps : bool
@@ -231,14 +231,15 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     scan = one_scan(control, names, sources, units)
     func = functools.partial(_contact_item, control=control, scene=scene, solve=solve, maps=maps, units=units,
                              required_scan=scan)
-    load = load_and_area(scan == "line", units, "E*")[0]   # a load's labels depend on the scan (area or line)
+    pressure = models[0].units   # "E*" or "Pa", as each item's scene labels them
+    load = load_and_area(scan == "line", units, pressure)[0]   # a load's labels depend on the scan (area or line)
     long_name = {"load": load["long_name"], "mean_pressure": "mean pressure", "penetration": "penetration"}[control]
     dim_attrs = {"long_name": f"{long_name} (imposed)"}
     # the coordinate's units when no item gives them (all failed)
-    dim_units = {"mean_pressure": "E*", "penetration": units, "load": scan and load["units"]}[control]
+    dim_units = {"mean_pressure": pressure, "penetration": units, "load": scan and load["units"]}[control]
     if dim_units is not None:
         dim_attrs["units"] = dim_units
     return run_batch(func, measurements, values, dim=control, dim_attrs=dim_attrs, chunks=chunks, client=client,
                      scheduler=scheduler, workers=workers, store=store, progress=progress, fft_threads=fft_threads,
                      retries=retries, read_options=read_options, preprocess=preprocess,
-                     finish={"name": "settle_scans", "kwargs": {"control": control, "units": units}})
+                     finish={"name": "settle_scans", "kwargs": {"control": control, "units": units, "pressure": pressure}})

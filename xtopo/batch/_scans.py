@@ -96,7 +96,7 @@ def _refuse(ds: xr.Dataset, wrong, message: str) -> xr.Dataset:
     return ds
 
 
-def settle_scans(ds: xr.Dataset, *, control: str, units: str) -> xr.Dataset:
+def settle_scans(ds: xr.Dataset, *, control: str, units: str, pressure: str = "E*") -> xr.Dataset:
     """A contact batch's result, consistent about its line and area scans.
 
     Where the solved items are all line scans or all area scans, only the ``scan`` variable
@@ -116,7 +116,9 @@ def settle_scans(ds: xr.Dataset, *, control: str, units: str) -> xr.Dataset:
     control : {"load", "mean_pressure", "penetration"}
         The batch's parameter dimension.
     units : str
-        The batch's length unit (loads in ``E*·units²`` or ``E*·units``).
+        The batch's length unit (loads in ``pressure·units²`` or ``pressure·units``).
+    pressure : str
+        Units label of the pressures (the scene's modulus units: ``E*`` or ``Pa``).
 
     Returns
     -------
@@ -139,7 +141,7 @@ def settle_scans(ds: xr.Dataset, *, control: str, units: str) -> xr.Dataset:
     ds = _refuse(ds, [m for m, k in kinds.items() if k != scan],
                  "XtopoError: " + wrong_scan_message(control, other, scan, "its first file solved", units))
     # the labels the items of the two kinds disagreed on (and lost when they were combined): the kept kind's
-    load_attrs, area_attrs = load_and_area(scan == "line", units, "E*")
+    load_attrs, area_attrs = load_and_area(scan == "line", units, pressure)
     ds[control].attrs.update(load_attrs)
     if "contact_area" in ds.data_vars:
         ds["contact_area"].attrs.update(area_attrs)
