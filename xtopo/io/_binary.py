@@ -89,19 +89,19 @@ class BinaryReader:
         if n < 0 or self.pos + n > len(self.data):
             raise self.error(f"truncated: {what} needs {n} bytes at offset {self.pos}, file has {len(self.data)}")
 
-    def read(self, n: int, what: str = "data") -> bytes:
+    def read(self, n: int, what: str = "data", at: int | None = None) -> bytes:
+        if at is not None:
+            self.seek(at)
         self.need(n, what)
         out = self.data[self.pos:self.pos + n]
         self.pos += n
         return out
 
     def unpack(self, fmt: str, what: str = "header field", at: int | None = None):
-        if at is not None:
-            self.seek(at)
         if fmt[0] not in "<>=!@":
             fmt = self.endian + fmt
         size = struct.calcsize(fmt)
-        vals = struct.unpack(fmt, self.read(size, what))
+        vals = struct.unpack(fmt, self.read(size, what, at))
         return vals[0] if len(vals) == 1 else vals
 
     def array(self, dtype, count: int, what: str = "data", at: int | None = None) -> np.ndarray:
@@ -114,7 +114,3 @@ class BinaryReader:
         count = check_count(self.path, count, dt.itemsize, len(self.data) - self.pos, what)
         raw = self.read(count * dt.itemsize, what)
         return np.frombuffer(raw, dtype=dt, count=count).astype(dt.newbyteorder("="))
-
-    def cstring(self, n: int, encoding: str = "latin-1", what: str = "string") -> str:
-        raw = self.read(n, what)
-        return raw.split(b"\0", 1)[0].decode(encoding, errors="replace")

@@ -126,12 +126,7 @@ class TiffFile:
         typ, count, off = self.ifds[ifd][tag]
         if off < 0:
             raise ReaderError(self.path, f"TIFF tag {tag} points beyond the end of the file (truncated)")
-        return self.read_at(off, _TYPES[typ][1] * count, f"TIFF tag {tag}")
-
-    def read_at(self, offset: int, n: int, what: str) -> bytes:
-        """``n`` bytes at ``offset`` (bounds-checked)."""
-        self.reader.seek(offset)
-        return self.reader.read(n, what)
+        return self.reader.read(_TYPES[typ][1] * count, f"TIFF tag {tag}", at=off)
 
     def value(self, ifd: int, tag: int, default=None):
         """Decoded value of ``tag``: ``str`` for ASCII, a scalar for count 1, else a numpy array."""
@@ -170,7 +165,7 @@ class TiffFile:
             take = min(int(cnt), need - got)
             if take <= 0:
                 break
-            parts.append(self.read_at(int(off), take, f"TIFF {what} strip"))
+            parts.append(self.reader.read(take, f"TIFF {what} strip", at=int(off)))
             got += take
         buf = b"".join(parts)
         return np.frombuffer(buf, dtype=dt, count=n).astype(dt.newbyteorder("=")).reshape(ny, nx)
