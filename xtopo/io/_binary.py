@@ -67,8 +67,8 @@ class BinaryReader:
         self.pos = 0
 
     @classmethod
-    def from_file(cls, path, *, magic: bytes = b"", not_this: str = "", endian: str = "<") -> "BinaryReader":
-        """Read ``path`` whole; raise ``not_this`` as a ReaderError unless it starts with ``magic``."""
+    def from_file(cls, path, *, magic: bytes | tuple = b"", not_this: str = "", endian: str = "<") -> "BinaryReader":
+        """Read ``path`` whole; raise ``not_this`` as a ReaderError unless it starts with ``magic`` (or one of them)."""
         reader = cls(read_bytes(path), path, endian)
         if magic and not reader.data.startswith(magic):
             raise reader.error(not_this or "unexpected file signature")

@@ -42,11 +42,8 @@ def _sniff(head: bytes, path: str) -> bool:
         return False
     if b"main.xml" in head:
         return True
-    try:
-        with zipfile.ZipFile(path) as zf:
-            return any(posixpath.basename(n) == "main.xml" for n in zf.namelist())
-    except Exception:
-        return False
+    with zipfile.ZipFile(path) as zf:
+        return any(posixpath.basename(n) == "main.xml" for n in zf.namelist())
 
 
 def _linked(path, zf, base, rec3, key, expected):
