@@ -153,8 +153,7 @@ def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, h
             check_array_bytes(path, hv.shape, 8, None, "heights")
             h = np.asarray(hv.values, dtype=float)
             mask = np.asarray(nc["mask"].values) != 0 if "mask" in nc.variables else None
-            xv = nc["x"] if "x" in nc.variables else None
-            yv = nc["y"] if "y" in nc.variables else None
+            xv, yv = nc.get("x"), nc.get("y")
             xpos = np.asarray(xv.values, dtype=float) if dims == ("n",) and xv is not None else None
         except _OPEN_ERRORS as exc:
             raise ReaderError(path, f"cannot read the data: {exc}") from None
