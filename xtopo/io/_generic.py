@@ -16,8 +16,8 @@ from ..errors import ReaderError, UnitsError, UnsupportedFormatError
 from ._text import length_unit, line_measurement
 from .registry import ChannelInfo
 
-__all__ = ["resolve_units", "generic_measurement", "single_channel", "stated_length_unit", "read_container_array",
-           "container_channels"]
+__all__ = ["resolve_units", "stated_or_given", "generic_measurement", "single_channel", "stated_length_unit",
+           "read_container_array", "container_channels"]
 
 
 def resolve_units(path, *, found_units=None, found_height_units=None, file_units=None, height_units=None):
@@ -29,19 +29,27 @@ def resolve_units(path, *, found_units=None, found_height_units=None, file_units
     ReaderError
         If no unit is known (pass ``file_units``), or the file states one and ``file_units`` is given too.
     """
-    if found_units is not None and file_units is not None:
-        raise ReaderError(path, f"the file states its length unit ({found_units!r}); do not pass file_units")
-    lateral = found_units or file_units
+    lateral = stated_or_given(path, found_units, file_units, "file_units")
     if lateral is None:
         raise ReaderError(path, "the file stores no length unit; pass file_units= (e.g. file_units='m' or 'um') "
                                 "to open_topography (command line: --file-units)")
     lateral = length_unit(path, lateral, "length unit")
-    if found_height_units is not None and height_units is not None:
-        raise ReaderError(path, f"the file states the unit of its values ({found_height_units!r}); "
-                                "do not pass height_units")
-    hu = found_height_units or height_units or lateral
+    hu = stated_or_given(path, found_height_units, height_units, "height_units", "the unit of its values") or lateral
     hu = length_unit(path, hu, "height unit")
     return lateral, length_factor(hu, lateral)
+
+
+def stated_or_given(path, stated: str | None, given: str | None, option: str, what: str = "its length unit"):
+    """The unit the file ``stated``, else the one the caller has ``given`` (its option ``option``), else None.
+
+    Raises
+    ------
+    ReaderError
+        If the file states ``what`` and the caller gives ``option`` too.
+    """
+    if stated is not None and given is not None:
+        raise ReaderError(path, f"the file states {what} ({stated!r}); do not pass {option}")
+    return stated or given
 
 
 def stated_length_unit(path, attrs, name: str, height_units=None) -> str | None:

@@ -25,8 +25,8 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count
-from ._common import (channel_format, channel_info, lateral_unit_or_given, length_unit, measurement, metres_assumed,
-                      sniff_magic, value_unit)
+from .._generic import stated_or_given
+from ._common import channel_format, channel_info, length_unit, measurement, metres_assumed, sniff_magic, value_unit
 
 _MAGIC = b"GWYP"
 _MAX_DEPTH = 64
@@ -109,7 +109,7 @@ def _parse(path, file_units=None):
         uxy, uz = value_unit(_unit(f.get("si_unit_xy"))), value_unit(_unit(f.get("si_unit_z")))
         lunit = length_unit(uxy)
         assumed = lunit is None
-        lunit = lateral_unit_or_given(path, lunit, file_units)
+        lunit = stated_or_given(path, lunit, file_units, "file_units") or "m"
         zunit = uz if uz else (lunit if assumed else "")
         title = root.get(f"/{n}/data/title")
         title = title if isinstance(title, str) and title else f"channel {n}"

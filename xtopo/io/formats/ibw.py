@@ -32,8 +32,8 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ._common import (channel_format, channel_info, clean_text, lateral_unit_or_given, length_unit, measurement,
-                      metres_assumed, parse_time)
+from .._generic import stated_or_given
+from ._common import channel_format, channel_info, clean_text, length_unit, measurement, metres_assumed, parse_time
 
 _TYPES = {2: "f4", 4: "f8", 8: "i1", 16: "i2", 32: "i4", 8 | 64: "u1", 16 | 64: "u2", 32 | 64: "u4"}
 #: Value units of Asylum channels whose wave unit (usually "m") does not apply.
@@ -111,7 +111,7 @@ def _parse(path, file_units=None):
     nx, ny = shape[0], shape[1]
     lunit = length_unit(dim_units[0]) or length_unit(dim_units[1])
     assumed = lunit is None
-    lunit = lateral_unit_or_given(path, lunit, file_units)
+    lunit = stated_or_given(path, lunit, file_units, "file_units") or "m"
     size = (abs(sfa[1]) * ny, abs(sfa[0]) * nx)
     infos = []
     for i in range(nchan):
