@@ -139,8 +139,7 @@ def _attrs_from_info(info: dict) -> dict:
 def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a SurfaceTopography NetCDF file (see the module docstring)."""
     single_channel(path, channel)
-    nc = _open(path)
-    with nc:
+    with _open(path) as nc:
         if "heights" not in nc.variables:
             raise UnsupportedFormatError(path, "NetCDF file has no 'heights' variable (not the SurfaceTopography "
                                                "layout)")
