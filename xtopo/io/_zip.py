@@ -83,12 +83,9 @@ def read_member(path, zf, info, what: str, expected: int | None = None, limit: i
     return data
 
 
-def copy_member(path, zf, info, target: str, what: str, limit: int = MAX_MEMBER) -> int:
-    """Decompress member ``info`` into the new file ``target`` in blocks (capped at its declared size).
-
-    Returns the number of bytes written.
-    """
-    declared = check_declared(path, info, what, limit)
+def copy_member(path, zf, info, target: str, what: str) -> None:
+    """Decompress member ``info`` into the new file ``target`` in blocks (capped at its declared size)."""
+    declared = check_declared(path, info, what)
     written = 0
     with open(target, "xb") as dst:
         try:
@@ -105,4 +102,3 @@ def copy_member(path, zf, info, target: str, what: str, limit: int = MAX_MEMBER)
         more = "more than " if written > declared else ""
         raise ReaderError(path, f"{what} member {info.filename!r} decompresses to {more}{written} bytes, not the "
                                 f"declared {declared}")
-    return written

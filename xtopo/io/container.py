@@ -64,7 +64,7 @@ from ..preprocess import detrend, fill_missing
 from .formats.st_netcdf import instrument_attrs, instrument_info, to_surfacetopography_netcdf
 from .netcdf import atomic_write
 from .open import open_topography, sha256
-from ._zip import MAX_MEMBER, check_declared, copy_member, open_zip, read_member, unsafe_name
+from ._zip import check_declared, copy_member, open_zip, read_member, unsafe_name
 
 __all__ = ["open_container", "container_twin", "to_container", "is_container", "DETREND_MODES"]
 
@@ -415,7 +415,7 @@ def _budget(archive: _Archive, surfaces) -> None:
             for key in _KEYS:
                 member = _text(meta["datafile"].get(key))
                 if member and member in archive.infos:
-                    total += check_declared(archive.path, archive.infos[member], "container", MAX_MEMBER)
+                    total += check_declared(archive.path, archive.infos[member], "container")
     if total > MAX_TOTAL:
         raise ReaderError(archive.path, f"the container's data files declare {total} bytes, more than the {MAX_TOTAL} "
                                         "accepted (zip bomb?)")

@@ -280,21 +280,19 @@ def unix_time(seconds) -> str | None:
         return None
 
 
-def measurement(path, values, info: ChannelInfo, *, size=None, lateral_units: str | None = None,
-                value_units: str | None = None, height_scale: float = 1.0, mask=None, **attrs):
-    """Build the measurement for one channel (``size``, ``lateral_units``, ``value_units``: by default those of
-    ``info``).
+def measurement(path, values, info: ChannelInfo, *, value_units: str | None = None, height_scale: float = 1.0,
+                mask=None, **attrs):
+    """Build the measurement for one channel (of ``info``'s size; ``value_units``: by default ``info``'s).
 
-    Height channels (``value_units`` a length) are converted to ``lateral_units`` so that the
+    Height channels (``value_units`` a length) are converted to the lateral unit (``info.units``) so that the
     Dataset has one length unit.  Other channels (phase, amplitude, current, ...) keep their
     values in ``value_units``: the ``height`` variable then carries that unit (and
     ``quantity="signal"``); such a Dataset is not a topography:
     :func:`xtopo.open_topography` refuses it with an :class:`UnsupportedFormatError` that
     names the file, while the format's own ``read`` returns it.
     """
-    size = info.size if size is None else size
     value_units = info.height_units if value_units is None else value_units
-    lat = normalize_units(info.units if lateral_units is None else lateral_units)
+    lat = normalize_units(info.units)
     vlen = length_unit(value_units)
     scale = float(height_scale)
     if vlen is not None:
@@ -310,7 +308,7 @@ def measurement(path, values, info: ChannelInfo, *, size=None, lateral_units: st
     else:
         attrs["original_height_units"] = vlen
     attrs["original_lateral_units"] = lat
-    ds = make_measurement(values, size=size, units=lat, height_scale=scale, mask=mask, **attrs)
+    ds = make_measurement(values, size=info.size, units=lat, height_scale=scale, mask=mask, **attrs)
     if vlen is None:
         ds["height"].attrs.update(units=value_units or "1", long_name=info.name, quantity="signal")
     else:

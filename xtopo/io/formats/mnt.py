@@ -64,12 +64,12 @@ def _tlv(buf: bytes, prefixed: bool = False) -> list:
         pos += size
 
 
-def _get(buf, *tags, prefixed=False):
+def _get(buf, *tags):
     """Payload at the path ``tags`` (first match at each level), or ``None``."""
-    for i, tag in enumerate(tags):
+    for tag in tags:
         if buf is None:
             return None
-        buf = next((p for t, p in _tlv(buf, prefixed and i == 0) if t == tag), None)
+        buf = next((p for t, p in _tlv(buf) if t == tag), None)
     return buf
 
 
