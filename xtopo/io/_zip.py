@@ -16,12 +16,15 @@ import zlib
 
 from ..errors import ReaderError
 
-__all__ = ["MAX_RATIO", "MAX_MEMBER", "unsafe_name", "open_zip", "check_declared", "read_member", "copy_member"]
+__all__ = ["MAX_RATIO", "MAX_MEMBER", "MAX_METADATA", "unsafe_name", "open_zip", "check_declared", "read_member",
+           "copy_member"]
 
 #: deflate cannot compress better than about 1032:1; a member claiming more is a bomb
 MAX_RATIO = 1100
 #: bytes decompressed per member at most
 MAX_MEMBER = 1 << 30
+#: metadata members (XML, JSON, YAML) larger than this are refused (the largest real ones are a few kB)
+MAX_METADATA = 16 << 20
 _DRIVE = re.compile(r"^[A-Za-z]:")
 _BLOCK = 1 << 20
 #: what decompressing a damaged member raises (a bad CRC, a truncated or invalid stream)
