@@ -80,9 +80,9 @@ class BinaryReader:
     def error(self, message: str) -> ReaderError:
         return ReaderError(self.path, message)
 
-    def seek(self, pos: int) -> None:
+    def seek(self, pos: int, what: str = "data") -> None:
         if not 0 <= pos <= len(self.data):
-            raise self.error(f"offset {pos} lies outside the file ({len(self.data)} bytes)")
+            raise self.error(f"{what} at offset {pos} lies outside the file ({len(self.data)} bytes)")
         self.pos = int(pos)
 
     def need(self, n: int, what: str = "data") -> None:
@@ -91,7 +91,7 @@ class BinaryReader:
 
     def read(self, n: int, what: str = "data", at: int | None = None) -> bytes:
         if at is not None:
-            self.seek(at)
+            self.seek(at, what)
         self.need(n, what)
         out = self.data[self.pos:self.pos + n]
         self.pos += n
@@ -107,7 +107,7 @@ class BinaryReader:
     def array(self, dtype, count: int, what: str = "data", at: int | None = None) -> np.ndarray:
         """``count`` items of ``dtype`` (byte order from ``dtype`` or the reader) as a new array."""
         if at is not None:
-            self.seek(at)
+            self.seek(at, what)
         dt = np.dtype(dtype)
         if dt.byteorder == "=" and dt.itemsize > 1:
             dt = dt.newbyteorder(self.endian)
