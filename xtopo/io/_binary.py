@@ -67,8 +67,8 @@ class BinaryReader:
         self.pos = 0
 
     @classmethod
-    def from_file(cls, path, *, magic: bytes = b"", not_this: str = "", endian: str = "<") -> "BinaryReader":
-        """Read ``path`` whole; raise ``not_this`` as a ReaderError unless it starts with ``magic``."""
+    def from_file(cls, path, *, magic: bytes | tuple = b"", not_this: str = "", endian: str = "<") -> "BinaryReader":
+        """Read ``path`` whole; raise ``not_this`` as a ReaderError unless it starts with ``magic`` (or one of them)."""
         reader = cls(read_bytes(path), path, endian)
         if magic and not reader.data.startswith(magic):
             raise reader.error(not_this or "unexpected file signature")
@@ -80,41 +80,37 @@ class BinaryReader:
     def error(self, message: str) -> ReaderError:
         return ReaderError(self.path, message)
 
-    def seek(self, pos: int) -> None:
+    def seek(self, pos: int, what: str = "data") -> None:
         if not 0 <= pos <= len(self.data):
-            raise self.error(f"offset {pos} lies outside the file ({len(self.data)} bytes)")
+            raise self.error(f"{what} at offset {pos} lies outside the file ({len(self.data)} bytes)")
         self.pos = int(pos)
 
     def need(self, n: int, what: str = "data") -> None:
         if n < 0 or self.pos + n > len(self.data):
             raise self.error(f"truncated: {what} needs {n} bytes at offset {self.pos}, file has {len(self.data)}")
 
-    def read(self, n: int, what: str = "data") -> bytes:
+    def read(self, n: int, what: str = "data", at: int | None = None) -> bytes:
+        if at is not None:
+            self.seek(at, what)
         self.need(n, what)
         out = self.data[self.pos:self.pos + n]
         self.pos += n
         return out
 
     def unpack(self, fmt: str, what: str = "header field", at: int | None = None):
-        if at is not None:
-            self.seek(at)
         if fmt[0] not in "<>=!@":
             fmt = self.endian + fmt
         size = struct.calcsize(fmt)
-        vals = struct.unpack(fmt, self.read(size, what))
+        vals = struct.unpack(fmt, self.read(size, what, at))
         return vals[0] if len(vals) == 1 else vals
 
     def array(self, dtype, count: int, what: str = "data", at: int | None = None) -> np.ndarray:
         """``count`` items of ``dtype`` (byte order from ``dtype`` or the reader) as a new array."""
         if at is not None:
-            self.seek(at)
+            self.seek(at, what)
         dt = np.dtype(dtype)
         if dt.byteorder == "=" and dt.itemsize > 1:
             dt = dt.newbyteorder(self.endian)
         count = check_count(self.path, count, dt.itemsize, len(self.data) - self.pos, what)
         raw = self.read(count * dt.itemsize, what)
         return np.frombuffer(raw, dtype=dt, count=count).astype(dt.newbyteorder("="))
-
-    def cstring(self, n: int, encoding: str = "latin-1", what: str = "string") -> str:
-        raw = self.read(n, what)
-        return raw.split(b"\0", 1)[0].decode(encoding, errors="replace")

@@ -14,10 +14,10 @@ import numpy as np
 from ..conventions import length_factor, make_measurement, normalize_units
 from ..errors import ReaderError, UnitsError, UnsupportedFormatError
 from ._text import length_unit, line_measurement
-from .registry import ChannelInfo
+from .registry import READ_OPTIONS, ChannelInfo, Format, register
 
-__all__ = ["resolve_units", "generic_measurement", "single_channel", "stated_length_unit", "read_container_array",
-           "container_channels"]
+__all__ = ["resolve_units", "stated_or_given", "generic_measurement", "single_channel", "stated_length_unit",
+           "container_format"]
 
 
 def resolve_units(path, *, found_units=None, found_height_units=None, file_units=None, height_units=None):
@@ -29,19 +29,27 @@ def resolve_units(path, *, found_units=None, found_height_units=None, file_units
     ReaderError
         If no unit is known (pass ``file_units``), or the file states one and ``file_units`` is given too.
     """
-    if found_units is not None and file_units is not None:
-        raise ReaderError(path, f"the file states its length unit ({found_units!r}); do not pass file_units")
-    lateral = found_units or file_units
+    lateral = stated_or_given(path, found_units, file_units, "file_units")
     if lateral is None:
         raise ReaderError(path, "the file stores no length unit; pass file_units= (e.g. file_units='m' or 'um') "
                                 "to open_topography (command line: --file-units)")
     lateral = length_unit(path, lateral, "length unit")
-    if found_height_units is not None and height_units is not None:
-        raise ReaderError(path, f"the file states the unit of its values ({found_height_units!r}); "
-                                "do not pass height_units")
-    hu = found_height_units or height_units or lateral
+    hu = stated_or_given(path, found_height_units, height_units, "height_units", "the unit of its values") or lateral
     hu = length_unit(path, hu, "height unit")
     return lateral, length_factor(hu, lateral)
+
+
+def stated_or_given(path, stated: str | None, given: str | None, option: str, what: str = "its length unit"):
+    """The unit the file ``stated``, else the one the caller has ``given`` (its option ``option``), else None.
+
+    Raises
+    ------
+    ReaderError
+        If the file states ``what`` and the caller gives ``option`` too.
+    """
+    if stated is not None and given is not None:
+        raise ReaderError(path, f"the file states {what} ({stated!r}); do not pass {option}")
+    return stated or given
 
 
 def stated_length_unit(path, attrs, name: str, height_units=None) -> str | None:
@@ -71,12 +79,17 @@ def stated_length_unit(path, attrs, name: str, height_units=None) -> str | None:
     return None
 
 
-def read_container_array(path, open_file, arrays, read, errors, what: str, *, channel=None, physical_size=None,
-                         file_units=None, height_units=None):
-    """A measurement from one array of a container file (HDF5, NetCDF): open, choose, read, units.
+def container_format(name: str, description: str, suffixes: tuple, sniff, what: str, open_file, arrays, read, errors,
+                     priority: int) -> Format:
+    """Register (and return) the :class:`Format` ``name`` of container files (HDF5, NetCDF) whose 1D/2D arrays are
+    the channels: its ``read`` opens the file, chooses an array, reads it and settles its units.
 
     Parameters
     ----------
+    name, description, suffixes, sniff, priority
+        As in :class:`~xtopo.io.registry.Format`.
+    what : str
+        The kind of file, named in error messages (``"HDF5"``).
     open_file : callable
         ``open_file(path)``: a context manager holding the open file.
     arrays : callable
@@ -85,32 +98,32 @@ def read_container_array(path, open_file, arrays, read, errors, what: str, *, ch
         ``read(path, array, name)``: ``(values, attrs)``, the values as a numpy array and the array's attributes.
     errors : tuple of exception types
         What the file library raises on a damaged file (reported as a corrupt ``what`` file).
-    channel, physical_size, file_units, height_units
-        The caller's options (:func:`pick_array`, :func:`generic_measurement`).
     """
-    with open_file(path) as f:
-        try:
-            entries = arrays(f)
-            _, name = pick_array(path, [(n, a.shape) for n, a in entries], channel)
-            values, attrs = read(path, dict(entries)[name], name)
-            found = stated_length_unit(path, attrs, name, height_units)
-        except ReaderError:  # already names the file and the problem (a ValueError too)
-            raise
-        except errors as exc:
-            raise ReaderError(path, f"corrupt {what} file: {exc}") from None
-    return generic_measurement(path, values, physical_size=physical_size, file_units=file_units,
-                               height_units=height_units, found_units=found, channel=name)
 
+    def read_array(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
+        with open_file(path) as f:
+            try:
+                entries = arrays(f)
+                _, array = pick_array(path, [(n, a.shape) for n, a in entries], channel)
+                values, attrs = read(path, dict(entries)[array], array)
+                found = stated_length_unit(path, attrs, array, height_units)
+            except ReaderError:  # already names the file and the problem (a ValueError too)
+                raise
+            except errors as exc:
+                raise ReaderError(path, f"corrupt {what} file: {exc}") from None
+        return generic_measurement(path, values, physical_size=physical_size, file_units=file_units,
+                                   height_units=height_units, found_units=found, channel=array)
 
-def container_channels(path, open_file, arrays, errors, what: str, **options):
-    """:func:`channel_infos` of a container file's arrays (arguments as in :func:`read_container_array`)."""
-    with open_file(path) as f:
-        try:
-            return channel_infos(path, [(n, a.shape) for n, a in arrays(f)], **options)
-        except ReaderError:
-            raise
-        except errors as exc:
-            raise ReaderError(path, f"corrupt {what} file: {exc}") from None
+    def channels(path, **options):
+        with open_file(path) as f:
+            try:
+                return channel_infos(path, [(n, a.shape) for n, a in arrays(f)], **options)
+            except ReaderError:
+                raise
+            except errors as exc:
+                raise ReaderError(path, f"corrupt {what} file: {exc}") from None
+
+    return register(Format(name, description, suffixes, sniff, read_array, channels, priority, READ_OPTIONS))
 
 
 def generic_measurement(path, heights, *, physical_size=None, found_size=None, file_units=None, height_units=None,

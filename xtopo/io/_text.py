@@ -177,7 +177,7 @@ def parse_quantity(path, text: str, what: str) -> tuple[float, str | None]:
     return value, unit
 
 
-def header_value(path, header: dict, key: str, kind=float, what: str | None = None):
+def header_value(path, header: dict, key: str, kind=float):
     """``kind(header[key])`` with a :class:`ReaderError` if missing or malformed."""
     if key not in header:
         raise ReaderError(path, f"header field {key!r} is missing")

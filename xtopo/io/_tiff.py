@@ -83,14 +83,13 @@ class TiffFile:
         while pos:
             if pos in seen:
                 raise ReaderError(path, f"TIFF directory chain loops back to offset {pos}")
-            if len(self.ifds) >= MAX_IFDS:
-                raise ReaderError(path, f"more than {MAX_IFDS} TIFF directories (corrupt chain)")
             seen.add(pos)
-            tags, pos = self._directory(pos)
-            self.ifds.append(tags)
+            pos = self._directory(pos)
 
-    def _directory(self, pos: int):
-        """``(tags, offset of the next directory)`` of the directory at ``pos``."""
+    def _directory(self, pos: int) -> int:
+        """Add the directory at ``pos`` to :attr:`ifds`; return the offset of the next directory."""
+        if len(self.ifds) >= MAX_IFDS:
+            raise ReaderError(self.path, f"more than {MAX_IFDS} TIFF directories (corrupt chain)")
         r = self.reader
         n = r.unpack("H", "IFD entry count", at=pos)
         check_count(self.path, n, 12, len(r) - r.pos, "TIFF directory entries")
@@ -109,13 +108,12 @@ class TiffFile:
                     # keep the entry; reading it raises a clear error if needed
                     off = -off - 1
             tags[tag] = (typ, count, off)
-        return tags, r.unpack("I", "next IFD offset", at=pos + 2 + 12 * n)
+        self.ifds.append(tags)
+        return r.unpack("I", "next IFD offset", at=pos + 2 + 12 * n)
 
     def sub_directory(self, pos: int) -> int:
         """Read the directory at ``pos`` that a tag points to (EXIF, GPS); its index for :meth:`value`."""
-        if len(self.ifds) >= MAX_IFDS:
-            raise ReaderError(self.path, f"more than {MAX_IFDS} TIFF directories (corrupt chain)")
-        self.ifds.append(self._directory(int(pos))[0])
+        self._directory(int(pos))
         return len(self.ifds) - 1
 
     def has(self, ifd: int, tag: int) -> bool:
@@ -126,12 +124,7 @@ class TiffFile:
         typ, count, off = self.ifds[ifd][tag]
         if off < 0:
             raise ReaderError(self.path, f"TIFF tag {tag} points beyond the end of the file (truncated)")
-        return self.read_at(off, _TYPES[typ][1] * count, f"TIFF tag {tag}")
-
-    def read_at(self, offset: int, n: int, what: str) -> bytes:
-        """``n`` bytes at ``offset`` (bounds-checked)."""
-        self.reader.seek(offset)
-        return self.reader.read(n, what)
+        return self.reader.read(_TYPES[typ][1] * count, f"TIFF tag {tag}", at=off)
 
     def value(self, ifd: int, tag: int, default=None):
         """Decoded value of ``tag``: ``str`` for ASCII, a scalar for count 1, else a numpy array."""
@@ -170,7 +163,7 @@ class TiffFile:
             take = min(int(cnt), need - got)
             if take <= 0:
                 break
-            parts.append(self.read_at(int(off), take, f"TIFF {what} strip"))
+            parts.append(self.reader.read(take, f"TIFF {what} strip", at=int(off)))
             got += take
         buf = b"".join(parts)
         return np.frombuffer(buf, dtype=dt, count=n).astype(dt.newbyteorder("=")).reshape(ny, nx)

@@ -16,12 +16,15 @@ import zlib
 
 from ..errors import ReaderError
 
-__all__ = ["MAX_RATIO", "MAX_MEMBER", "unsafe_name", "open_zip", "check_declared", "read_member", "copy_member"]
+__all__ = ["MAX_RATIO", "MAX_MEMBER", "MAX_METADATA", "unsafe_name", "open_zip", "check_declared", "read_member",
+           "copy_member"]
 
 #: deflate cannot compress better than about 1032:1; a member claiming more is a bomb
 MAX_RATIO = 1100
 #: bytes decompressed per member at most
 MAX_MEMBER = 1 << 30
+#: metadata members (XML, JSON, YAML) larger than this are refused (the largest real ones are a few kB)
+MAX_METADATA = 16 << 20
 _DRIVE = re.compile(r"^[A-Za-z]:")
 _BLOCK = 1 << 20
 #: what decompressing a damaged member raises (a bad CRC, a truncated or invalid stream)
@@ -83,12 +86,9 @@ def read_member(path, zf, info, what: str, expected: int | None = None, limit: i
     return data
 
 
-def copy_member(path, zf, info, target: str, what: str, limit: int = MAX_MEMBER) -> int:
-    """Decompress member ``info`` into the new file ``target`` in blocks (capped at its declared size).
-
-    Returns the number of bytes written.
-    """
-    declared = check_declared(path, info, what, limit)
+def copy_member(path, zf, info, target: str, what: str) -> None:
+    """Decompress member ``info`` into the new file ``target`` in blocks (capped at its declared size)."""
+    declared = check_declared(path, info, what)
     written = 0
     with open(target, "xb") as dst:
         try:
@@ -105,4 +105,3 @@ def copy_member(path, zf, info, target: str, what: str, limit: int = MAX_MEMBER)
         more = "more than " if written > declared else ""
         raise ReaderError(path, f"{what} member {info.filename!r} decompresses to {more}{written} bytes, not the "
                                 f"declared {declared}")
-    return written

@@ -64,14 +64,12 @@ from ..preprocess import detrend, fill_missing
 from .formats.st_netcdf import instrument_attrs, instrument_info, to_surfacetopography_netcdf
 from .netcdf import atomic_write
 from .open import open_topography, sha256
-from ._zip import MAX_MEMBER, check_declared, copy_member, open_zip, read_member, unsafe_name
+from ._zip import MAX_METADATA, check_declared, copy_member, open_zip, read_member, unsafe_name
 
 __all__ = ["open_container", "container_twin", "to_container", "is_container", "DETREND_MODES"]
 
 INDEX = "index.json"
 YAML = "meta.yml"
-#: metadata files larger than this are refused (the largest real ones are a few kB)
-MAX_METADATA = 16 << 20
 #: data files of one container together, decompressed
 MAX_TOTAL = 1 << 33
 MAX_MEMBERS = 100_000
@@ -415,7 +413,7 @@ def _budget(archive: _Archive, surfaces) -> None:
             for key in _KEYS:
                 member = _text(meta["datafile"].get(key))
                 if member and member in archive.infos:
-                    total += check_declared(archive.path, archive.infos[member], "container", MAX_MEMBER)
+                    total += check_declared(archive.path, archive.infos[member], "container")
     if total > MAX_TOTAL:
         raise ReaderError(archive.path, f"the container's data files declare {total} bytes, more than the {MAX_TOTAL} "
                                         "accepted (zip bomb?)")

@@ -185,11 +185,7 @@ def _describe(ds) -> ChannelInfo:
     h = ds["height"]
     dims = lateral_dims(h)
     u = h.attrs.get("units")
-    if ds.attrs.get("grid") == "nonuniform":
-        x = np.asarray(ds["x"].values, dtype=float)
-        size = (float(x[-1] - x[0]),)
-    else:
-        size = tuple(_physical_size(ds, d) for d in dims)
+    size = tuple(_physical_size(ds, d) for d in dims)  # a nonuniform scan: last minus first position
     return ChannelInfo(index=0, name=str(ds.attrs.get("channel", ds.attrs.get("title", "height"))),
                        shape=tuple(ds.sizes[d] for d in dims), size=size, units=u, height_units=u)
 

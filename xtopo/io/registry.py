@@ -54,7 +54,7 @@ class Format:
     suffixes : tuple of str
         Lower-case suffixes with dot (hints only).
     sniff : callable(head: bytes, path: str) -> bool
-        True if ``head`` (the first :data:`HEADER_BYTES` of the file) belongs to this format.
+        True if ``head`` (the first :data:`HEADER_BYTES` of the file) belongs to this format (raising: False).
     read : callable(path, *, channel=None) -> xarray.Dataset
         Returns a measurement in the file's native length unit (``make_measurement``);
         raises :class:`~xtopo.errors.ReaderError` on bad content.

@@ -13,7 +13,7 @@ underscore keeps the registry from importing it as one).
 * :func:`length_unit` / :func:`value_unit` spell instrument units the xtopo way.
 * :func:`iso_time`, :func:`parse_time`, :func:`unix_time` give acquisition times as ISO 8601.
 * :func:`measurement` builds the Dataset, also for channels whose values are not lengths.
-* :func:`lateral_unit_or_given` / :func:`metres_assumed`: files that may state no length unit.
+* :func:`metres_assumed`: files that may state no length unit are read in metres.
 """
 
 from __future__ import annotations
@@ -35,8 +35,7 @@ from ..registry import ChannelInfo, Format, register
 
 __all__ = ["reading", "guarded", "pick_channel", "to_float", "to_int", "clean_text", "length_unit", "value_unit",
            "unit_factor", "channel_info", "measurement", "unique_name", "iso_time", "parse_time", "unix_time",
-           "sniff_magic", "channel_format", "zip_member", "ChannelInfo", "HEIGHT_NAME_RE", "lateral_unit_or_given",
-           "metres_assumed"]
+           "sniff_magic", "channel_format", "zip_member", "ChannelInfo", "HEIGHT_NAME_RE", "metres_assumed"]
 
 #: Channel names that denote topography (heights) rather than an auxiliary signal.
 HEIGHT_NAME_RE = re.compile(r"height|topo|zsensor|z[ _-]?sensor|z[ _-]?axis|^z$|^z[ _(]", re.IGNORECASE)
@@ -281,21 +280,19 @@ def unix_time(seconds) -> str | None:
         return None
 
 
-def measurement(path, values, info: ChannelInfo, *, size=None, lateral_units: str | None = None,
-                value_units: str | None = None, height_scale: float = 1.0, mask=None, **attrs):
-    """Build the measurement for one channel (``size``, ``lateral_units``, ``value_units``: by default those of
-    ``info``).
+def measurement(path, values, info: ChannelInfo, *, value_units: str | None = None, height_scale: float = 1.0,
+                mask=None, **attrs):
+    """Build the measurement for one channel (of ``info``'s size; ``value_units``: by default ``info``'s).
 
-    Height channels (``value_units`` a length) are converted to ``lateral_units`` so that the
+    Height channels (``value_units`` a length) are converted to the lateral unit (``info.units``) so that the
     Dataset has one length unit.  Other channels (phase, amplitude, current, ...) keep their
     values in ``value_units``: the ``height`` variable then carries that unit (and
     ``quantity="signal"``); such a Dataset is not a topography:
     :func:`xtopo.open_topography` refuses it with an :class:`UnsupportedFormatError` that
     names the file, while the format's own ``read`` returns it.
     """
-    size = info.size if size is None else size
     value_units = info.height_units if value_units is None else value_units
-    lat = normalize_units(info.units if lateral_units is None else lateral_units)
+    lat = normalize_units(info.units)
     vlen = length_unit(value_units)
     scale = float(height_scale)
     if vlen is not None:
@@ -311,26 +308,12 @@ def measurement(path, values, info: ChannelInfo, *, size=None, lateral_units: st
     else:
         attrs["original_height_units"] = vlen
     attrs["original_lateral_units"] = lat
-    ds = make_measurement(values, size=size, units=lat, height_scale=scale, mask=mask, **attrs)
+    ds = make_measurement(values, size=info.size, units=lat, height_scale=scale, mask=mask, **attrs)
     if vlen is None:
         ds["height"].attrs.update(units=value_units or "1", long_name=info.name, quantity="signal")
     else:
         ds["height"].attrs["long_name"] = "height"
     return ds
-
-
-def lateral_unit_or_given(path, stated: str | None, file_units: str | None) -> str:
-    """The length unit of a file that may state none: ``stated``, else the caller's ``file_units``,
-    else metres (then :func:`metres_assumed` says so).
-
-    Raises
-    ------
-    ReaderError
-        If the file states a unit and ``file_units`` is given too.
-    """
-    if stated is not None and file_units is not None:
-        raise ReaderError(path, f"the file states its length unit ({stated!r}); do not pass file_units")
-    return stated or file_units or "m"
 
 
 def metres_assumed(path, what: str) -> dict:

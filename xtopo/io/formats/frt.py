@@ -30,8 +30,7 @@ def _parse(path):
     version = data[12:16].decode("latin-1")
     if version not in ("1.00", "1.01"):
         raise r.error(f"unsupported FRT version {version!r}")
-    r.seek(16)
-    nblocks = r.unpack("H", "block count")
+    nblocks = r.unpack("H", "block count", at=16)
     size_fmt = "I" if version == "1.00" else "Q"
     blocks = {}
     for _ in range(nblocks):

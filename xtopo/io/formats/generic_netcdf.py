@@ -18,11 +18,8 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._netcdf3 import check_netcdf3_header
-from .._generic import check_array_bytes, container_channels, read_container_array
-from ..registry import READ_OPTIONS, Format, register
+from .._generic import check_array_bytes, container_format
 from ._common import sniff_magic
-
-__all__ = ["read_generic_netcdf"]
 
 _MAGIC = (b"CDF\x01", b"CDF\x02")  # classic, 64-bit offset (scipy reads no CDF-5)
 _ERRORS = (OSError, ValueError, TypeError, KeyError, IndexError, OverflowError, MemoryError)
@@ -44,21 +41,11 @@ def _variables(f):
             if var.data.dtype.kind in "biuf" and tuple(var.dimensions) != (name,)]
 
 
-def read_generic_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
-    """Read one variable of a NetCDF-3 file (see the module docstring)."""
-    return read_container_array(path, _open, _variables, _read, _ERRORS, "NetCDF-3", channel=channel,
-                                physical_size=physical_size, file_units=file_units, height_units=height_units)
-
-
 def _read(path, var, name):
     """The variable's values (fill values as NaN, scale and offset applied) and its attributes."""
     check_array_bytes(path, var.shape, var.data.dtype.itemsize, os.path.getsize(path), name)
     return np.ma.filled(np.ma.asarray(var[:], dtype=float), np.nan), var._attributes
 
 
-def _channels(path, **options):
-    return container_channels(path, _open, _variables, _ERRORS, "NetCDF-3", **options)
-
-
-register(Format("generic-netcdf", "generic NetCDF-3 file (one 1D/2D variable)", (".nc", ".cdf"), sniff_magic(*_MAGIC),
-                read_generic_netcdf, channels=_channels, priority=-5, options=READ_OPTIONS))
+container_format("generic-netcdf", "generic NetCDF-3 file (one 1D/2D variable)", (".nc", ".cdf"), sniff_magic(*_MAGIC),
+                 "NetCDF-3", _open, _variables, _read, _ERRORS, priority=-5)

@@ -24,9 +24,9 @@ import re
 import numpy as np
 
 from ...errors import ReaderError
-from .._binary import BinaryReader, check_count, read_bytes
-from ._common import (channel_format, channel_info, lateral_unit_or_given, length_unit, measurement, metres_assumed,
-                      sniff_magic, value_unit)
+from .._binary import BinaryReader, check_count
+from .._generic import stated_or_given
+from ._common import channel_format, channel_info, length_unit, measurement, metres_assumed, sniff_magic, value_unit
 
 _MAGIC = b"GWYP"
 _MAX_DEPTH = 64
@@ -34,9 +34,8 @@ _SCALARS = {"b": ("<u1", 1), "c": ("<u1", 1), "i": ("<i4", 4), "q": ("<i8", 8), 
 
 
 class _Parser:
-    def __init__(self, data: bytes, path):
-        self.r = BinaryReader(data, path, "<")
-        self.path = path
+    def __init__(self, r: BinaryReader):
+        self.r, self.path = r, r.path
 
     def cstr(self, what: str) -> str:
         r = self.r
@@ -90,10 +89,8 @@ def _unit(obj) -> str:
 
 
 def _parse(path, file_units=None):
-    data = read_bytes(path)
-    if not data.startswith(_MAGIC):
-        raise ReaderError(path, "not a Gwyddion GWY file (no GWYP magic; the old GWYO format is not read)")
-    p = _Parser(data, path)
+    not_this = "not a Gwyddion GWY file (no GWYP magic; the old GWYO format is not read)"
+    p = _Parser(BinaryReader.from_file(path, magic=_MAGIC, not_this=not_this))
     p.r.seek(4)
     name, root = p.obj()
     if name != "GwyContainer":
@@ -112,7 +109,7 @@ def _parse(path, file_units=None):
         uxy, uz = value_unit(_unit(f.get("si_unit_xy"))), value_unit(_unit(f.get("si_unit_z")))
         lunit = length_unit(uxy)
         assumed = lunit is None
-        lunit = lateral_unit_or_given(path, lunit, file_units)
+        lunit = stated_or_given(path, lunit, file_units, "file_units") or "m"
         zunit = uz if uz else (lunit if assumed else "")
         title = root.get(f"/{n}/data/title")
         title = title if isinstance(title, str) and title else f"channel {n}"

@@ -17,11 +17,10 @@ import os
 import numpy as np
 
 from ...errors import ReaderError
-from .._generic import check_array_bytes, container_channels, read_container_array
-from ..registry import READ_OPTIONS, Format, register
+from .._generic import check_array_bytes, container_format
 from ._common import sniff_magic
 
-__all__ = ["read_hdf5", "h5_datasets", "open_h5"]
+__all__ = ["h5_datasets", "open_h5"]
 
 _MAGIC = b"\x89HDF\r\n\x1a\n"
 _H5_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, IndexError)
@@ -73,19 +72,9 @@ def read_dataset(path, dset, what: str) -> np.ndarray:
         raise ReaderError(path, f"cannot read dataset {what!r}: {exc}") from None
 
 
-def read_hdf5(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
-    """Read one dataset of an HDF5 file (see the module docstring)."""
-    return read_container_array(path, open_h5, h5_datasets, _read, _H5_ERRORS, "HDF5", channel=channel,
-                                physical_size=physical_size, file_units=file_units, height_units=height_units)
-
-
 def _read(path, dset, name):
     return read_dataset(path, dset, name), dset.attrs
 
 
-def _channels(path, **options):
-    return container_channels(path, open_h5, h5_datasets, _H5_ERRORS, "HDF5", **options)
-
-
-register(Format("hdf5", "generic HDF5 file (one 1D/2D dataset)", (".h5", ".hdf5", ".hdf"), sniff_magic(_MAGIC),
-                read_hdf5, channels=_channels, priority=-5, options=READ_OPTIONS))
+container_format("hdf5", "generic HDF5 file (one 1D/2D dataset)", (".h5", ".hdf5", ".hdf"), sniff_magic(_MAGIC), "HDF5",
+                 open_h5, h5_datasets, _read, _H5_ERRORS, priority=-5)

@@ -32,8 +32,8 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
-from ._common import (channel_format, channel_info, clean_text, lateral_unit_or_given, length_unit, measurement,
-                      metres_assumed, parse_time)
+from .._generic import stated_or_given
+from ._common import channel_format, channel_info, clean_text, length_unit, measurement, metres_assumed, parse_time
 
 _TYPES = {2: "f4", 4: "f8", 8: "i1", 16: "i2", 32: "i4", 8 | 64: "u1", 16 | 64: "u2", 32 | 64: "u4"}
 #: Value units of Asylum channels whose wave unit (usually "m") does not apply.
@@ -93,17 +93,13 @@ def _parse(path, file_units=None):
     pos = 64 + wfm_size + formula_size
     r.seek(min(pos, len(data)))
     note = r.read(note_size, "wave note").decode("latin-1", errors="replace") if pos <= len(data) else ""
-    ext = r.read(data_eunits_size, "extended data units") if data_eunits_size else b""
-    if ext:
-        data_units = clean_text(ext)
+    if data_eunits_size:
+        data_units = clean_text(r.read(data_eunits_size, "extended data units"))
     for i in range(4):
         if dim_eunits[i]:
             dim_units[i] = clean_text(r.read(dim_eunits[i], "extended dimension units"))
-    labels = []
-    for i in range(4):
-        raw = r.read(dim_labels[i], "dimension labels") if dim_labels[i] else b""
-        if i == 2:
-            labels = [clean_text(raw[k:k + 32]) for k in range(0, len(raw), 32)]
+    raw = [r.read(n, "dimension labels") for n in dim_labels][2]  # all read: a truncated list is an error
+    labels = [clean_text(raw[k:k + 32]) for k in range(0, len(raw), 32)]
     nchan = shape[2] if len(shape) == 3 else 1
     # the first label names the dimension itself, the others the channels
     chan_names = labels[1:1 + nchan] if len(labels) >= nchan + 1 else []
@@ -115,7 +111,7 @@ def _parse(path, file_units=None):
     nx, ny = shape[0], shape[1]
     lunit = length_unit(dim_units[0]) or length_unit(dim_units[1])
     assumed = lunit is None
-    lunit = lateral_unit_or_given(path, lunit, file_units)
+    lunit = stated_or_given(path, lunit, file_units, "file_units") or "m"
     size = (abs(sfa[1]) * ny, abs(sfa[0]) * nx)
     infos = []
     for i in range(nchan):

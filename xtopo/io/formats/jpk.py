@@ -97,7 +97,8 @@ def _load(path, info, tif, chans):
     raw = tif.strips(ch["ifd"], _dtype(tif, ch["ifd"], path), (ny, nx), what=f"JPK channel {info.name!r}")
     values = raw.astype(float) * ch["mult"] + ch["off"]
     start = " ".join(str(tif.value(0, 32771, "") or "").split()[:2])
-    attrs = dict(
+    return measurement(
+        path, values, info,
         instrument=_instrument(tif),
         vendor="JPK Instruments (Bruker)",
         acquisition_time=parse_time(start, "%Y-%m-%d %H:%M:%S.%f", "%Y-%m-%d %H:%M:%S"),
@@ -106,7 +107,6 @@ def _load(path, info, tif, chans):
         calibration_slot=ch["slot"],
         channel_id=ch["ident"],
     )
-    return measurement(path, values, info, **attrs)
 
 
 def _instrument(tif: TiffFile):

@@ -51,8 +51,7 @@ def _sniff_vk67(head: bytes, path: str) -> bool:
 def _vk4_bytes(path) -> bytes:
     data = read_bytes(path)
     if data[:3] in (b"VK6", b"VK7"):
-        zf = open_zip(path, "Keyence VK6/VK7")
-        with zf:
+        with open_zip(path, "Keyence VK6/VK7") as zf:
             data = zip_member(path, zf, "Vk4File", "Keyence VK6/VK7",
                               "the Keyence VK6/VK7 archive has no member 'Vk4File'")
     if not data.startswith(b"VK4_"):

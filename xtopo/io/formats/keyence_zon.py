@@ -27,7 +27,7 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import BinaryReader, check_count
 from .._xml import child_text, parse_xml
-from .._zip import MAX_MEMBER, open_zip
+from .._zip import MAX_MEMBER, MAX_METADATA, open_zip
 from ._common import channel_format, channel_info, measurement, parse_time, to_float, zip_member
 
 _WHAT = "Keyence ZON"
@@ -38,7 +38,6 @@ _DEVICE = "cbc1d39b-215f-4d56-a20e-cf8e5f570755"
 _SCAN = "1d35862b-3b48-4df2-9235-833ef590b043"
 _ZSTD = b"\x28\xb5\x2f\xfd"
 _INVALID_BITS = 0x03
-_MAX_XML = 16 << 20
 
 
 def _sniff(head: bytes, path: str) -> bool:
@@ -67,7 +66,7 @@ def _member(path, zf, name, optional=False, limit=MAX_MEMBER):
 
 
 def _xml(path, zf, name, optional=False):
-    data = _member(path, zf, name, optional, limit=_MAX_XML)
+    data = _member(path, zf, name, optional, limit=MAX_METADATA)
     return None if data is None else parse_xml(data, path, f"ZON member {name}")
 
 

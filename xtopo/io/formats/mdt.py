@@ -67,8 +67,7 @@ def _scanned(r, pos, size):
         raise r.error(f"MDT scanned frame at offset {pos}: variables section of {var_size} bytes is too short")
     scales = r.unpack("ffhffhffh", "MDT axis scales", at=pos + _FRAME_HEADER)
     adc = r.unpack("B", "MDT ADC index", at=pos + _FRAME_HEADER + 30)
-    r.seek(pos + _FRAME_HEADER + var_size)
-    _mode, nx, ny, dots = r.unpack("4H", "MDT frame mode")
+    _mode, nx, ny, dots = r.unpack("4H", "MDT frame mode", at=pos + _FRAME_HEADER + var_size)
     if dots:
         r.seek(r.pos + 14 + 16 * dots)
     start = r.pos

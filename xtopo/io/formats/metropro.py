@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...conventions import make_measurement
-from .._binary import BinaryReader, read_bytes
+from .._binary import BinaryReader
 from ._common import ChannelInfo, channel_format, clean_text, sniff_magic, unix_time
 
 _MAGICS = (b"\x88\x1b\x03\x6f", b"\x88\x1b\x03\x70", b"\x88\x1b\x03\x71")
@@ -32,10 +32,7 @@ _NAMES = ("magic format header_size ac_w ac_h ac_buckets ac_bytes nx ny cn_bytes
 
 
 def _parse(path):
-    data = read_bytes(path)
-    r = BinaryReader(data, path, ">")
-    if data[:4] not in _MAGICS:
-        raise r.error("not a Zygo MetroPro DAT file")
+    r = BinaryReader.from_file(path, magic=_MAGICS, not_this="not a Zygo MetroPro DAT file", endian=">")
     h = dict(zip(_NAMES, r.unpack(_HEADER, "MetroPro header", at=0)))
     h.update({k: clean_text(h[k]) for k in ("comment", "objective", "part")})
     if h["phase_res"] not in _PHASE_RES:

@@ -72,13 +72,13 @@ def _load(path, info, p):
                   at=min(p["start"] + i * nx * ny * item, len(p["data"]))).reshape(ny, nx)
     scale = p["scales"][i]
     g = p["glob"]
-    attrs = dict(
+    return measurement(
+        path, raw, info, height_scale=scale,
         instrument=f"Agilent / Molecular Imaging AFM ({g['version']})" if g.get("version") else None,
         vendor="Agilent Technologies (Molecular Imaging)",
         acquisition_time=parse_time(g.get("dateAcquired", ""), "%a %b %d %H:%M:%S %Y"),
         imaging_mode=g.get("mode") or None,
     )
-    return measurement(path, raw, info, height_scale=scale, **attrs)
 
 
 channel_format("mi", "Agilent / Molecular Imaging PicoView image (.mi)", (".mi",),

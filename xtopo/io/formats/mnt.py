@@ -32,12 +32,11 @@ from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._ole import OLE_MAGIC, OleFile
 from .._xml import child_text, parse_xml
+from .._zip import MAX_RATIO
 from ._common import ChannelInfo, channel_format
 
 _SURFACE, _SURFACE_DATA, _MASK, _HEIGHTS = 9012, 9062, 9056, 9049
 _MEASURED = 9
-#: zlib cannot compress better than about 1032:1
-_MAX_RATIO = 1100
 _HEAD = struct.Struct("<HQ")
 
 
@@ -46,10 +45,7 @@ def _sniff(head: bytes, path: str) -> bool:
         return False
     if "ScopedContents".encode("utf-16-le") in head:
         return True
-    try:  # the directory may lie anywhere in the file: look it up
-        return OleFile(path).exists("ScopedContents")
-    except Exception:
-        return False
+    return OleFile(path).exists("ScopedContents")  # the directory may lie anywhere in the file: look it up
 
 
 def _tlv(buf: bytes, prefixed: bool = False) -> list:
@@ -68,12 +64,12 @@ def _tlv(buf: bytes, prefixed: bool = False) -> list:
         pos += size
 
 
-def _get(buf, *tags, prefixed=False):
+def _get(buf, *tags):
     """Payload at the path ``tags`` (first match at each level), or ``None``."""
-    for i, tag in enumerate(tags):
+    for tag in tags:
         if buf is None:
             return None
-        buf = next((p for t, p in _tlv(buf, prefixed and i == 0) if t == tag), None)
+        buf = next((p for t, p in _tlv(buf) if t == tag), None)
     return buf
 
 
@@ -108,7 +104,7 @@ def _blocks(path, data, count, max_bytes):
     nbytes = struct.unpack_from("<Q", data, 0)[0]
     if nbytes % count or nbytes // count not in (1, 2, 4, 8) or nbytes > max_bytes:
         raise ReaderError(path, f"data array of {nbytes} bytes does not fit {count} elements")
-    if nbytes > _MAX_RATIO * len(data) + (1 << 16):
+    if nbytes > MAX_RATIO * len(data) + (1 << 16):
         raise ReaderError(path, f"data array claims {nbytes} bytes from {len(data)} compressed bytes, more "
                                 "than zlib can produce (corrupt file or decompression bomb)")
     esize = nbytes // count

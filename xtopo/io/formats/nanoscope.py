@@ -33,6 +33,7 @@ import numpy as np
 
 from ...errors import ReaderError
 from .._binary import BinaryReader, read_bytes
+from .._text import is_number
 from ._common import (channel_format, channel_info, length_unit, measurement, parse_time, sniff_magic, to_float, to_int,
                       unique_name, unit_factor, value_unit)
 
@@ -79,22 +80,13 @@ def _value(text: str, bare: bool = False):
 def _scan_size(path, text: str, what: str):
     """``(sx, sy, unit)`` from ``500 500 nm`` or ``15000 nm`` (square)."""
     parts = (text or "").split()
-    nums = []
-    unit = None
-    for p in parts:
-        try:
-            nums.append(float(p))
-        except ValueError:
-            unit = p
-            break
-    if not nums or unit is None:
+    k = next((i for i, p in enumerate(parts) if not is_number(p)), len(parts))  # numbers, then the unit
+    if k == 0 or k == len(parts):
         raise ReaderError(path, f"cannot parse NanoScope scan size {text!r} ({what})")
-    sx = nums[0]
-    sy = nums[1] if len(nums) > 1 else nums[0]
-    lu = length_unit(unit)
+    lu = length_unit(parts[k])
     if lu is None:
-        raise ReaderError(path, f"NanoScope scan size unit {unit!r} is not a length ({what})")
-    return sx, sy, lu
+        raise ReaderError(path, f"NanoScope scan size unit {parts[k]!r} is not a length ({what})")
+    return float(parts[0]), float(parts[min(k - 1, 1)]), lu
 
 
 def _parse(path):

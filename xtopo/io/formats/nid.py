@@ -96,10 +96,8 @@ def _parse(path):
 
 def _load(path, info, data, ini, blocks):
     b = blocks[info.index]
-    r = BinaryReader(data, path)
-    if b["offset"] > len(data):
-        raise ReaderError(path, f"NID channel {info.name!r} starts beyond the end of the file (truncated)")
-    raw = r.array(b["dtype"], b["nx"] * b["ny"], what=f"NID channel {info.name!r}", at=b["offset"])
+    raw = BinaryReader(data, path).array(b["dtype"], b["nx"] * b["ny"], what=f"NID channel {info.name!r}",
+                                         at=b["offset"])
     values = raw.reshape(b["ny"], b["nx"]) * b["scale"] + b["zero"]
     scan = ini.get("DataSet\\DataSetInfos\\Scan", ini.get("DataSet-Info", {}))
     glob = ini.get("DataSet\\DataSetInfos\\Global", ini.get("DataSet-Info", {}))

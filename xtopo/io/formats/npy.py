@@ -55,11 +55,6 @@ def _read_stream(path, f, available: int, what: str) -> np.ndarray:
     return arr.reshape(shape[::-1]).T if fortran else arr.reshape(shape)
 
 
-def _npy_shape(path):
-    with open(path, "rb") as f:
-        return _header(path, f, "the array")[0]
-
-
 def read_npy(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a ``.npy`` array (see the module docstring)."""
     single_channel(path, channel)  # a .npy file holds one array
@@ -105,7 +100,8 @@ def read_npz(path, *, channel=None, physical_size=None, file_units=None, height_
 
 
 def _channels_npy(path, **options):
-    return channel_infos(path, [("array", _npy_shape(path))], **options)
+    with open(path, "rb") as f:
+        return channel_infos(path, [("array", _header(path, f, "the array")[0])], **options)
 
 
 def _channels_npz(path, **options):

@@ -36,12 +36,9 @@ def _sniff(head: bytes, path: str) -> bool:
     if tag is None or tag[0] != 2 or tag[1] <= 4:
         return False
     offset = int.from_bytes(tag[2], "little" if head[:2] == b"II" else "big")
-    try:
-        with open(path, "rb") as f:
-            f.seek(offset)
-            return _MAGIC in f.read(min(tag[1], 1 << 16))
-    except OSError:
-        return False
+    with open(path, "rb") as f:
+        f.seek(offset)
+        return _MAGIC in f.read(min(tag[1], 1 << 16))
 
 
 def _xml_block(path, text, magic, what):

@@ -89,8 +89,7 @@ def _chunks(r):
         elif typ == 3:
             r.unpack("2I", "OIR data block header")
             name = _string(r, "OIR data block name")
-            r.seek(end)
-            nbytes, _four = r.unpack("2I", "OIR data block size")
+            nbytes, _four = r.unpack("2I", "OIR data block size", at=end)
             r.need(nbytes, f"OIR data block {name!r}")
             data[name] = (r.pos, nbytes)
             end = r.pos + nbytes

@@ -32,8 +32,7 @@ def _sniff(head: bytes, path: str) -> bool:
 
 def _parse(path):
     r = BinaryReader(read_bytes(path), path, "<")
-    r.seek(2)
-    name, _typ, dirlen, _attr = r.unpack("16shlH", "directory entry")
+    name, _typ, dirlen, _attr = r.unpack("16shlH", "directory entry", at=2)
     if clean_text(name) != "Directory" or dirlen <= 0 or dirlen % _ENTRY:
         raise r.error("not a Wyko OPD file (bad directory block)")
     n = dirlen // _ENTRY
@@ -48,8 +47,7 @@ def _parse(path):
         if pos + length > len(r):
             raise r.error(f"block {name!r} ({length} bytes at offset {pos}) runs past the end of the file")
         if typ == _TYPE_ARRAY and name in _HEIGHT_ARRAYS:
-            r.seek(pos)
-            nx, ny, itemsize = r.unpack("3H", f"header of array {name!r}")
+            nx, ny, itemsize = r.unpack("3H", f"header of array {name!r}", at=pos)
             arrays.append((name, nx, ny, itemsize, pos + 6, length - 6))
         elif typ == _TYPE_TEXT:
             meta[name] = clean_text(r.data[pos:pos + min(length, 256)])

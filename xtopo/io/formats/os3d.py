@@ -30,8 +30,7 @@ def _string(r, what):
 
 def _parse(path):
     r = BinaryReader.from_file(path, magic=_MAGIC, not_this="not an OmniSurf3D file (magic 'OmniSurf3D' missing)")
-    r.seek(len(_MAGIC))
-    major, minor = r.unpack("2i", "OS3D version")
+    major, minor = r.unpack("2i", "OS3D version", at=len(_MAGIC))
     ident, when = _string(r, "identification"), _string(r, "date/time")
     nx, ny = r.unpack("2i", "OS3D grid size")
     dx, dy, _x0, _y0 = r.unpack("4d", "OS3D spacing and origin")

@@ -47,8 +47,7 @@ def _parse(path):
     h["type"], _alg, _method, h["objective"], _area = r.unpack("5I", "PLU configuration")
     if h["type"] not in _TYPES:
         raise r.error(f"PLU measurement type {h['type']} is not a profile or topography")
-    r.seek(488)
-    _restore, h["layers"], h["version"], h["hardware"], h["images"] = r.unpack("5B", "PLU configuration")
+    _restore, h["layers"], h["version"], h["hardware"], h["images"] = r.unpack("5B", "PLU configuration", at=488)
     r.seek(500)
     if not (h["dx"] > 0 and h["dy"] > 0):
         raise r.error(f"invalid PLU pixel size {h['dx']} x {h['dy']} µm")

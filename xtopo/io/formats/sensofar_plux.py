@@ -15,11 +15,10 @@ import numpy as np
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._xml import child_text, local_name, parse_xml
-from .._zip import open_zip
+from .._zip import MAX_METADATA, open_zip
 from ._common import channel_format, channel_info, measurement, parse_time, to_float, to_int, zip_member
 
 _WHAT = "Sensofar PLUX"
-_MAX_XML = 16 << 20
 
 
 def _sniff(head: bytes, path: str) -> bool:
@@ -29,7 +28,7 @@ def _sniff(head: bytes, path: str) -> bool:
 def _parse(path):
     with open_zip(path, _WHAT) as zf:
         root = parse_xml(zip_member(path, zf, "index.xml", _WHAT, "the zip archive has no index.xml, so it is not a "
-                                    "Sensofar PLUX file", limit=_MAX_XML), path, "PLUX index.xml")
+                                    "Sensofar PLUX file", limit=MAX_METADATA), path, "PLUX index.xml")
     nx = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_X"), "GENERAL/IMAGE_SIZE_X", minimum=1)
     ny = to_int(path, child_text(root, "GENERAL", "IMAGE_SIZE_Y"), "GENERAL/IMAGE_SIZE_Y", minimum=1)
     if nx * ny > MAX_PIXELS:

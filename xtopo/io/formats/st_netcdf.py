@@ -139,8 +139,7 @@ def _attrs_from_info(info: dict) -> dict:
 def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, height_units=None):
     """Read a SurfaceTopography NetCDF file (see the module docstring)."""
     single_channel(path, channel)
-    nc = _open(path)
-    with nc:
+    with _open(path) as nc:
         if "heights" not in nc.variables:
             raise UnsupportedFormatError(path, "NetCDF file has no 'heights' variable (not the SurfaceTopography "
                                                "layout)")
@@ -153,8 +152,7 @@ def read_st_netcdf(path, *, channel=None, physical_size=None, file_units=None, h
             check_array_bytes(path, hv.shape, 8, None, "heights")
             h = np.asarray(hv.values, dtype=float)
             mask = np.asarray(nc["mask"].values) != 0 if "mask" in nc.variables else None
-            xv = nc["x"] if "x" in nc.variables else None
-            yv = nc["y"] if "y" in nc.variables else None
+            xv, yv = nc.get("x"), nc.get("y")
             xpos = np.asarray(xv.values, dtype=float) if dims == ("n",) and xv is not None else None
         except _OPEN_ERRORS as exc:
             raise ReaderError(path, f"cannot read the data: {exc}") from None

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...conventions import length_factor, make_measurement, normalize_units
-from .._binary import BinaryReader, read_bytes
+from .._binary import BinaryReader
 from ._common import ChannelInfo, channel_format, clean_text, iso_time, sniff_magic
 
 _HEADER = ("12s4H30s30s5H8sH2i2iI3f16s16s16s16s16s16s16s16s16s3f3H12s7Hf10s2H128s3f34s")
@@ -33,11 +33,9 @@ def _unit(raw: bytes) -> str:
 
 
 def _parse(path):
-    data = read_bytes(path)
-    r = BinaryReader(data, path, "<")
-    if data[:12] != b"DIGITAL SURF":
-        raise r.error("not a Digital Surf SUR file (magic 'DIGITAL SURF' missing)")
-    fmt = int.from_bytes(data[12:14], "little")
+    r = BinaryReader.from_file(path, magic=b"DIGITAL SURF",
+                               not_this="not a Digital Surf SUR file (magic 'DIGITAL SURF' missing)")
+    fmt = int.from_bytes(r.data[12:14], "little")
     r.endian = ">" if fmt == 257 else "<"
     h = dict(zip(_NAMES, r.unpack(_HEADER, "SUR header", at=0)))
     if h["type"] not in (1, 2):

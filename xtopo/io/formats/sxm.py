@@ -88,8 +88,6 @@ def _load(path, info, p):
     nx, ny = p["nx"], p["ny"]
     item = np.dtype(p["dtype"]).itemsize
     at = p["start"] + i * nx * ny * item
-    if at > len(p["data"]):
-        raise ReaderError(path, f"Nanonis channel {info.name!r} starts beyond the end of the file (truncated)")
     values = BinaryReader(p["data"], path).array(p["dtype"], nx * ny, what=f"Nanonis channel {info.name!r}",
                                                  at=at).reshape(ny, nx)
     if p["backward"][i]:

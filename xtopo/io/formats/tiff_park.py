@@ -71,14 +71,14 @@ def _load(path, info, tif, hdr):
     zscale = hdr["zscale"] or 1.0
     values = raw.reshape(hdr["ny"], hdr["nx"]).astype(float) * zscale + hdr["zoffset"]
     software = tif.value(0, 305)
-    attrs = dict(
+    return measurement(
+        path, values, info, height_scale=hdr["gain"],
         instrument=software if isinstance(software, str) and software else None,
         vendor="Park Systems",
         acquisition_time=parse_time(tif.value(0, 306, ""), "%Y:%m:%d %H:%M:%S"),
         imaging_mode=hdr["mode"] or None,
         data_gain=hdr["gain"],
     )
-    return measurement(path, values, info, height_scale=hdr["gain"], **attrs)
 
 
 channel_format("park_tiff", "Park Systems (PSIA) TIFF image", (".tiff", ".tif"), _sniff, "Park TIFF", _parse, _load,

@@ -22,8 +22,7 @@ def _parse(path):
     if end < 0:
         raise r.error("unterminated comment in TMD header")
     comment = clean_text(data[32:end])
-    r.seek(end + 1)
-    nx, ny, lx, ly, x0, y0 = r.unpack("2I4f", "TMD header")
+    nx, ny, lx, ly, x0, y0 = r.unpack("2I4f", "TMD header", at=end + 1)
     if nx == 0 or ny == 0 or not (lx > 0 and ly > 0):
         raise r.error(f"invalid TMD grid {nx} x {ny} over {lx} x {ly} mm")
     return [ChannelInfo(0, "Height", (ny, nx), (ly, lx), "mm", "mm")], r, dict(x0=x0, y0=y0, comment=comment)

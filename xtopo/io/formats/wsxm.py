@@ -95,14 +95,14 @@ def _load(path, info, data, start, dtype, scale, fields):
     ny, nx = info.shape
     raw = BinaryReader(data, path).array(dtype, nx * ny, what="WSxM image data", at=start).reshape(ny, nx)
     raw = raw[:, ::-1]  # rows are stored right to left
-    attrs = dict(
+    return measurement(
+        path, raw, info, height_scale=scale,
         instrument=fields.get("General Info/Head type") or fields.get("Head Settings/Head Name"),
         vendor="Nanotec Electronica (WSxM)",
         acquisition_date=fields.get("General Info/Acquisition time"),
         software_version=fields.get("Miscellaneous/Saved with version"),
         comment=fields.get("Miscellaneous/Comments") or None,
     )
-    return measurement(path, raw, info, height_scale=scale, **attrs)
 
 
 channel_format("wsxm", "WSxM image (Nanotec Electronica)", (".top", ".stp", ".ch1", ".ch2", ".cur"), _sniff, "WSxM",

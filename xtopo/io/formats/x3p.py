@@ -30,11 +30,10 @@ from ...conventions import make_measurement
 from ...errors import ReaderError
 from .._binary import MAX_PIXELS
 from .._xml import child, child_text, local_name, parse_xml
-from .._zip import open_zip, read_member, unsafe_name
+from .._zip import MAX_METADATA, open_zip, read_member, unsafe_name
 from ._common import ChannelInfo, channel_format, zip_member
 
 _DTYPES = {"I": "<i2", "L": "<i4", "F": "<f4", "D": "<f8"}
-_MAX_MAIN_XML = 16 << 20
 
 
 def _sniff(head: bytes, path: str) -> bool:
@@ -42,11 +41,8 @@ def _sniff(head: bytes, path: str) -> bool:
         return False
     if b"main.xml" in head:
         return True
-    try:
-        with zipfile.ZipFile(path) as zf:
-            return any(posixpath.basename(n) == "main.xml" for n in zf.namelist())
-    except Exception:
-        return False
+    with zipfile.ZipFile(path) as zf:
+        return any(posixpath.basename(n) == "main.xml" for n in zf.namelist())
 
 
 def _linked(path, zf, base, rec3, key, expected):
@@ -98,7 +94,7 @@ def _parse(path):
                         and not n.startswith("__MACOSX/")), key=lambda n: (n.count("/"), n))
         if not mains:
             raise ReaderError(path, "the zip archive has no main.xml, so it is not an X3P file")
-        root = parse_xml(read_member(path, zf, zf.getinfo(mains[0]), "X3P", limit=_MAX_MAIN_XML), path, "X3P main.xml")
+        root = parse_xml(read_member(path, zf, zf.getinfo(mains[0]), "X3P", limit=MAX_METADATA), path, "X3P main.xml")
     base = posixpath.dirname(mains[0])
     axes, nx, ny, rec3 = _header(path, root)
     if ny == 1:

@@ -25,12 +25,10 @@ def _parse(path):
     nx, ny = r.unpack("2I", "ZMG grid size", at=85)
     dx, dy, dz = r.unpack("3f", "ZMG steps", at=97)
     comment_size = r.unpack("I", "ZMG comment size", at=117)
-    r.seek(131)
-    recipe = clean_text(r.read(68, "ZMG recipe name"))
+    recipe = clean_text(r.read(68, "ZMG recipe name", at=131))
     if nx == 0 or ny == 0 or not (dx > 0 and dy > 0 and np.isfinite(dz) and dz != 0):
         raise r.error(f"invalid ZMG grid: {nx} x {ny} points, steps {dx} x {dy} x {dz} µm")
-    r.seek(_HEADER)
-    comment = r.read(comment_size, "ZMG comment").decode("latin-1", errors="replace").strip("\0 ")
+    comment = r.read(comment_size, "ZMG comment", at=_HEADER).decode("latin-1", errors="replace").strip("\0 ")
     info = channel_info(0, "Height", (ny, nx), (ny * dy, nx * dx), "um", "um", height=True)
     return [info], r, dz, {"recipe": recipe or None, "comment": comment or None}
 
