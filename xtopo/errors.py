@@ -13,6 +13,7 @@ __all__ = [
     "XtopoError",
     "ReaderError",
     "UnsupportedFormatError",
+    "OptionError",
     "UnitsError",
     "GridError",
     "MissingDataError",
@@ -50,6 +51,10 @@ class ReaderError(XtopoError, ValueError):
 
 class UnsupportedFormatError(ReaderError):
     """The file's format is not recognised, or the requested channel does not exist."""
+
+
+class OptionError(ReaderError):
+    """The file is of the format tried, and an option given does not apply to it (no other reader is tried)."""
 
 
 class UnitsError(XtopoError, ValueError):

@@ -251,6 +251,9 @@ def test_surfacetopography_netcdf_round_trip(tmp_path, heights, kind):
             assert ("mask" in raw) == (kind == "masked")
         elif kind == "nonuniform":
             assert raw.heights.dims == ("n",) and raw.x.dims == ("n",)
+    if kind == "nonuniform":  # its positions are stored: a size was silently ignored
+        with pytest.raises(ReaderError, match="physical_size"):
+            xtopo.open_topography(p, physical_size=2.0)
 
 
 def test_surfacetopography_reads_our_export(tmp_path, heights):

@@ -12,7 +12,7 @@ import numbers
 import numpy as np
 
 from ..conventions import length_factor, make_measurement, normalize_units
-from ..errors import ReaderError, UnitsError, UnsupportedFormatError
+from ..errors import OptionError, ReaderError, UnitsError, UnsupportedFormatError
 from ._text import length_unit, line_measurement
 from .registry import READ_OPTIONS, ChannelInfo, Format, register
 
@@ -152,6 +152,8 @@ def generic_measurement(path, heights, *, physical_size=None, found_size=None, f
                                     file_units=file_units, height_units=height_units)
     scale = factor * height_scale
     if x is not None:
+        if physical_size is not None:
+            raise OptionError(path, "the file stores the positions of its line scan; do not pass physical_size")
         return line_measurement(path, x, h.astype(float) * scale, lateral, mask=mask, **attrs)
     size = physical_size if physical_size is not None else found_size
     if size is None:

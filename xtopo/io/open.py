@@ -11,7 +11,7 @@ import numpy as np
 from .._checks import per_axis
 from ..conventions import append_history, convert_length, lateral_dims, validate
 from ..conventions import physical_size as _physical_size
-from ..errors import ReaderError, UnsupportedFormatError, XtopoError
+from ..errors import OptionError, ReaderError, UnsupportedFormatError, XtopoError
 from ..params import Flag, Lengths, LengthUnit, Positive, checked
 from .registry import ChannelInfo, detect
 
@@ -124,7 +124,7 @@ def _call(path, fmt, method: str, channel, options: dict):
         # refused only if the file is of this format: otherwise its "not this format" reason counts
         # (an HDF5 file without heights was reported as a NetCDF file given file_units=)
         _call(path, fmt, method, channel, {})
-        raise ReaderError(path, f"the {fmt.name} format stores its own units; the option(s) {', '.join(refused)} "
+        raise OptionError(path, f"the {fmt.name} format stores its own units; the option(s) {', '.join(refused)} "
                                 "apply only to generic formats without units (text, npy, MATLAB, HDF5)")
     kwargs = {k: v for k, v in given.items() if k in fmt.options}
     if method == "read":
@@ -147,6 +147,8 @@ def _first_success(path, format, method: str, channel=None, **options):
     for fmt in candidates:
         try:
             return fmt, _call(path, fmt, method, channel, options)
+        except OptionError:  # this is the file's format: a more generic reader would misread it with the option
+            raise
         except ReaderError as exc:
             errors.append((fmt.name, exc))
         except XtopoError as exc:  # e.g. a GridError from make_measurement: name the file

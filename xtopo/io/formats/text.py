@@ -42,7 +42,7 @@ import re
 import numpy as np
 
 from ...conventions import length_factor
-from ...errors import ReaderError
+from ...errors import OptionError, ReaderError
 from .._generic import generic_measurement, resolve_units, single_channel
 from .._text import (column_precision, header_value, is_number, line_measurement, looks_like_text, parse_quantity,
                      parse_table, read_text, uniform_spacing)
@@ -241,7 +241,7 @@ def _positions(path, table, data, sep, common):
                                 "them onto a uniform grid first. If the columns are a height matrix three pixels "
                                 "wide, pass physical_size=(Ly, Lx)")
     if common["physical_size"] is not None:
-        raise ReaderError(path, "the file stores x y z positions on a grid; do not pass physical_size")
+        raise OptionError(path, "the file stores x y z positions on a grid; do not pass physical_size")
     heights, size = grid
     return generic_measurement(path, heights, found_size=size, **common)
 
@@ -279,7 +279,7 @@ def _line_xy(path, x, h, precision, common):
                                     found_height_units=common["found_height_units"],
                                     file_units=common["file_units"], height_units=common["height_units"])
     if common["physical_size"] is not None:
-        raise ReaderError(path, "the file stores the positions of its line scan; do not pass physical_size")
+        raise OptionError(path, "the file stores the positions of its line scan; do not pass physical_size")
     return line_measurement(path, x, h * factor, lateral, precision=precision)
 
 
