@@ -406,9 +406,14 @@ def test_errors(monkeypatch):
     with pytest.raises(ContactError, match="real numbers"):
         scene.solve(load=1e-3, initial=bad.astype(str))
     assert issubclass(ContactError, xtopo.XtopoError)
+    auto, fftw = pickle.dumps(Scene(ds)), pickle.dumps(Scene(ds, backend="pyfftw"))  # built where pyFFTW is
     monkeypatch.setitem(sys.modules, "pyfftw", None)  # not installed: a ModuleNotFoundError on first solve
     with pytest.raises(xtopo.XtopoError, match=r'pip install "xtopo\[fftw\]"'):
         Scene(ds, backend="pyfftw")
+    # unpickled where pyFFTW is not (a dask worker): "auto" takes this process's backend; "pyfftw" names the extra
+    assert pickle.loads(auto).solve(load=1e-3).converged
+    with pytest.raises(xtopo.XtopoError, match=r'pip install "xtopo\[fftw\]"'):
+        pickle.loads(fftw)
 
 
 def test_heights_and_positions_in_different_units_are_an_error():

@@ -181,6 +181,13 @@ class Scene:
         state["_conv"] = None  # rebuilt lazily after unpickling
         return state
 
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+        if self.backend_request == "auto":  # the best backend of this process (a worker may lack pyFFTW)
+            self.backend = choose_backend(self.fft_shape, "auto", planned=True)
+        elif self.backend == "pyfftw":
+            require("pyfftw", "backend='pyfftw'")
+
     def __repr__(self) -> str:
         grid = "×".join(str(n) for n in self.shape)
         sp = "×".join(f"{d:g}" for d in self.spacing)
