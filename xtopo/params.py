@@ -31,6 +31,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ._checks import real_array
 from ._units import normalize_units
 from .errors import UnitsError, XtopoError
 
@@ -249,14 +250,7 @@ class Numbers(Kind):
         self.expects = f"a number or a 1D sequence of numbers ({what})"
 
     def convert(self, values):
-        v = None
-        if not isinstance(values, (str, bytes)):
-            try:
-                raw = np.asarray(values)
-                if raw.dtype.kind not in "bcSUO":  # True is not the length 1, nor "1" a number
-                    v = np.asarray(raw, dtype=float)
-            except (TypeError, ValueError, OverflowError):
-                v = None
+        v = real_array(values)  # True is not the length 1, nor "1" a number
         if v is None or v.ndim > 1 or (v.size == 0 and not self.empty):
             raise Refused
         bad = v[~(np.isfinite(v) & (v >= self.low) & (v <= self.high))]
