@@ -121,10 +121,8 @@ def _exponent_map(da: xr.DataArray):
     if method == "psd":
         if a.get("kind") == "2d":
             raise XtopoError("fit the Hurst exponent on psd(kind='iso') or kind='1d', not the 2D map")
-        one_d = a.get("kind") == "1d" or bool(a.get("equivalent_1d", 0))
-        if one_d:
-            return "q", True, (lambda s: -(s + 1) / 2), "2-2H"
-        return "q", True, (lambda s: -(s + 2) / 2), "2-2H"
+        k = 1 if a.get("kind") == "1d" or bool(a.get("equivalent_1d", 0)) else 2  # C ∝ q^(-k-2H)
+        return "q", True, (lambda s: -(s + k) / 2), "2-2H"
     if method == "acf":
         return "distance", False, (lambda s: s / 2), "2-2H"
     if method == "vbm":
