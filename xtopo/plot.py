@@ -125,25 +125,11 @@ def _display_unit(units: str, magnitude: float) -> str:
     return _DISPLAY_UNITS[-1]
 
 
-def _rescaled(values: np.ndarray, units, magnitude: float):
-    """``values`` converted to a readable length unit (unchanged when ``units`` is not a length)."""
-    if not _is_length(units):
-        return values, units
-    to = _display_unit(units, magnitude)
-    return values * length_factor(units, to), to
-
-
 def _title(obj, title):
     if title is not None:
         return str(title)
     a = obj.attrs
     return str(a.get("title") or a.get("instrument") or a.get("long_name") or getattr(obj, "name", "") or "")
-
-
-def _quiet_mean(obj, dims: dict):
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return obj.coarsen(dims, boundary="trim").mean(keep_attrs=True)
 
 
 @checked
@@ -167,7 +153,9 @@ def downsample(da: Annotated[xr.DataArray, Data("DataArray")],
         da = da.astype(float).assign_attrs(da.attrs)
     if not factors:
         return da
-    out = _quiet_mean(da, factors)
+    with warnings.catch_warnings(), np.errstate(all="ignore"):  # all-NaN blocks
+        warnings.simplefilter("ignore", RuntimeWarning)
+        out = da.coarsen(factors, boundary="trim").mean(keep_attrs=True)
     out.name = da.name
     out.attrs = dict(da.attrs, downsampled=f"block mean over {factors}")
     return out
@@ -254,8 +242,10 @@ def topography(obj: Annotated[xr.Dataset | xr.DataArray, Data()], *,
     units = da.attrs.get("units")
     small = downsample(da, max_pixels if len(lat) == 2 else MAX_POINTS)
     z = small.values.astype(np.float32 if len(lat) == 2 else np.float64)
-    finite = z[np.isfinite(z)]
-    z, zu = _rescaled(z, units, float(np.max(np.abs(finite)))) if finite.size else (z, units)
+    finite, zu = z[np.isfinite(z)], units
+    if finite.size and _is_length(units):  # heights in a readable length unit
+        zu = _display_unit(units, float(np.max(np.abs(finite))))
+        z = z * length_factor(units, zu)
     coords = {d: np.asarray(small[d].values, dtype=float) for d in lat}
     extent = max([0.0] + [float(np.ptp(v)) for v in coords.values()])
     xunits = da[X].attrs.get("units")
@@ -269,7 +259,7 @@ def topography(obj: Annotated[xr.Dataset | xr.DataArray, Data()], *,
     vdim = _dimension(name, da.attrs, units=zu)
     label = _title(da, title)
     if len(lat) == 2:
-        el = hv.Image((coords[X], coords[Y], z.astype(np.float32)), kdims=[dims[X], dims[Y]], vdims=[vdim],
+        el = hv.Image((coords[X], coords[Y], z), kdims=[dims[X], dims[Y]], vdims=[vdim],
                       label="").relabel(group="Topography" if name == "height" else "Map")
         el = _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
                     bokeh=dict(tools=["hover"], toolbar="above", **_frame(coords[X], coords[Y])),
@@ -394,8 +384,7 @@ def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title:
     ydim = _dimension(str(da.name or "value"), da.attrs)
     da = da.transpose(..., coord)
     x = np.asarray(da[coord].values, dtype=float)
-    values = da.values
-    rows = values.reshape(-1, x.size)
+    rows = da.values.reshape(-1, x.size)
     others = [d for d in da.dims if d != coord]
     keys = [""]
     if others:
@@ -463,7 +452,6 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
     colours = group_colours(group_of)
     elements = []
     first = {g: n for n, g in reversed(group_of.items())}  # replicates share their group's one legend entry
-    values = curves.values
     avg = ds["average"].values.astype(float)
     if "uncertainty" in ds:  # the band: average ± its standard error (clipped above zero for log axes)
         se = ds["uncertainty"].values.astype(float)
@@ -475,8 +463,8 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
             # matplotlib fills an Area with its default facecolor (a colour cycle) over ``color``: give it grey too
             elements.append(_style(band, common=dict(color="#888888", alpha=0.35),
                                    bokeh=dict(line_alpha=0), matplotlib=dict(facecolor="#888888", linewidth=0)))
-    for k, name in enumerate(names):
-        xs, ys = _positive(x, values[k].astype(float))
+    for name, row in zip(names, curves.values):
+        xs, ys = _positive(x, row.astype(float))
         group = group_of[name]
         label = _safe_label(labels.get(group, group), xdim, ydim)
         elements.append(_line((xs, ys), xdim, ydim, label, 1.2, color=colours[group], alpha=0.8,
