@@ -45,9 +45,8 @@ class Shape(Kind):
 
     def convert(self, shape):
         items = np.asarray(shape, dtype=object).ravel() if np.ndim(shape) <= 1 else ()
-        count = Count()
         try:
-            out = tuple(count.convert(n) for n in items)
+            out = tuple(Count().convert(n) for n in items)
         except Refused:
             out = ()
         if len(out) not in (1, 2):
@@ -202,12 +201,6 @@ def _grid_q(shape, spacings):
     return np.sqrt(qx**2 + qy**2), [(qy, spacings[0]), (qx, spacings[1])]
 
 
-def _rfft_weights(shape):
-    """Multiplicity of each rfft mode in the full spectrum (1 or 2)."""
-    n = shape[-1]
-    return np.broadcast_to(rfft_multiplicity(n), tuple(shape[:-1]) + (n // 2 + 1,))
-
-
 _HURST = Real(0.0, 1.0, closed=False)
 
 
@@ -265,7 +258,7 @@ def fractal_surface(shape: Annotated[tuple, Shape()], size, *, hurst: Annotated[
     qabs, symbols = _grid_q(gshape, spacings)
     c = psd.c_native(qabs)
     area = float(np.prod(gsize))
-    weights = _rfft_weights(gshape)
+    weights = rfft_multiplicity(gshape[-1])  # of each rfft mode in the full spectrum (1 or 2)
     # Expected measured quantity per unit prefactor (discrete Parseval, paper eq. 1-2): Sq², or SΔq² with the
     # squared symbols of the forward difference
     d2 = 1.0 if rms_slope is None else sum(np.abs(fourier_first(q, dx)) ** 2 for q, dx in symbols)
@@ -406,7 +399,7 @@ def _tip_dilate(h: np.ndarray, spacings, radius: float) -> np.ndarray:
     return out
 
 
-def _missing_patches(shape, fraction: float, rng, patch: int | None = None) -> np.ndarray:
+def _missing_patches(shape, fraction: float, rng) -> np.ndarray:
     """Boolean mask with roughly ``fraction`` of the points in compact random patches."""
     mask = np.zeros(shape, dtype=bool)
     if fraction <= 0:
@@ -416,7 +409,7 @@ def _missing_patches(shape, fraction: float, rng, patch: int | None = None) -> n
     target = int(round(fraction * np.prod(shape)))
     # patches scale with the shorter axis; an axis of one pixel (a 1×N map) would make them single
     # points, and covering a large fraction with those takes ~N log N draws of O(N) each
-    patch = patch or max(1, int(0.05 * min([n for n in shape if n > 1] or [1])))
+    patch = max(1, int(0.05 * min([n for n in shape if n > 1] or [1])))
     while mask.sum() < target:
         centre = [rng.integers(0, n) for n in shape]
         radius = rng.uniform(0.5, 1.0) * patch
