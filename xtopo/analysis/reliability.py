@@ -42,23 +42,20 @@ def _attr_length(obj, key, units):
 
 def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarray:
     """Largest distance at which ``curv > threshold``, refined by log-log interpolation to the next point."""
-    bad = curv > threshold
-    out = np.zeros(curv.shape[:-1])
-    flat_c = curv.reshape(-1, curv.shape[-1])
-    flat_b = bad.reshape(-1, curv.shape[-1])
-    res = out.reshape(-1)
-    for i in range(flat_c.shape[0]):  # loop over the batch only
-        idx = np.flatnonzero(flat_b[i])
+    rows = curv.reshape(-1, curv.shape[-1])
+    res = np.zeros(rows.shape[0])
+    for i, c in enumerate(rows):  # loop over the batch only
+        idx = np.flatnonzero(c > threshold)
         if idx.size == 0:  # 0: the tip limits no scale
             continue
         j = idx[-1]
-        if j + 1 >= dist.size or not np.isfinite(flat_c[i, j + 1]) or flat_c[i, j + 1] <= 0:
+        if j + 1 >= dist.size or not np.isfinite(c[j + 1]) or c[j + 1] <= 0:
             res[i] = dist[j]
             continue
-        c0, c1 = np.log(flat_c[i, j]), np.log(flat_c[i, j + 1])
+        c0, c1 = np.log(c[j]), np.log(c[j + 1])
         t = (c0 - np.log(threshold)) / (c0 - c1) if c0 != c1 else 0.0
         res[i] = float(np.exp(np.log(dist[j]) + t * (np.log(dist[j + 1]) - np.log(dist[j]))))
-    return out
+    return res.reshape(curv.shape[:-1])
 
 
 def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) -> xr.DataArray:
