@@ -115,7 +115,6 @@ def to_netcdf(tree: xr.DataTree, path: Annotated[str, Path("file path")], engine
     ms = measurements(tree)
     root = tree.to_dataset(inherit=False)
     root.attrs.pop("source_checksums", None)  # listed afresh from the measurements archived now
-    # other groups (notes, stored results) are archived as they are
     nodes = {node.path: node.to_dataset(inherit=False) for node in tree.subtree if not node.is_root}
     sums = []
     for name, ds in ms.items():

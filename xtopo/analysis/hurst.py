@@ -246,8 +246,7 @@ def _reliable(da, x, is_q):
 
 def _bins(prep, dim):
     """Log bins for fitting: 25 per decade of the scan's range of scales."""
-    n = prep.h.sizes[dim]
-    return max(3, int(np.ceil(25 * np.log10(max(n, 10)))))
+    return max(3, int(np.ceil(25 * np.log10(max(prep.h.sizes[dim], 10)))))
 
 
 def _length_units(da):
