@@ -442,7 +442,6 @@ def preflight(func, kwargs: Mapping, where: str | None = None, *, rules: bool = 
                if p.default is not p.empty or p.kind is p.KEYWORD_ONLY or isinstance(func, type)]
     takes_any = any(p.kind is p.VAR_KEYWORD for p in parameters.values())
     unknown = [k for k in kwargs if k not in options and (k in parameters or not takes_any)]
-    prefix = f"{where}: " if where else ""
     if unknown:
         raise XtopoError(f"{where + ' ' if where else ''}has no option {', '.join(map(repr, unknown))}; its options: "
                          f"{', '.join(options) or 'none'}")
@@ -452,5 +451,5 @@ def preflight(func, kwargs: Mapping, where: str | None = None, *, rules: bool = 
         return spec.apply((), dict(kwargs), rules)[1]
     except XtopoError as exc:
         if where:
-            raise type(exc)(f"{prefix}{exc}") from None
+            raise type(exc)(f"{where}: {exc}") from None
         raise

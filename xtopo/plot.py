@@ -90,9 +90,7 @@ def _style(element, *, common=None, bokeh=None, matplotlib=None):
 
 def unit_label(units) -> str:
     """Readable form of a UDUNITS string: ``"um"`` → ``"µm"``, ``"m-1"`` → ``"m⁻¹"``, ``"m3"`` → ``"m³"``."""
-    if units is None:
-        return ""
-    u = str(units).strip()
+    u = "1" if units is None else str(units).strip()
     if u == "1":
         return ""
     u = re.sub(r"\bu(?=m)", "µ", u)
@@ -119,10 +117,7 @@ def _display_unit(units: str, magnitude: float) -> str:
     if not (np.isfinite(magnitude) and magnitude > 0):
         return normalize_units(units)
     in_m = magnitude * length_factor(units, "m")
-    for u in _DISPLAY_UNITS:
-        if in_m >= length_factor(u, "m") * (1 - 1e-9):
-            return u
-    return _DISPLAY_UNITS[-1]
+    return next((u for u in _DISPLAY_UNITS if in_m >= length_factor(u, "m") * (1 - 1e-9)), _DISPLAY_UNITS[-1])
 
 
 def _title(obj, title):
