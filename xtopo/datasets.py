@@ -125,12 +125,11 @@ class FractalPSD:
         kmax = np.sqrt(np.maximum(self.q_short**2 - q**2, 0.0)) if np.isfinite(self.q_short) else None
         # Gauss-Legendre in t with k = q_ref * sinh(t) resolves the kink at q_L and the tail.
         t, w = _gauss_legendre(nodes)
-        out = np.empty_like(q)
+        out = np.zeros_like(q)
         for i, qi in enumerate(q):
             scale = max(qi, self.q_long, 1e-300)
             tmax = np.arcsinh(kmax[i] / scale) if kmax is not None else np.arcsinh(1e8)
             if tmax <= 0:
-                out[i] = 0.0
                 continue
             tt = 0.5 * tmax * (t + 1)
             k = scale * np.sinh(tt)
@@ -334,10 +333,9 @@ def sphere(shape: Annotated[tuple, Shape()], size, radius: Annotated[float, Posi
     axes = [np.arange(n) * d - c for n, d, c in zip(shape, sp, center)]
     r2 = sum(a**2 for a in np.meshgrid(*axes, indexing="ij"))
     h = np.sqrt(np.maximum(radius**2 - r2, 0.0)) - radius if kind == "sphere" else -r2 / (2 * radius)
-    ds = make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
-                          title=f"{kind} R={radius:g} {units}", source="xtopo.datasets.sphere")
-    ds.attrs["sphere_radius"] = float(radius)
-    return ds
+    return make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
+                            title=f"{kind} R={radius:g} {units}", source="xtopo.datasets.sphere",
+                            sphere_radius=float(radius))
 
 
 @checked
@@ -357,10 +355,9 @@ def sinusoid(shape: Annotated[tuple, Shape()], size, *, amplitude: Annotated[flo
     axes = np.meshgrid(*[np.arange(n) * d for n, d in zip(shape, sp)], indexing="ij")
     chosen = {"x": axes[-1:], "y": axes[:1], "xy": axes[::-1]}[direction]
     h = amplitude * sum(np.cos(2 * np.pi * a / lam) for a in chosen)
-    ds = make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
-                          title=f"sinusoid λ={lam:g} {units}", source="xtopo.datasets.sinusoid")
-    ds.attrs.update(sinusoid_amplitude=float(amplitude), sinusoid_wavelength=lam)
-    return ds
+    return make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
+                            title=f"sinusoid λ={lam:g} {units}", source="xtopo.datasets.sinusoid",
+                            sinusoid_amplitude=float(amplitude), sinusoid_wavelength=lam)
 
 
 def _tip_reach(h: np.ndarray, radius: float) -> float:
