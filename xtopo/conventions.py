@@ -271,8 +271,7 @@ def physical_size(obj, dim: str = X) -> float:
     if is_nonuniform(obj) and isinstance(dim, str) and dim in obj.coords:
         v = np.asarray(obj.coords[dim].values, dtype=float)
         return float(v[-1] - v[0])
-    d = spacing(obj, dim)  # checks obj and dim first
-    return obj.sizes[dim] * d
+    return spacing(obj, dim) * obj.sizes[dim]  # spacing checks obj and dim first
 
 
 def is_periodic(obj) -> bool:
@@ -376,11 +375,8 @@ def height_of(obj) -> xr.DataArray:
         h = h.where(~obj[MASK].astype(bool))
     else:  # a new variable: the attrs set below must not land on the Dataset's own height
         h = h.copy(deep=False)
-    attrs = dict(obj[HEIGHT].attrs)
-    for key in MEASUREMENT_ATTRS:
-        if key in obj.attrs and key not in attrs:
-            attrs[key] = obj.attrs[key]
-    h.attrs = attrs
+    own = obj[HEIGHT].attrs
+    h.attrs = {**own, **{k: obj.attrs[k] for k in MEASUREMENT_ATTRS if k in obj.attrs and k not in own}}
     h.name = HEIGHT
     return h
 

@@ -148,8 +148,7 @@ def _auto_lambda_c(h, dims, degree, units, periodic):
     for _ in range(len(CUTOFFS_MM)):
         tried.append(lc)
         r = base - _lowpass(base, dims, lc, periodic) if lc <= longest else base - base.mean(dims)
-        ra = float(np.abs(r).mean())
-        new = iso_cutoffs(ra, units)[1]
+        new = iso_cutoffs(float(np.abs(r).mean()), units)[1]  # the class of the profiles' Ra
         if new in tried:
             return new
         lc = new

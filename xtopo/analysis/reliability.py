@@ -64,8 +64,7 @@ def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) ->
     for dim in dims:
         other = [d for d in lat if d != dim]
         dx = spacings[dim]
-        emax = (h.sizes[dim] - 1) / 2
-        etas = np.unique(collocation_points(1.0, emax, POINTS_PER_DECADE))
+        etas = np.unique(collocation_points(1.0, (h.sizes[dim] - 1) / 2, POINTS_PER_DECADE))
         curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
                              output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
                              kwargs=dict(dx=dx, etas=etas, periodic=periodic, rows=len(other)),
