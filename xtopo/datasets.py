@@ -511,10 +511,9 @@ def measure(surface: xr.Dataset, *, size=None, pixels: Annotated[tuple | None, S
     ds = make_measurement(np.where(missing, np.nan, sampled), spacing=tuple(new_sp) if sampled.ndim == 2 else new_sp[0],
                           units=units, periodic=False, tip_radius=tip_radius, resolution=resolution,
                           instrument=instrument, source="xtopo.datasets.measure")
+    # the ground truth's PSD (a profile of an area surface keeps psd_dim 2: compare with FractalPSD.c1d)
     ds.attrs.update({key: surface.attrs[key] for key in ("psd_hurst", "psd_prefactor", "psd_long_cutoff",
                                                           "psd_short_cutoff", "psd_dim") if key in surface.attrs})
-    if sampled.ndim == 1 and surface.attrs.get("psd_dim") == 2:
-        ds.attrs["psd_dim"] = 2  # a profile of an isotropic area surface: compare with FractalPSD.c1d
     return append_history(ds, f"measure(size={[float(v) for v in size]}, pixels={[int(p) for p in pixels]}, "
                               f"tip_radius={tip_radius}, noise={noise}, missing_fraction={missing_fraction}, seed={seed})")
 
