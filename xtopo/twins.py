@@ -160,9 +160,6 @@ def open_twin(path: Annotated[str, Path("file path")], engine: str | None = None
         loaded = tree.load()
     out = {}
     for node in loaded.subtree:
-        ds = node.to_dataset(inherit=False)
-        ds.encoding = {}
-        for v in ds.variables.values():
-            v.encoding = {}
+        ds = node.to_dataset(inherit=False).drop_encoding()
         out[node.path] = freeze(ds) if "height" in ds else ds
     return xr.DataTree.from_dict(out)
