@@ -483,9 +483,8 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
         else:
             sp = per_axis(size, h.ndim, "size") / np.asarray(n, dtype=float)
         for dim, ni, d in zip(dims, n, sp):
-            c = length_coord(dim, np.arange(ni) * d, units, _LONG_NAMES[dim], axis=dim.upper())
-            c.attrs["spacing"] = float(d)
-            coords[dim] = c
+            coords[dim] = length_coord(dim, np.arange(ni) * d, units, _LONG_NAMES[dim], axis=dim.upper(),
+                                       spacing=float(d))
     missing = ~np.isfinite(h)
     if mask is not None:
         m = np.asarray(mask, dtype=bool)
