@@ -279,10 +279,8 @@ def spectrum_map(da: Annotated[xr.DataArray, Data("DataArray")], *, max_pixels: 
     small = downsample(da.rename({"q_y": Y, "q_x": X}), max_pixels).rename({Y: "q_y", X: "q_x"})
     z = small.values.astype(np.float32)
     z = np.where(z > 0, z, np.nan)
-    kx = _dimension("q_x", small["q_x"].attrs)
-    ky = _dimension("q_y", small["q_y"].attrs)
-    vdim = _dimension(str(da.name or "psd"), da.attrs)
-    el = hv.Image((small["q_x"].values, small["q_y"].values, z), kdims=[kx, ky], vdims=[vdim])
+    el = hv.Image((small["q_x"].values, small["q_y"].values, z), vdims=[_dimension(str(da.name or "psd"), da.attrs)],
+                  kdims=[_dimension(q, small[q].attrs) for q in ("q_x", "q_y")])
     return _style(el, common=dict(cmap=cmap, colorbar=True, logz=True, title=_title(da, title)),
                   bokeh=_frame(small["q_x"].values, small["q_y"].values), matplotlib=dict(fig_inches=5, aspect="equal"))
 
