@@ -192,12 +192,8 @@ def prescribed_psd(ds) -> FractalPSD:
 
 def _grid_q(shape, spacings):
     """|q| on an rfft grid and the per-mode symbols of the forward difference."""
-    if len(shape) == 1:
-        qx = wavevectors(shape[0], spacings[0], real=True)
-        return np.abs(qx), [(qx, spacings[0])]
-    qy = wavevectors(shape[0], spacings[0])[:, None]
-    qx = wavevectors(shape[1], spacings[1], real=True)[None, :]
-    return np.sqrt(qx**2 + qy**2), [(qy, spacings[0]), (qx, spacings[1])]
+    qs = np.ix_(*[wavevectors(n, d, real=k == len(shape) - 1) for k, (n, d) in enumerate(zip(shape, spacings))])
+    return np.sqrt(sum(q**2 for q in qs)), list(zip(qs, spacings))
 
 
 _HURST = Real(0.0, 1.0, closed=False)
