@@ -107,8 +107,7 @@ class FractalPSD:
 
     def c_native(self, q):
         """The PSD in the surface's own dimension (C_iso for areas, C1D for lines)."""
-        exponent = -2 - 2 * self.hurst if self.dim == 2 else -1 - 2 * self.hurst
-        return self.prefactor * self._shape(q, exponent)
+        return self.prefactor * self._shape(q, -self.dim - 2 * self.hurst)
 
     def c_iso(self, q):
         """Radially averaged 2D PSD (area surfaces only)."""
