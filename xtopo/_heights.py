@@ -26,8 +26,10 @@ def fit_positions(h, dim):
 def replace_heights(obj, result, line: str, *, nonperiodic: bool = False):
     """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``.
 
-    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0.
+    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0 (the history ``line`` says so).
     """
+    if nonperiodic:
+        line += "; periodic set to 0"
     h_in = obj[HEIGHT] if isinstance(obj, xr.Dataset) else obj
     # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
     result = h_in.copy(data=result.transpose(*h_in.dims).data)

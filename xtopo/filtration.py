@@ -272,10 +272,7 @@ def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
         out = out - mean if component == "roughness" else mean
     line = (f"filter(lambda_s={_fmt(ls)}, lambda_c={_fmt(lc)} {units}, form={form!r}, component={component!r}, "
             f"end={end!r}, {'areal ISO 16610-61' if len(dims) == 2 else f'profiles along {dims[0]} ISO 16610-21'})")
-    nonperiodic = breaks and periodic
-    if nonperiodic:
-        line += "; periodic set to 0"
-    res = replace_heights(obj, out, line, nonperiodic=nonperiodic)
+    res = replace_heights(obj, out, line, nonperiodic=breaks and periodic)
     res.attrs.update(lambda_s=float("nan") if ls is None else ls, lambda_c=float("nan") if lc is None else lc)
     return res
 

@@ -67,10 +67,7 @@ def detrend(obj, mode: Annotated[str, Choice(*_poly.DEGREES)] = "plane", per_lin
         kernel, kwargs = _poly.subtract_polynomial_1d, {"x": _positions(h, X), "degree": degree}
     out = apply_lateral(kernel, h, output_core_dims=[dims], height_power=(1,), heights_out=True, what="detrend",
                         kwargs=kwargs)
-    line = f"detrend(mode={mode!r}, per_line={bool(per_line)})"
-    if breaks_periodicity:
-        line += "; periodic set to 0"
-    return _finish(obj, out, line, nonperiodic=breaks_periodicity)
+    return _finish(obj, out, f"detrend(mode={mode!r}, per_line={bool(per_line)})", nonperiodic=breaks_periodicity)
 
 
 def fill_missing(obj):
