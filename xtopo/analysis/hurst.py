@@ -218,10 +218,9 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
     slope, intercept, stderr, npts = xr.apply_ufunc(
         fit, sub[xdim], sub, input_core_dims=[[xdim], [xdim]], output_core_dims=[[], [], [], []],
         dask="parallelized", output_dtypes=[float, float, float, int])
-    h = to_h(slope)
     factor = abs(to_h(1.0) - to_h(0.0))
     ds = xr.Dataset({
-        "hurst": h.assign_attrs(units="1", long_name="Hurst exponent"),
+        "hurst": to_h(slope).assign_attrs(units="1", long_name="Hurst exponent"),
         "hurst_stderr": (stderr * factor).assign_attrs(units="1", long_name="standard error of the Hurst exponent"),
         "prefactor": np.exp(intercept).assign_attrs(
             units=f"{length_units}^({pref_power})",

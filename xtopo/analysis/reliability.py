@@ -118,7 +118,6 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
     tip = _attr_length(obj, "tip_radius", units)
     if tip is None:
         return xr.DataArray(np.nan, name="reliability_cutoff", attrs=dict(attrs, method="none"))
-    threshold = c / tip
     h = prep.h
     dims = [dim for dim in prep.lat if (h.sizes[dim] - 1) / 2 >= 1]
     if not dims:
@@ -126,7 +125,7 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
                         f"{' or '.join(repr(d) for d in prep.lat)}, these data have {dict(h.sizes)}; remove the "
                         "'tip_radius' attribute or pass reliable=False")
     kw = dict(lat=tuple(prep.lat), dims=tuple(dims), spacings={d: prep.spacing(d) for d in dims},
-              periodic=prep.periodic, threshold=threshold)
+              periodic=prep.periodic, threshold=c / tip)
     if h.chunks is None:
         cut = _tip_cutoff(h, **kw)
     else:  # one task per chunk, not a chain of dask arrays: building those dominated twins of many files
@@ -168,8 +167,7 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
         return result
     x = result[coord]
     if cut.ndim == 0 and cut.chunks is None:
-        value = float(cut)
-        attrs["reliability_cutoff"] = value
+        attrs["reliability_cutoff"] = value = float(cut)
         out = result.sel({coord: reliable_scales(x, value, kind).values})
         out.attrs = attrs
         return out
