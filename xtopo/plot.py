@@ -256,16 +256,14 @@ def topography(obj: Annotated[xr.Dataset | xr.DataArray, Data()], *,
     if len(lat) == 2:
         el = hv.Image((coords[X], coords[Y], z), kdims=[dims[X], dims[Y]], vdims=[vdim],
                       label="").relabel(group="Topography" if name == "height" else "Map")
-        el = _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
-                    bokeh=dict(tools=["hover"], toolbar="above", **_frame(coords[X], coords[Y])),
-                    matplotlib=dict(fig_inches=5, aspect="equal"))
-    else:
-        el = hv.Curve((coords[X], z), kdims=[dims[X]], vdims=[vdim])
-        el = _style(el, common=dict(title=label, color="#1f77b4"),
-                    bokeh=dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 150, line_width=1, tools=["hover"],
-                               toolbar="above"),
-                    matplotlib=dict(linewidth=1, aspect=1.8))
-    return el
+        return _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
+                      bokeh=dict(tools=["hover"], toolbar="above", **_frame(coords[X], coords[Y])),
+                      matplotlib=dict(fig_inches=5, aspect="equal"))
+    el = hv.Curve((coords[X], z), kdims=[dims[X]], vdims=[vdim])
+    return _style(el, common=dict(title=label, color="#1f77b4"),
+                  bokeh=dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 150, line_width=1, tools=["hover"],
+                             toolbar="above"),
+                  matplotlib=dict(linewidth=1, aspect=1.8))
 
 
 @checked
