@@ -377,10 +377,8 @@ def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title:
     x = np.asarray(da[coord].values, dtype=float)
     rows = da.values.reshape(-1, x.size)
     others = [d for d in da.dims if d != coord]
-    keys = [""]
-    if others:
-        keys = [", ".join(str(da[d].values[i]) if d in da.coords else f"{d}={i}" for d, i in zip(others, idx))
-                for idx in np.ndindex(*[da.sizes[d] for d in others])]
+    keys = [", ".join(str(da[d].values[i]) if d in da.coords else f"{d}={i}" for d, i in zip(others, idx))
+            for idx in np.ndindex(*[da.sizes[d] for d in others])]  # one empty key without other dims
     elements, wave = [], CURVE_COORDS[coord] == "wavevector"
     for k, (key, row) in enumerate(zip(keys, rows)):
         xs, ys = _positive(x, row.astype(float))
