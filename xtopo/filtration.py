@@ -32,10 +32,9 @@ import xarray as xr
 
 from ._apply import apply_lateral
 from ._kernels import gaussian_filter as _gauss
-from ._kernels import polyfit as _poly
 from .conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, length_factor, \
     shared_length_unit, spacing
-from ._heights import fit_positions, replace_heights
+from ._heights import replace_heights, subtract_polynomial
 from .errors import GridError, UnitsError, XtopoError
 from .params import Choice, Kind, Refused, checked
 
@@ -130,20 +129,11 @@ def _lowpass(h, dims, cutoff, periodic, end="normalized"):
                                  "periodic": periodic, "order": END_CORRECTIONS[end]}).transpose(*h.dims)
 
 
-def _form_removed(h, dims, degree):
-    if len(dims) == 2:
-        kernel, kwargs = _poly.subtract_polynomial_2d, {"y": fit_positions(h, Y), "x": fit_positions(h, X)}
-    else:
-        kernel, kwargs = _poly.subtract_polynomial_1d, {"x": fit_positions(h, dims[0])}
-    return apply_lateral(kernel, h, core_dims=dims, output_core_dims=[dims], what="filter",
-                         kwargs=dict(kwargs, degree=degree)).transpose(*h.dims)
-
-
 def _auto_lambda_c(h, dims, degree, units, periodic):
     """λc by the ISO 4288 procedure: Ra measured with a trial cut-off (0.8 mm first), then the table's class."""
     lc = CUTOFFS_MM[2] * length_factor("mm", units)
     tried = []
-    base = _form_removed(h, dims, degree) if degree is not None else h
+    base = subtract_polynomial(h, dims, degree, "filter") if degree is not None else h
     longest = min(h.sizes[d] * spacing(h, d) for d in dims)
     for _ in range(len(CUTOFFS_MM)):
         tried.append(lc)
@@ -266,7 +256,7 @@ def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
         out = _lowpass(out, dims, ls, periodic, end)
     breaks = degree is not None and degree > 0
     if degree is not None:
-        out = _form_removed(out, dims, degree)
+        out = subtract_polynomial(out, dims, degree, "filter")
     if lc is not None:
         mean = _lowpass(out, dims, lc, periodic and not breaks, end)
         out = out - mean if component == "roughness" else mean
