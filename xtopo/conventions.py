@@ -342,12 +342,13 @@ def length_attr(obj, key: str):
     return val
 
 
-def _check_height_values(h: xr.DataArray) -> xr.DataArray:
-    """``h`` if it holds real numbers (not complex, text or bool) and at least one point, else a ValidationError."""
+def _check_height_values(h, error: type[ValidationError | GridError] = ValidationError):
+    """``h`` (a DataArray or an array) if it holds real numbers (not complex, text or bool) and at least one point,
+    else an ``error``."""
     if h.dtype.kind not in "iuf":
-        raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
+        raise error(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
     if h.size == 0:
-        raise ValidationError(f"{HEIGHT!r} has no points (shape {h.shape})")
+        raise error(f"{HEIGHT!r} has no points (shape {h.shape})")
     return h
 
 
@@ -451,10 +452,7 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
     h = np.asarray(height)
     if h.ndim not in (1, 2):
         raise GridError(f"height must be 1D or 2D, got shape {h.shape}")
-    if h.dtype.kind not in "fiu":
-        raise GridError(f"height must be numeric, got dtype {h.dtype}")
-    if h.size == 0:
-        raise GridError(f"height has no points (shape {h.shape})")
+    _check_height_values(h, GridError)
     h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
     if height_scale == 0:
         raise ValidationError("height_scale must be a finite number other than 0 (it multiplies the heights), got 0")
