@@ -80,8 +80,7 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         (per profile for 1D), so Parseval holds exactly without a window.
     """
     prep = prepare(obj)
-    u = prep.units
-    h = prep.h
+    h, u = prep.h, prep.units
     win = window == "hann" or (window == "auto" and not prep.periodic)
     qunits = f"{u}-1"
     params = dict(kind=kind, window="hann" if win else "none", convention=convention)

@@ -110,7 +110,7 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
         along every lateral dim (no curvature can be formed).
     """
     prep = prepare(obj)
-    units = prep.units
+    h, units = prep.h, prep.units
     attrs = {"units": units, "long_name": "short reliability cutoff"}
     res = _attr_length(obj, "resolution", units)
     if res is not None:
@@ -118,7 +118,6 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
     tip = _attr_length(obj, "tip_radius", units)
     if tip is None:
         return xr.DataArray(np.nan, name="reliability_cutoff", attrs=dict(attrs, method="none"))
-    h = prep.h
     dims = [dim for dim in prep.lat if (h.sizes[dim] - 1) / 2 >= 1]
     if not dims:
         raise GridError(f"reliability_cutoff: the tip-radius criterion (eq. 13) needs at least 3 points along "
