@@ -226,9 +226,8 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
             units=f"{length_units}^({pref_power})",
             long_name=f"power-law prefactor of {analysis} ({units} at unit abscissa)"),
         "npoints": npts.assign_attrs(units="1", long_name="number of points in the fit"),
-    })
-    ds.attrs = {"analysis": analysis, "fit_scale_min": float(lo), "fit_scale_max": float(hi),
-                "fit_scale_units": length_units, "abscissa": xdim}
+    }, attrs={"analysis": analysis, "fit_scale_min": float(lo), "fit_scale_max": float(hi),
+              "fit_scale_units": length_units, "abscissa": xdim})
     if size is None:  # fitted to a given result: its own history says how it was computed
         return provenance(ds, obj, "hurst", scale_range=scale_range)
     return provenance(ds, obj, "hurst", method=method, kind=kind, dim=dim, scale_range=scale_range, reliable=reliable)
