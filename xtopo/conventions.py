@@ -116,8 +116,7 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: Annotated[str, LengthUn
             sources.add(u)
             scaled = (var * length_factor(u, to)).assign_attrs(_scale_attr_units(var.attrs, u, to))
             if isinstance(obj, xr.DataArray):
-                obj = scaled
-                obj.name = ds.name
+                obj = scaled  # arithmetic keeps the name
             else:
                 obj[var.name] = scaled
     for key in LENGTH_ATTRS:
