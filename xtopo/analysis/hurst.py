@@ -193,11 +193,10 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
         scale = np.where(x > 0, 2 * np.pi / np.where(x > 0, x, 1.0), np.inf) if is_q else x
     if scale_range is None:
         if size is None:
-            pos = x[(x > 0) & _reliable(da, x, is_q)]
-            if not pos.size:
+            sc = scale[(x > 0) & _reliable(da, x, is_q)]
+            if not sc.size:
                 raise XtopoError(f"the {analysis} result has no reliable point at a positive {xdim}: "
                                  "nothing to fit")
-            sc = 2 * np.pi / pos if is_q else pos
             lo, hi = sc.min() * (2 if is_q else 4), sc.max() / (2 if is_q else 8)
         else:
             # the ends of each curve carry known biases: VBM blocks of a few pixels
