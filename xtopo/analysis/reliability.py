@@ -43,9 +43,10 @@ def _attr_length(obj, key, units):
 def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarray:
     """Largest distance at which ``curv > threshold``, refined by log-log interpolation to the next point."""
     rows = curv.reshape(-1, curv.shape[-1])
+    bad = rows > threshold
     res = np.zeros(rows.shape[0])
     for i, c in enumerate(rows):  # loop over the batch only
-        idx = np.flatnonzero(c > threshold)
+        idx = np.flatnonzero(bad[i])
         if idx.size == 0:  # 0: the tip limits no scale
             continue
         j = idx[-1]
