@@ -145,15 +145,13 @@ def downsample(da: Annotated[xr.DataArray, Data("DataArray")],
     factors = {d: math.ceil(da.sizes[d] / max_pixels) for d in LATERAL_DIMS if d in da.dims}
     factors = {d: f for d, f in factors.items() if f > 1}
     if da.dtype == bool:
-        da = da.astype(float).assign_attrs(da.attrs)
+        da = da.astype(float)  # keeps the name and attrs
     if not factors:
         return da
     with warnings.catch_warnings(), np.errstate(all="ignore"):  # all-NaN blocks
         warnings.simplefilter("ignore", RuntimeWarning)
-        out = da.coarsen(factors, boundary="trim").mean(keep_attrs=True)
-    out.name = da.name
-    out.attrs = dict(da.attrs, downsampled=f"block mean over {factors}")
-    return out
+        out = da.coarsen(factors, boundary="trim").mean(keep_attrs=True)  # keeps the name too
+    return out.assign_attrs(downsampled=f"block mean over {factors}")
 
 
 def _cmap(cmap):
