@@ -121,13 +121,11 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         out = out.assign_coords(q=length_coord("q", plan.centers, qunits, "magnitude of the angular wavevector"))
         if equivalent_1d:
             out = out * (out["q"] / np.pi)
-            out = finish(out, "psd", f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)", prep,
-                         equivalent_1d=1, **params)
-        else:
-            if convention == "persson":
-                out = out / (4 * np.pi**2)
-            out = finish(out, "psd", f"{u}4", "radially averaged 2D power spectral density Ciso", prep,
-                         equivalent_1d=0, **params)
+        elif convention == "persson":
+            out = out / (4 * np.pi**2)
+        units, name = ((f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)") if equivalent_1d else
+                       (f"{u}4", "radially averaged 2D power spectral density Ciso"))
+        out = finish(out, "psd", units, name, prep, equivalent_1d=int(equivalent_1d), **params)
     if kind == "2d":
         out.attrs.update(reliable=0, reliability_note="2D maps are not cut; use kind='iso' or '1d'")
     else:
