@@ -553,10 +553,8 @@ def contact_area(results, *, labels: Annotated[dict | None, Dict()] = None, titl
                 else np.ones(xv.shape, dtype=bool))
         ok = (xv > 0) & (yv > 0)
         color = PALETTE[k % len(PALETTE)]
-        if x == "mean_pressure" and ds[x].attrs.get("units") == "E*":
-            xdim = hv.Dimension(x, label="mean pressure p/E*")
-        else:
-            xdim = _dimension(x, ds[x].attrs)
+        relative = x == "mean_pressure" and ds[x].attrs.get("units") == "E*"  # p/E*: its unit is in the label
+        xdim = _dimension(x, ds[x].attrs, "mean pressure p/E*" if relative else None, "1" if relative else None)
         ydim = _dimension(y, ds[y].attrs, label="relative contact area A/A₀" if y == "area_fraction" else None)
         name = _safe_label(labels.get(key, key), xdim, ydim)
         elements.append(_line((xv[ok], yv[ok]), xdim, ydim, name, 1, color=color))
