@@ -158,8 +158,5 @@ def open_twin(path: Annotated[str, Path("file path")], engine: str | None = None
         raise ReaderError(path, f"not a readable twin archive: {exc}") from None
     with tree:
         loaded = tree.load()
-    out = {}
-    for node in loaded.subtree:
-        ds = node.to_dataset(inherit=False).drop_encoding()
-        out[node.path] = freeze(ds) if "height" in ds else ds
-    return xr.DataTree.from_dict(out)
+    nodes = {node.path: node.to_dataset(inherit=False).drop_encoding() for node in loaded.subtree}
+    return xr.DataTree.from_dict({key: freeze(ds) if "height" in ds else ds for key, ds in nodes.items()})
