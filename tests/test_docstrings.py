@@ -98,7 +98,7 @@ def strict_items():
         obj = getattr(xtopo, name)
         if inspect.isfunction(obj):
             yield f"xtopo.{name}", obj
-    for cls in (accessors.TopoDatasetAccessor, accessors.TopoDataArrayAccessor, accessors.TopoTreeAccessor):
+    for cls in (accessors.TopoAccessor, accessors.TopoTreeAccessor):
         for name in dir(cls):
             member = getattr(cls, name)
             if not name.startswith("_") and inspect.isfunction(member):

@@ -25,32 +25,26 @@ __all__ = [
     "ValidationError", "ContactError", "WriteError", "ConvergenceWarning", "MetadataWarning", "UndefinedValueWarning",
 ]
 
-#: public name → (module, attribute or None for the module itself), imported on first access
-_LAZY = {
-    "conventions": (".conventions", None), "datasets": (".datasets", None), "cache": (".cache", None),
-    "io": (".io", None), "preprocess": (".preprocess", None), "batch": (".batch", None),
-    "contact": (".contact", None), "analysis": (".analysis", None), "plot": (".plot", None),
-    "stitching": (".stitching", None), "twins": (".twins", None), "accessors": (".accessors", None),
-    "make_measurement": (".conventions", "make_measurement"), "validate": (".conventions", "validate"),
-    "open_topography": (".io", "open_topography"), "open_contact": (".io", "open_contact"),
-    "to_netcdf": (".io", "to_netcdf"), "to_container": (".io", "to_container"), "twin": (".twins", "twin"),
-    "open_twin": (".twins", "open_twin"),
-}
+#: public functions → their module, and the submodules listed by ``dir(xtopo)``: imported on first access
+_FUNCTIONS = {"make_measurement": ".conventions", "validate": ".conventions", "open_topography": ".io",
+              "open_contact": ".io", "to_netcdf": ".io", "to_container": ".io", "twin": ".twins", "open_twin": ".twins"}
+_MODULES = ("conventions", "datasets", "cache", "io", "preprocess", "batch", "contact", "analysis", "plot",
+            "stitching", "twins", "accessors")
 
 
 def __getattr__(name):
-    module, attr = _LAZY.get(name, (f".{name}", None))  # any submodule: xtopo.summary, xtopo.report, ...
+    module = _FUNCTIONS.get(name, f".{name}")  # any submodule: xtopo.summary, xtopo.report, ...
     try:
         value = importlib.import_module(module, __name__)
     except ModuleNotFoundError as exc:
         if exc.name != f"{__name__}{module}":
             raise
         raise AttributeError(f"module 'xtopo' has no attribute {name!r}") from None
-    return value if attr is None else getattr(value, attr)
+    return getattr(value, name) if name in _FUNCTIONS else value
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_FUNCTIONS) | set(_MODULES))
 
 
 def _command_line() -> bool:

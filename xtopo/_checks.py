@@ -37,12 +37,7 @@ def per_axis(value, ndim: int, name: str, *, sign: str = "positive") -> np.ndarr
 
     ``sign``: ``"positive"`` (sizes), ``"non-negative"`` (offsets) or ``"any"`` (positions).
     """
-    v = None
-    if not isinstance(value, (str, bytes, bool, np.bool_)):
-        try:
-            v = np.asarray(value, dtype=float)
-        except (TypeError, ValueError, OverflowError):
-            v = None
+    v = None if isinstance(value, (bool, np.bool_)) else real_array(value)  # True is not the length 1
     ok = v is not None and v.ndim <= 1 and (v.ndim == 0 or v.size in (1, ndim)) and np.all(np.isfinite(v))
     if ok and sign != "any":
         ok = bool(np.all(v > 0) if sign == "positive" else np.all(v >= 0))

@@ -42,10 +42,8 @@ def _base(units: str):
 
 def _prefix(largest: float, power: int):
     shown = float(f"{largest:.4g}") if largest > 0 else 0.0
-    for name, f in _PREFIXES:
-        if shown >= f ** power * (1 - 1e-12):
-            return name, f ** power
-    return _PREFIXES[-1][0], _PREFIXES[-1][1] ** power
+    name, f = next(((n, f) for n, f in _PREFIXES if shown >= f ** power * (1 - 1e-12)), _PREFIXES[-1])
+    return name, f ** power
 
 
 def format_quantities(values, units: str, *, digits: int = 4, sep: str = " … ") -> str:

@@ -6,10 +6,12 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .conventions import HEIGHT, append_history
+from ._apply import apply_lateral
+from ._kernels import polyfit as _poly
+from .conventions import HEIGHT, X, Y, append_history
 from .errors import GridError
 
-__all__ = ["fit_positions", "replace_heights"]
+__all__ = ["fit_positions", "subtract_polynomial", "replace_heights"]
 
 
 def fit_positions(h, dim):
@@ -23,11 +25,25 @@ def fit_positions(h, dim):
     return v
 
 
+def subtract_polynomial(h, dims, degree: int, what: str, per_line: bool = False, **options):
+    """``h`` minus its least-squares polynomial of ``degree`` in the positions: over the map for both lateral
+    ``dims`` (each row's own with ``per_line``), along each profile for one; ``options`` go to ``apply_lateral``."""
+    if len(dims) == 2:
+        kernel, kwargs = _poly.subtract_polynomial_2d, {"y": fit_positions(h, Y), "x": fit_positions(h, X),
+                                                        "per_line": per_line}
+    else:
+        kernel, kwargs = _poly.subtract_polynomial_1d, {"x": fit_positions(h, dims[0])}
+    return apply_lateral(kernel, h, core_dims=dims, output_core_dims=[dims], what=what,
+                         kwargs=dict(kwargs, degree=degree), **options).transpose(*h.dims)
+
+
 def replace_heights(obj, result, line: str, *, nonperiodic: bool = False):
     """Put ``result`` (the new heights) back into a Dataset/DataArray like ``obj``.
 
-    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0.
+    ``nonperiodic``: the new heights are no longer periodic; attr ``periodic`` becomes 0 (the history ``line`` says so).
     """
+    if nonperiodic:
+        line += "; periodic set to 0"
     h_in = obj[HEIGHT] if isinstance(obj, xr.Dataset) else obj
     # h_in's coordinates with their attrs (units, spacing); apply_ufunc drops coordinate attrs
     result = h_in.copy(data=result.transpose(*h_in.dims).data)

@@ -63,6 +63,4 @@ def normalize_units(units) -> str:
 def length_factor(from_units: str, to_units: str) -> float:
     """Factor that converts a length in ``from_units`` to ``to_units``."""
     f, t = normalize_units(from_units), normalize_units(to_units)
-    if f == t:
-        return 1.0
-    return _length_in_m(f) / _length_in_m(t)
+    return 1.0 if f == t else _length_in_m(f) / _length_in_m(t)

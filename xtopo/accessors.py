@@ -46,7 +46,11 @@ class _Accessor:
         self._obj = xarray_obj
 
 
-class _TopoAccessor(_Accessor):
+@xr.register_dataset_accessor("topo")
+@xr.register_dataarray_accessor("topo")
+class TopoAccessor(_Accessor):
+    """``ds.topo`` and ``da.topo``: analyses of a measurement Dataset or of a height DataArray."""
+
     __slots__ = ()
 
     # foundation (issue 2)
@@ -87,20 +91,6 @@ class _TopoAccessor(_Accessor):
     def periodic(self) -> bool:
         """Whether the measurement is periodic (attr ``periodic``)."""
         return conventions.is_periodic(self._obj)
-
-
-@xr.register_dataset_accessor("topo")
-class TopoDatasetAccessor(_TopoAccessor):
-    """``ds.topo``: analyses of a measurement Dataset."""
-
-    __slots__ = ()
-
-
-@xr.register_dataarray_accessor("topo")
-class TopoDataArrayAccessor(_TopoAccessor):
-    """``da.topo``: analyses of a height DataArray."""
-
-    __slots__ = ()
 
 
 @xr.register_datatree_accessor("topo")

@@ -372,6 +372,7 @@ def _add_scene_options(p) -> None:
 
 
 def _add_batch_options(p) -> None:
+    p.add_argument("files", nargs="+", help="measurement files")
     g = p.add_argument_group("execution")
     g.add_argument("--scheduler", default="local",
                    help="'local' (a local cluster of --workers processes; default), 'threads', 'processes', "
@@ -417,7 +418,6 @@ def add_commands(sub) -> None:
     pb.set_defaults(func=lambda args: (pb.print_help(), 2)[1])
     p = bsub.add_parser("contact", help="contact at several loads for each file",
                         description="Contact of every file at every load (dims measurement × load).")
-    p.add_argument("files", nargs="+", help="measurement files")
     _add_control_options(p)
     p.add_argument("--maps", action="store_true", help="keep pressure/gap maps (large); default scalars only")
     _add_scene_options(p)
@@ -425,7 +425,6 @@ def add_commands(sub) -> None:
     p.set_defaults(func=_cmd_batch_contact)
     p = bsub.add_parser("analyze", help="analyses of each file",
                         description="Run analyses (default: scalars) on every file (dim measurement).")
-    p.add_argument("files", nargs="+", help="measurement files")
     p.add_argument("--analyses", nargs="+", default=["scalars"], metavar="NAME",
                    help="xtopo.analysis modules to run (default: scalars)")
     add_probe_options(p)

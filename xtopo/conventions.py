@@ -116,8 +116,7 @@ def convert_length(ds: xr.Dataset | xr.DataArray, units: Annotated[str, LengthUn
             sources.add(u)
             scaled = (var * length_factor(u, to)).assign_attrs(_scale_attr_units(var.attrs, u, to))
             if isinstance(obj, xr.DataArray):
-                obj = scaled
-                obj.name = ds.name
+                obj = scaled  # arithmetic keeps the name
             else:
                 obj[var.name] = scaled
     for key in LENGTH_ATTRS:
@@ -271,8 +270,7 @@ def physical_size(obj, dim: str = X) -> float:
     if is_nonuniform(obj) and isinstance(dim, str) and dim in obj.coords:
         v = np.asarray(obj.coords[dim].values, dtype=float)
         return float(v[-1] - v[0])
-    d = spacing(obj, dim)  # checks obj and dim first
-    return obj.sizes[dim] * d
+    return spacing(obj, dim) * obj.sizes[dim]  # spacing checks obj and dim first
 
 
 def is_periodic(obj) -> bool:
@@ -343,12 +341,13 @@ def length_attr(obj, key: str):
     return val
 
 
-def _check_height_values(h: xr.DataArray) -> xr.DataArray:
-    """``h`` if it holds real numbers (not complex, text or bool) and at least one point, else a ValidationError."""
+def _check_height_values(h, error: type[ValidationError | GridError] = ValidationError):
+    """``h`` (a DataArray or an array) if it holds real numbers (not complex, text or bool) and at least one point,
+    else an ``error``."""
     if h.dtype.kind not in "iuf":
-        raise ValidationError(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
+        raise error(f"{HEIGHT!r} must hold real numbers, got dtype {h.dtype}")
     if h.size == 0:
-        raise ValidationError(f"{HEIGHT!r} has no points (shape {h.shape})")
+        raise error(f"{HEIGHT!r} has no points (shape {h.shape})")
     return h
 
 
@@ -376,11 +375,8 @@ def height_of(obj) -> xr.DataArray:
         h = h.where(~obj[MASK].astype(bool))
     else:  # a new variable: the attrs set below must not land on the Dataset's own height
         h = h.copy(deep=False)
-    attrs = dict(obj[HEIGHT].attrs)
-    for key in MEASUREMENT_ATTRS:
-        if key in obj.attrs and key not in attrs:
-            attrs[key] = obj.attrs[key]
-    h.attrs = attrs
+    own = obj[HEIGHT].attrs
+    h.attrs = {**own, **{k: obj.attrs[k] for k in MEASUREMENT_ATTRS if k in obj.attrs and k not in own}}
     h.name = HEIGHT
     return h
 
@@ -455,10 +451,7 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
     h = np.asarray(height)
     if h.ndim not in (1, 2):
         raise GridError(f"height must be 1D or 2D, got shape {h.shape}")
-    if h.dtype.kind not in "fiu":
-        raise GridError(f"height must be numeric, got dtype {h.dtype}")
-    if h.size == 0:
-        raise GridError(f"height has no points (shape {h.shape})")
+    _check_height_values(h, GridError)
     h = h.astype(np.float64 if h.dtype.kind in "iu" or h.dtype.itemsize > 4 else h.dtype, copy=False)
     if height_scale == 0:
         raise ValidationError("height_scale must be a finite number other than 0 (it multiplies the heights), got 0")
@@ -487,9 +480,8 @@ def make_measurement(height, *, size=None, spacing=None, x=None, units: Annotate
         else:
             sp = per_axis(size, h.ndim, "size") / np.asarray(n, dtype=float)
         for dim, ni, d in zip(dims, n, sp):
-            c = length_coord(dim, np.arange(ni) * d, units, _LONG_NAMES[dim], axis=dim.upper())
-            c.attrs["spacing"] = float(d)
-            coords[dim] = c
+            coords[dim] = length_coord(dim, np.arange(ni) * d, units, _LONG_NAMES[dim], axis=dim.upper(),
+                                       spacing=float(d))
     missing = ~np.isfinite(h)
     if mask is not None:
         m = np.asarray(mask, dtype=bool)

@@ -45,9 +45,8 @@ class Shape(Kind):
 
     def convert(self, shape):
         items = np.asarray(shape, dtype=object).ravel() if np.ndim(shape) <= 1 else ()
-        count = Count()
         try:
-            out = tuple(count.convert(n) for n in items)
+            out = tuple(Count().convert(n) for n in items)
         except Refused:
             out = ()
         if len(out) not in (1, 2):
@@ -108,8 +107,7 @@ class FractalPSD:
 
     def c_native(self, q):
         """The PSD in the surface's own dimension (C_iso for areas, C1D for lines)."""
-        exponent = -2 - 2 * self.hurst if self.dim == 2 else -1 - 2 * self.hurst
-        return self.prefactor * self._shape(q, exponent)
+        return self.prefactor * self._shape(q, -self.dim - 2 * self.hurst)
 
     def c_iso(self, q):
         """Radially averaged 2D PSD (area surfaces only)."""
@@ -126,12 +124,11 @@ class FractalPSD:
         kmax = np.sqrt(np.maximum(self.q_short**2 - q**2, 0.0)) if np.isfinite(self.q_short) else None
         # Gauss-Legendre in t with k = q_ref * sinh(t) resolves the kink at q_L and the tail.
         t, w = _gauss_legendre(nodes)
-        out = np.empty_like(q)
+        out = np.zeros_like(q)
         for i, qi in enumerate(q):
             scale = max(qi, self.q_long, 1e-300)
             tmax = np.arcsinh(kmax[i] / scale) if kmax is not None else np.arcsinh(1e8)
             if tmax <= 0:
-                out[i] = 0.0
                 continue
             tt = 0.5 * tmax * (t + 1)
             k = scale * np.sinh(tt)
@@ -194,18 +191,8 @@ def prescribed_psd(ds) -> FractalPSD:
 
 def _grid_q(shape, spacings):
     """|q| on an rfft grid and the per-mode symbols of the forward difference."""
-    if len(shape) == 1:
-        qx = wavevectors(shape[0], spacings[0], real=True)
-        return np.abs(qx), [(qx, spacings[0])]
-    qy = wavevectors(shape[0], spacings[0])[:, None]
-    qx = wavevectors(shape[1], spacings[1], real=True)[None, :]
-    return np.sqrt(qx**2 + qy**2), [(qy, spacings[0]), (qx, spacings[1])]
-
-
-def _rfft_weights(shape):
-    """Multiplicity of each rfft mode in the full spectrum (1 or 2)."""
-    n = shape[-1]
-    return np.broadcast_to(rfft_multiplicity(n), tuple(shape[:-1]) + (n // 2 + 1,))
+    qs = np.ix_(*[wavevectors(n, d, real=k == len(shape) - 1) for k, (n, d) in enumerate(zip(shape, spacings))])
+    return np.sqrt(sum(q**2 for q in qs)), list(zip(qs, spacings))
 
 
 _HURST = Real(0.0, 1.0, closed=False)
@@ -265,7 +252,7 @@ def fractal_surface(shape: Annotated[tuple, Shape()], size, *, hurst: Annotated[
     qabs, symbols = _grid_q(gshape, spacings)
     c = psd.c_native(qabs)
     area = float(np.prod(gsize))
-    weights = _rfft_weights(gshape)
+    weights = rfft_multiplicity(gshape[-1])  # of each rfft mode in the full spectrum (1 or 2)
     # Expected measured quantity per unit prefactor (discrete Parseval, paper eq. 1-2): Sq², or SΔq² with the
     # squared symbols of the forward difference
     d2 = 1.0 if rms_slope is None else sum(np.abs(fourier_first(q, dx)) ** 2 for q, dx in symbols)
@@ -341,10 +328,9 @@ def sphere(shape: Annotated[tuple, Shape()], size, radius: Annotated[float, Posi
     axes = [np.arange(n) * d - c for n, d, c in zip(shape, sp, center)]
     r2 = sum(a**2 for a in np.meshgrid(*axes, indexing="ij"))
     h = np.sqrt(np.maximum(radius**2 - r2, 0.0)) - radius if kind == "sphere" else -r2 / (2 * radius)
-    ds = make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
-                          title=f"{kind} R={radius:g} {units}", source="xtopo.datasets.sphere")
-    ds.attrs["sphere_radius"] = float(radius)
-    return ds
+    return make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
+                            title=f"{kind} R={radius:g} {units}", source="xtopo.datasets.sphere",
+                            sphere_radius=float(radius))
 
 
 @checked
@@ -364,10 +350,9 @@ def sinusoid(shape: Annotated[tuple, Shape()], size, *, amplitude: Annotated[flo
     axes = np.meshgrid(*[np.arange(n) * d for n, d in zip(shape, sp)], indexing="ij")
     chosen = {"x": axes[-1:], "y": axes[:1], "xy": axes[::-1]}[direction]
     h = amplitude * sum(np.cos(2 * np.pi * a / lam) for a in chosen)
-    ds = make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
-                          title=f"sinusoid λ={lam:g} {units}", source="xtopo.datasets.sinusoid")
-    ds.attrs.update(sinusoid_amplitude=float(amplitude), sinusoid_wavelength=lam)
-    return ds
+    return make_measurement(h, spacing=tuple(sp) if len(shape) == 2 else sp[0], units=units, periodic=periodic,
+                            title=f"sinusoid λ={lam:g} {units}", source="xtopo.datasets.sinusoid",
+                            sinusoid_amplitude=float(amplitude), sinusoid_wavelength=lam)
 
 
 def _tip_reach(h: np.ndarray, radius: float) -> float:
@@ -406,7 +391,7 @@ def _tip_dilate(h: np.ndarray, spacings, radius: float) -> np.ndarray:
     return out
 
 
-def _missing_patches(shape, fraction: float, rng, patch: int | None = None) -> np.ndarray:
+def _missing_patches(shape, fraction: float, rng) -> np.ndarray:
     """Boolean mask with roughly ``fraction`` of the points in compact random patches."""
     mask = np.zeros(shape, dtype=bool)
     if fraction <= 0:
@@ -416,7 +401,7 @@ def _missing_patches(shape, fraction: float, rng, patch: int | None = None) -> n
     target = int(round(fraction * np.prod(shape)))
     # patches scale with the shorter axis; an axis of one pixel (a 1×N map) would make them single
     # points, and covering a large fraction with those takes ~N log N draws of O(N) each
-    patch = patch or max(1, int(0.05 * min([n for n in shape if n > 1] or [1])))
+    patch = max(1, int(0.05 * min([n for n in shape if n > 1] or [1])))
     while mask.sum() < target:
         centre = [rng.integers(0, n) for n in shape]
         radius = rng.uniform(0.5, 1.0) * patch
@@ -521,10 +506,9 @@ def measure(surface: xr.Dataset, *, size=None, pixels: Annotated[tuple | None, S
     ds = make_measurement(np.where(missing, np.nan, sampled), spacing=tuple(new_sp) if sampled.ndim == 2 else new_sp[0],
                           units=units, periodic=False, tip_radius=tip_radius, resolution=resolution,
                           instrument=instrument, source="xtopo.datasets.measure")
+    # the ground truth's PSD (a profile of an area surface keeps psd_dim 2: compare with FractalPSD.c1d)
     ds.attrs.update({key: surface.attrs[key] for key in ("psd_hurst", "psd_prefactor", "psd_long_cutoff",
                                                           "psd_short_cutoff", "psd_dim") if key in surface.attrs})
-    if sampled.ndim == 1 and surface.attrs.get("psd_dim") == 2:
-        ds.attrs["psd_dim"] = 2  # a profile of an isotropic area surface: compare with FractalPSD.c1d
     return append_history(ds, f"measure(size={[float(v) for v in size]}, pixels={[int(p) for p in pixels]}, "
                               f"tip_radius={tip_radius}, noise={noise}, missing_fraction={missing_fraction}, seed={seed})")
 

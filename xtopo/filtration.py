@@ -32,10 +32,9 @@ import xarray as xr
 
 from ._apply import apply_lateral
 from ._kernels import gaussian_filter as _gauss
-from ._kernels import polyfit as _poly
 from .conventions import X, Y, height_of, is_nonuniform, is_periodic, lateral_dims, length_factor, \
     shared_length_unit, spacing
-from ._heights import fit_positions, replace_heights
+from ._heights import replace_heights, subtract_polynomial
 from .errors import GridError, UnitsError, XtopoError
 from .params import Choice, Kind, Refused, checked
 
@@ -130,26 +129,16 @@ def _lowpass(h, dims, cutoff, periodic, end="normalized"):
                                  "periodic": periodic, "order": END_CORRECTIONS[end]}).transpose(*h.dims)
 
 
-def _form_removed(h, dims, degree):
-    if len(dims) == 2:
-        kernel, kwargs = _poly.subtract_polynomial_2d, {"y": fit_positions(h, Y), "x": fit_positions(h, X)}
-    else:
-        kernel, kwargs = _poly.subtract_polynomial_1d, {"x": fit_positions(h, dims[0])}
-    return apply_lateral(kernel, h, core_dims=dims, output_core_dims=[dims], what="filter",
-                         kwargs=dict(kwargs, degree=degree)).transpose(*h.dims)
-
-
 def _auto_lambda_c(h, dims, degree, units, periodic):
     """λc by the ISO 4288 procedure: Ra measured with a trial cut-off (0.8 mm first), then the table's class."""
     lc = CUTOFFS_MM[2] * length_factor("mm", units)
     tried = []
-    base = _form_removed(h, dims, degree) if degree is not None else h
+    base = subtract_polynomial(h, dims, degree, "filter") if degree is not None else h
     longest = min(h.sizes[d] * spacing(h, d) for d in dims)
     for _ in range(len(CUTOFFS_MM)):
         tried.append(lc)
         r = base - _lowpass(base, dims, lc, periodic) if lc <= longest else base - base.mean(dims)
-        ra = float(np.abs(r).mean())
-        new = iso_cutoffs(ra, units)[1]
+        new = iso_cutoffs(float(np.abs(r).mean()), units)[1]  # the class of the profiles' Ra
         if new in tried:
             return new
         lc = new
@@ -267,16 +256,13 @@ def filter(obj, lambda_s: Annotated[float | str | None, Cutoff()] = "auto",
         out = _lowpass(out, dims, ls, periodic, end)
     breaks = degree is not None and degree > 0
     if degree is not None:
-        out = _form_removed(out, dims, degree)
+        out = subtract_polynomial(out, dims, degree, "filter")
     if lc is not None:
         mean = _lowpass(out, dims, lc, periodic and not breaks, end)
         out = out - mean if component == "roughness" else mean
     line = (f"filter(lambda_s={_fmt(ls)}, lambda_c={_fmt(lc)} {units}, form={form!r}, component={component!r}, "
             f"end={end!r}, {'areal ISO 16610-61' if len(dims) == 2 else f'profiles along {dims[0]} ISO 16610-21'})")
-    nonperiodic = breaks and periodic
-    if nonperiodic:
-        line += "; periodic set to 0"
-    res = replace_heights(obj, out, line, nonperiodic=nonperiodic)
+    res = replace_heights(obj, out, line, nonperiodic=breaks and periodic)
     res.attrs.update(lambda_s=float("nan") if ls is None else ls, lambda_c=float("nan") if lc is None else lc)
     return res
 

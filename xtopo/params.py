@@ -31,6 +31,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ._checks import real_array
 from ._units import normalize_units
 from .errors import UnitsError, XtopoError
 
@@ -249,14 +250,7 @@ class Numbers(Kind):
         self.expects = f"a number or a 1D sequence of numbers ({what})"
 
     def convert(self, values):
-        v = None
-        if not isinstance(values, (str, bytes)):
-            try:
-                raw = np.asarray(values)
-                if raw.dtype.kind not in "bcSUO":  # True is not the length 1, nor "1" a number
-                    v = np.asarray(raw, dtype=float)
-            except (TypeError, ValueError, OverflowError):
-                v = None
+        v = real_array(values)  # True is not the length 1, nor "1" a number
         if v is None or v.ndim > 1 or (v.size == 0 and not self.empty):
             raise Refused
         bad = v[~(np.isfinite(v) & (v >= self.low) & (v <= self.high))]
@@ -448,7 +442,6 @@ def preflight(func, kwargs: Mapping, where: str | None = None, *, rules: bool = 
                if p.default is not p.empty or p.kind is p.KEYWORD_ONLY or isinstance(func, type)]
     takes_any = any(p.kind is p.VAR_KEYWORD for p in parameters.values())
     unknown = [k for k in kwargs if k not in options and (k in parameters or not takes_any)]
-    prefix = f"{where}: " if where else ""
     if unknown:
         raise XtopoError(f"{where + ' ' if where else ''}has no option {', '.join(map(repr, unknown))}; its options: "
                          f"{', '.join(options) or 'none'}")
@@ -458,5 +451,5 @@ def preflight(func, kwargs: Mapping, where: str | None = None, *, rules: bool = 
         return spec.apply((), dict(kwargs), rules)[1]
     except XtopoError as exc:
         if where:
-            raise type(exc)(f"{prefix}{exc}") from None
+            raise type(exc)(f"{where}: {exc}") from None
         raise

@@ -90,9 +90,7 @@ def _style(element, *, common=None, bokeh=None, matplotlib=None):
 
 def unit_label(units) -> str:
     """Readable form of a UDUNITS string: ``"um"`` → ``"µm"``, ``"m-1"`` → ``"m⁻¹"``, ``"m3"`` → ``"m³"``."""
-    if units is None:
-        return ""
-    u = str(units).strip()
+    u = "1" if units is None else str(units).strip()
     if u == "1":
         return ""
     u = re.sub(r"\bu(?=m)", "µ", u)
@@ -119,18 +117,7 @@ def _display_unit(units: str, magnitude: float) -> str:
     if not (np.isfinite(magnitude) and magnitude > 0):
         return normalize_units(units)
     in_m = magnitude * length_factor(units, "m")
-    for u in _DISPLAY_UNITS:
-        if in_m >= length_factor(u, "m") * (1 - 1e-9):
-            return u
-    return _DISPLAY_UNITS[-1]
-
-
-def _rescaled(values: np.ndarray, units, magnitude: float):
-    """``values`` converted to a readable length unit (unchanged when ``units`` is not a length)."""
-    if not _is_length(units):
-        return values, units
-    to = _display_unit(units, magnitude)
-    return values * length_factor(units, to), to
+    return next((u for u in _DISPLAY_UNITS if in_m >= length_factor(u, "m") * (1 - 1e-9)), _DISPLAY_UNITS[-1])
 
 
 def _title(obj, title):
@@ -138,12 +125,6 @@ def _title(obj, title):
         return str(title)
     a = obj.attrs
     return str(a.get("title") or a.get("instrument") or a.get("long_name") or getattr(obj, "name", "") or "")
-
-
-def _quiet_mean(obj, dims: dict):
-    with warnings.catch_warnings(), np.errstate(all="ignore"):
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return obj.coarsen(dims, boundary="trim").mean(keep_attrs=True)
 
 
 @checked
@@ -164,13 +145,13 @@ def downsample(da: Annotated[xr.DataArray, Data("DataArray")],
     factors = {d: math.ceil(da.sizes[d] / max_pixels) for d in LATERAL_DIMS if d in da.dims}
     factors = {d: f for d, f in factors.items() if f > 1}
     if da.dtype == bool:
-        da = da.astype(float).assign_attrs(da.attrs)
+        da = da.astype(float)  # keeps the name and attrs
     if not factors:
         return da
-    out = _quiet_mean(da, factors)
-    out.name = da.name
-    out.attrs = dict(da.attrs, downsampled=f"block mean over {factors}")
-    return out
+    with warnings.catch_warnings(), np.errstate(all="ignore"):  # all-NaN blocks
+        warnings.simplefilter("ignore", RuntimeWarning)
+        out = da.coarsen(factors, boundary="trim").mean(keep_attrs=True)  # keeps the name too
+    return out.assign_attrs(downsampled=f"block mean over {factors}")
 
 
 def _cmap(cmap):
@@ -254,8 +235,10 @@ def topography(obj: Annotated[xr.Dataset | xr.DataArray, Data()], *,
     units = da.attrs.get("units")
     small = downsample(da, max_pixels if len(lat) == 2 else MAX_POINTS)
     z = small.values.astype(np.float32 if len(lat) == 2 else np.float64)
-    finite = z[np.isfinite(z)]
-    z, zu = _rescaled(z, units, float(np.max(np.abs(finite)))) if finite.size else (z, units)
+    finite, zu = z[np.isfinite(z)], units
+    if finite.size and _is_length(units):  # heights in a readable length unit
+        zu = _display_unit(units, float(np.max(np.abs(finite))))
+        z = z * length_factor(units, zu)
     coords = {d: np.asarray(small[d].values, dtype=float) for d in lat}
     extent = max([0.0] + [float(np.ptp(v)) for v in coords.values()])
     xunits = da[X].attrs.get("units")
@@ -269,18 +252,16 @@ def topography(obj: Annotated[xr.Dataset | xr.DataArray, Data()], *,
     vdim = _dimension(name, da.attrs, units=zu)
     label = _title(da, title)
     if len(lat) == 2:
-        el = hv.Image((coords[X], coords[Y], z.astype(np.float32)), kdims=[dims[X], dims[Y]], vdims=[vdim],
+        el = hv.Image((coords[X], coords[Y], z), kdims=[dims[X], dims[Y]], vdims=[vdim],
                       label="").relabel(group="Topography" if name == "height" else "Map")
-        el = _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
-                    bokeh=dict(tools=["hover"], toolbar="above", **_frame(coords[X], coords[Y])),
-                    matplotlib=dict(fig_inches=5, aspect="equal"))
-    else:
-        el = hv.Curve((coords[X], z), kdims=[dims[X]], vdims=[vdim])
-        el = _style(el, common=dict(title=label, color="#1f77b4"),
-                    bokeh=dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 150, line_width=1, tools=["hover"],
-                               toolbar="above"),
-                    matplotlib=dict(linewidth=1, aspect=1.8))
-    return el
+        return _style(el, common=dict(cmap=cmap, colorbar=True, title=label),
+                      bokeh=dict(tools=["hover"], toolbar="above", **_frame(coords[X], coords[Y])),
+                      matplotlib=dict(fig_inches=5, aspect="equal"))
+    el = hv.Curve((coords[X], z), kdims=[dims[X]], vdims=[vdim])
+    return _style(el, common=dict(title=label, color="#1f77b4"),
+                  bokeh=dict(frame_width=_WIDTH - 80, frame_height=_HEIGHT - 150, line_width=1, tools=["hover"],
+                             toolbar="above"),
+                  matplotlib=dict(linewidth=1, aspect=1.8))
 
 
 @checked
@@ -294,10 +275,8 @@ def spectrum_map(da: Annotated[xr.DataArray, Data("DataArray")], *, max_pixels: 
     small = downsample(da.rename({"q_y": Y, "q_x": X}), max_pixels).rename({Y: "q_y", X: "q_x"})
     z = small.values.astype(np.float32)
     z = np.where(z > 0, z, np.nan)
-    kx = _dimension("q_x", small["q_x"].attrs)
-    ky = _dimension("q_y", small["q_y"].attrs)
-    vdim = _dimension(str(da.name or "psd"), da.attrs)
-    el = hv.Image((small["q_x"].values, small["q_y"].values, z), kdims=[kx, ky], vdims=[vdim])
+    el = hv.Image((small["q_x"].values, small["q_y"].values, z), vdims=[_dimension(str(da.name or "psd"), da.attrs)],
+                  kdims=[_dimension(q, small[q].attrs) for q in ("q_x", "q_y")])
     return _style(el, common=dict(cmap=cmap, colorbar=True, logz=True, title=_title(da, title)),
                   bokeh=_frame(small["q_x"].values, small["q_y"].values), matplotlib=dict(fig_inches=5, aspect="equal"))
 
@@ -394,13 +373,10 @@ def curve(da: Annotated[xr.DataArray, Data("DataArray")], *, cutoff=None, title:
     ydim = _dimension(str(da.name or "value"), da.attrs)
     da = da.transpose(..., coord)
     x = np.asarray(da[coord].values, dtype=float)
-    values = da.values
-    rows = values.reshape(-1, x.size)
+    rows = da.values.reshape(-1, x.size)
     others = [d for d in da.dims if d != coord]
-    keys = [""]
-    if others:
-        keys = [", ".join(str(da[d].values[i]) if d in da.coords else f"{d}={i}" for d, i in zip(others, idx))
-                for idx in np.ndindex(*[da.sizes[d] for d in others])]
+    keys = [", ".join(str(da[d].values[i]) if d in da.coords else f"{d}={i}" for d, i in zip(others, idx))
+            for idx in np.ndindex(*[da.sizes[d] for d in others])]  # one empty key without other dims
     elements, wave = [], CURVE_COORDS[coord] == "wavevector"
     for k, (key, row) in enumerate(zip(keys, rows)):
         xs, ys = _positive(x, row.astype(float))
@@ -463,7 +439,6 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
     colours = group_colours(group_of)
     elements = []
     first = {g: n for n, g in reversed(group_of.items())}  # replicates share their group's one legend entry
-    values = curves.values
     avg = ds["average"].values.astype(float)
     if "uncertainty" in ds:  # the band: average ± its standard error (clipped above zero for log axes)
         se = ds["uncertainty"].values.astype(float)
@@ -475,8 +450,8 @@ def twin_curves(ds: Annotated[xr.Dataset, Data("Dataset")], *, labels: Annotated
             # matplotlib fills an Area with its default facecolor (a colour cycle) over ``color``: give it grey too
             elements.append(_style(band, common=dict(color="#888888", alpha=0.35),
                                    bokeh=dict(line_alpha=0), matplotlib=dict(facecolor="#888888", linewidth=0)))
-    for k, name in enumerate(names):
-        xs, ys = _positive(x, values[k].astype(float))
+    for name, row in zip(names, curves.values):
+        xs, ys = _positive(x, row.astype(float))
         group = group_of[name]
         label = _safe_label(labels.get(group, group), xdim, ydim)
         elements.append(_line((xs, ys), xdim, ydim, label, 1.2, color=colours[group], alpha=0.8,
@@ -578,10 +553,8 @@ def contact_area(results, *, labels: Annotated[dict | None, Dict()] = None, titl
                 else np.ones(xv.shape, dtype=bool))
         ok = (xv > 0) & (yv > 0)
         color = PALETTE[k % len(PALETTE)]
-        if x == "mean_pressure" and ds[x].attrs.get("units") == "E*":
-            xdim = hv.Dimension(x, label="mean pressure p/E*")
-        else:
-            xdim = _dimension(x, ds[x].attrs)
+        relative = x == "mean_pressure" and ds[x].attrs.get("units") == "E*"  # p/E*: its unit is in the label
+        xdim = _dimension(x, ds[x].attrs, "mean pressure p/E*" if relative else None, "1" if relative else None)
         ydim = _dimension(y, ds[y].attrs, label="relative contact area A/A₀" if y == "area_fraction" else None)
         name = _safe_label(labels.get(key, key), xdim, ydim)
         elements.append(_line((xv[ok], yv[ok]), xdim, ydim, name, 1, color=color))

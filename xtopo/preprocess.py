@@ -23,6 +23,7 @@ from ._kernels import polyfit as _poly
 from .conventions import (MASK, X, Y, height_of, is_nonuniform, is_periodic, lateral_dims,
                           length_factor, spacing)
 from ._heights import fit_positions as _positions
+from ._heights import subtract_polynomial
 from ._heights import replace_heights as _finish
 from .errors import GridError, UnitsError, XtopoError
 from .filtration import filter as _filter
@@ -60,17 +61,8 @@ def detrend(obj, mode: Annotated[str, Choice(*_poly.DEGREES)] = "plane", per_lin
     h = height_of(obj)
     dims = lateral_dims(h)
     breaks_periodicity = degree > 0 and is_periodic(h)
-    if dims == (Y, X):
-        kernel = _poly.subtract_polynomial_2d
-        kwargs = {"y": _positions(h, Y), "x": _positions(h, X), "degree": degree, "per_line": bool(per_line)}
-    else:
-        kernel, kwargs = _poly.subtract_polynomial_1d, {"x": _positions(h, X), "degree": degree}
-    out = apply_lateral(kernel, h, output_core_dims=[dims], height_power=(1,), heights_out=True, what="detrend",
-                        kwargs=kwargs)
-    line = f"detrend(mode={mode!r}, per_line={bool(per_line)})"
-    if breaks_periodicity:
-        line += "; periodic set to 0"
-    return _finish(obj, out, line, nonperiodic=breaks_periodicity)
+    out = subtract_polynomial(h, dims, degree, "detrend", bool(per_line), height_power=(1,), heights_out=True)
+    return _finish(obj, out, f"detrend(mode={mode!r}, per_line={bool(per_line)})", nonperiodic=breaks_periodicity)
 
 
 def fill_missing(obj):

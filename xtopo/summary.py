@@ -151,6 +151,4 @@ def text_table(header: list[str], lines: list[list[str]]) -> str:
     """Columns of text cells padded to a common width, the header underlined (a terminal table)."""
     widths = [max(len(r[k]) for r in [header] + lines) for k in range(len(header))]
     fmt = "  ".join(f"{{:<{w}}}" for w in widths)
-    out = [fmt.format(*header), fmt.format(*["-" * w for w in widths])]
-    out += [fmt.format(*r) for r in lines]
-    return "\n".join(out)
+    return "\n".join(fmt.format(*r) for r in [header, ["-" * w for w in widths], *lines])

@@ -115,7 +115,6 @@ def to_netcdf(tree: xr.DataTree, path: Annotated[str, Path("file path")], engine
     ms = measurements(tree)
     root = tree.to_dataset(inherit=False)
     root.attrs.pop("source_checksums", None)  # listed afresh from the measurements archived now
-    # other groups (notes, stored results) are archived as they are
     nodes = {node.path: node.to_dataset(inherit=False) for node in tree.subtree if not node.is_root}
     sums = []
     for name, ds in ms.items():
@@ -159,11 +158,5 @@ def open_twin(path: Annotated[str, Path("file path")], engine: str | None = None
         raise ReaderError(path, f"not a readable twin archive: {exc}") from None
     with tree:
         loaded = tree.load()
-    out = {}
-    for node in loaded.subtree:
-        ds = node.to_dataset(inherit=False)
-        ds.encoding = {}
-        for v in ds.variables.values():
-            v.encoding = {}
-        out[node.path] = freeze(ds) if "height" in ds else ds
-    return xr.DataTree.from_dict(out)
+    nodes = {node.path: node.to_dataset(inherit=False).drop_encoding() for node in loaded.subtree}
+    return xr.DataTree.from_dict({key: freeze(ds) if "height" in ds else ds for key, ds in nodes.items()})

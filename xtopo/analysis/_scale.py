@@ -121,8 +121,7 @@ def log_bin(da: xr.DataArray, dim: str, nb_points=None) -> xr.DataArray:
                          exclude_dims={dim}, dask="parallelized", output_dtypes=[float],
                          dask_gufunc_kwargs={"output_sizes": {"_bin": len(plan)}, "allow_rechunk": False},
                          keep_attrs=True)
-    out = out.rename({"_bin": dim}).assign_coords({dim: (dim, plan.centers, dict(da[dim].attrs))})
-    return out
+    return out.rename({"_bin": dim}).assign_coords({dim: (dim, plan.centers, dict(da[dim].attrs))})
 
 
 def finish(da: xr.DataArray, name: str, units: str, long_name: str, prep: Prepared, **attrs):

@@ -13,12 +13,12 @@ from .._kernels.derivatives import forward_difference, second_difference
 from ..conventions import X, height_of, is_periodic, lateral_dims, shared_length_unit, spacing
 from ..errors import XtopoError
 from ..params import Choice, Count, checked
-from ._scale import provenance
+from ._scale import provenance, unit_of
 
 __all__ = ["distribution"]
 
-#: quantity → its power of length
-_KINDS = {"height": 1, "slope": 0, "curvature": -1}
+#: quantity → the unit kinds (:func:`._scale.unit_of`) of its values and of its probability density
+_KINDS = {"height": ("L", "L-1"), "slope": ("1", "1"), "curvature": ("L-1", "L")}
 _DIFFERENCES = {"slope": forward_difference, "curvature": second_difference}
 
 
@@ -31,8 +31,7 @@ def _histogram(h, *, kind, bins, dx, axis, periodic, ndim):
         vals = flat[idx]
         vals = vals[np.isfinite(vals)]
         if vals.size == 0:
-            out_d[idx] = np.nan
-            out_c[idx] = np.nan
+            out_d[idx] = out_c[idx] = np.nan
             continue
         lo, hi = vals.min(), vals.max()
         if hi <= lo:
@@ -73,8 +72,7 @@ def distribution(obj, kind: Annotated[str, Choice(*_KINDS)] = "height", *, dim: 
     if not isinstance(dim, str) or dim not in lat:
         raise XtopoError(f"dim {dim!r} is not a lateral dim of this measurement ({lat})")
     units = shared_length_unit(h, "distribution")
-    qunits = {1: units, 0: "1", -1: f"{units}-1"}[_KINDS[kind]]
-    dunits = {1: f"{units}-1", 0: "1", -1: units}[_KINDS[kind]]
+    qunits, dunits = (unit_of(k, units) for k in _KINDS[kind])
     axis = -1 if dim == lat[-1] else -2
     dx = spacing(h, dim) if kind != "height" else 1.0
     dens, centers = apply_lateral(

@@ -121,10 +121,8 @@ def _exponent_map(da: xr.DataArray):
     if method == "psd":
         if a.get("kind") == "2d":
             raise XtopoError("fit the Hurst exponent on psd(kind='iso') or kind='1d', not the 2D map")
-        one_d = a.get("kind") == "1d" or bool(a.get("equivalent_1d", 0))
-        if one_d:
-            return "q", True, (lambda s: -(s + 1) / 2), "2-2H"
-        return "q", True, (lambda s: -(s + 2) / 2), "2-2H"
+        k = 1 if a.get("kind") == "1d" or bool(a.get("equivalent_1d", 0)) else 2  # C ∝ q^(-k-2H)
+        return "q", True, (lambda s: -(s + k) / 2), "2-2H"
     if method == "acf":
         return "distance", False, (lambda s: s / 2), "2-2H"
     if method == "vbm":
@@ -195,11 +193,10 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
         scale = np.where(x > 0, 2 * np.pi / np.where(x > 0, x, 1.0), np.inf) if is_q else x
     if scale_range is None:
         if size is None:
-            pos = x[(x > 0) & _reliable(da, x, is_q)]
-            if not pos.size:
+            sc = scale[(x > 0) & _reliable(da, x, is_q)]
+            if not sc.size:
                 raise XtopoError(f"the {analysis} result has no reliable point at a positive {xdim}: "
                                  "nothing to fit")
-            sc = 2 * np.pi / pos if is_q else pos
             lo, hi = sc.min() * (2 if is_q else 4), sc.max() / (2 if is_q else 8)
         else:
             # the ends of each curve carry known biases: VBM blocks of a few pixels
@@ -220,18 +217,16 @@ def hurst(obj, method: Annotated[str, Choice(*_METHODS)] = "psd", *, kind: Annot
     slope, intercept, stderr, npts = xr.apply_ufunc(
         fit, sub[xdim], sub, input_core_dims=[[xdim], [xdim]], output_core_dims=[[], [], [], []],
         dask="parallelized", output_dtypes=[float, float, float, int])
-    h = to_h(slope)
     factor = abs(to_h(1.0) - to_h(0.0))
     ds = xr.Dataset({
-        "hurst": h.assign_attrs(units="1", long_name="Hurst exponent"),
+        "hurst": to_h(slope).assign_attrs(units="1", long_name="Hurst exponent"),
         "hurst_stderr": (stderr * factor).assign_attrs(units="1", long_name="standard error of the Hurst exponent"),
         "prefactor": np.exp(intercept).assign_attrs(
             units=f"{length_units}^({pref_power})",
             long_name=f"power-law prefactor of {analysis} ({units} at unit abscissa)"),
         "npoints": npts.assign_attrs(units="1", long_name="number of points in the fit"),
-    })
-    ds.attrs = {"analysis": analysis, "fit_scale_min": float(lo), "fit_scale_max": float(hi),
-                "fit_scale_units": length_units, "abscissa": xdim}
+    }, attrs={"analysis": analysis, "fit_scale_min": float(lo), "fit_scale_max": float(hi),
+              "fit_scale_units": length_units, "abscissa": xdim})
     if size is None:  # fitted to a given result: its own history says how it was computed
         return provenance(ds, obj, "hurst", scale_range=scale_range)
     return provenance(ds, obj, "hurst", method=method, kind=kind, dim=dim, scale_range=scale_range, reliable=reliable)
@@ -248,8 +243,7 @@ def _reliable(da, x, is_q):
 
 def _bins(prep, dim):
     """Log bins for fitting: 25 per decade of the scan's range of scales."""
-    n = prep.h.sizes[dim]
-    return max(3, int(np.ceil(25 * np.log10(max(n, 10)))))
+    return max(3, int(np.ceil(25 * np.log10(max(prep.h.sizes[dim], 10)))))
 
 
 def _length_units(da):

@@ -80,8 +80,7 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         (per profile for 1D), so Parseval holds exactly without a window.
     """
     prep = prepare(obj)
-    u = prep.units
-    h = prep.h
+    h, u = prep.h, prep.units
     win = window == "hann" or (window == "auto" and not prep.periodic)
     qunits = f"{u}-1"
     params = dict(kind=kind, window="hann" if win else "none", convention=convention)
@@ -92,6 +91,8 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
         params["prewhiten"] = 1
     if kind != "1d":
         prep.check_iso("psd", kind)
+        ny, nx = h.sizes[Y], h.sizes[X]
+        dy, dx = prep.spacing(Y), prep.spacing(X)
     if kind == "1d":
         if convention == "persson" or equivalent_1d:
             raise XtopoError("convention='persson' and equivalent_1d apply to 2D/iso spectra only")
@@ -104,8 +105,6 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
             out = log_bin(out, "q", nb_points)
         out = finish(out, "psd", f"{u}3", "1D power spectral density C1D", prep, direction=dim, **params)
     elif kind == "2d":
-        ny, nx = h.sizes[Y], h.sizes[X]
-        dy, dx = prep.spacing(Y), prep.spacing(X)
         out = apply_lateral(_k.psd_map, h, output_core_dims=[["q_y", "q_x"]], output_sizes={"q_y": ny, "q_x": nx},
                             kwargs=dict(dy=dy, dx=dx, window=win), height_power=(2,), what="psd")
         qy = 2 * np.pi * np.fft.fftshift(np.fft.fftfreq(ny, d=dy))
@@ -116,21 +115,17 @@ def psd(obj, kind: Annotated[str, Choice(*_KINDS)] = "1d", *, dim: str = X,
             out = out / (4 * np.pi**2)
         out = finish(out, "psd", f"{u}4", "2D power spectral density C2D", prep, **params)
     else:
-        ny, nx = h.sizes[Y], h.sizes[X]
-        dy, dx = prep.spacing(Y), prep.spacing(X)
         plan = _iso_plan(ny, nx, dy, dx, nb_points)
         out = apply_lateral(_k.psd_iso, h, output_core_dims=[["q"]], output_sizes={"q": len(plan)},
                             kwargs=dict(dy=dy, dx=dx, window=win, plan=plan), height_power=(2,), what="psd")
         out = out.assign_coords(q=length_coord("q", plan.centers, qunits, "magnitude of the angular wavevector"))
         if equivalent_1d:
             out = out * (out["q"] / np.pi)
-            out = finish(out, "psd", f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)", prep,
-                         equivalent_1d=1, **params)
-        else:
-            if convention == "persson":
-                out = out / (4 * np.pi**2)
-            out = finish(out, "psd", f"{u}4", "radially averaged 2D power spectral density Ciso", prep,
-                         equivalent_1d=0, **params)
+        elif convention == "persson":
+            out = out / (4 * np.pi**2)
+        units, name = ((f"{u}3", "1D-equivalent of the isotropic PSD, q Ciso/π (eq. 10)") if equivalent_1d else
+                       (f"{u}4", "radially averaged 2D power spectral density Ciso"))
+        out = finish(out, "psd", units, name, prep, equivalent_1d=int(equivalent_1d), **params)
     if kind == "2d":
         out.attrs.update(reliable=0, reliability_note="2D maps are not cut; use kind='iso' or '1d'")
     else:

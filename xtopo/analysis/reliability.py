@@ -42,23 +42,21 @@ def _attr_length(obj, key, units):
 
 def _crossing(curv: np.ndarray, dist: np.ndarray, threshold: float) -> np.ndarray:
     """Largest distance at which ``curv > threshold``, refined by log-log interpolation to the next point."""
-    bad = curv > threshold
-    out = np.zeros(curv.shape[:-1])
-    flat_c = curv.reshape(-1, curv.shape[-1])
-    flat_b = bad.reshape(-1, curv.shape[-1])
-    res = out.reshape(-1)
-    for i in range(flat_c.shape[0]):  # loop over the batch only
-        idx = np.flatnonzero(flat_b[i])
+    rows = curv.reshape(-1, curv.shape[-1])
+    bad = rows > threshold
+    res = np.zeros(rows.shape[0])
+    for i, c in enumerate(rows):  # loop over the batch only
+        idx = np.flatnonzero(bad[i])
         if idx.size == 0:  # 0: the tip limits no scale
             continue
         j = idx[-1]
-        if j + 1 >= dist.size or not np.isfinite(flat_c[i, j + 1]) or flat_c[i, j + 1] <= 0:
+        if j + 1 >= dist.size or not np.isfinite(c[j + 1]) or c[j + 1] <= 0:
             res[i] = dist[j]
             continue
-        c0, c1 = np.log(flat_c[i, j]), np.log(flat_c[i, j + 1])
+        c0, c1 = np.log(c[j]), np.log(c[j + 1])
         t = (c0 - np.log(threshold)) / (c0 - c1) if c0 != c1 else 0.0
         res[i] = float(np.exp(np.log(dist[j]) + t * (np.log(dist[j + 1]) - np.log(dist[j]))))
-    return out
+    return res.reshape(curv.shape[:-1])
 
 
 def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) -> xr.DataArray:
@@ -67,8 +65,7 @@ def _tip_cutoff(h: xr.DataArray, *, lat, dims, spacings, periodic, threshold) ->
     for dim in dims:
         other = [d for d in lat if d != dim]
         dx = spacings[dim]
-        emax = (h.sizes[dim] - 1) / 2
-        etas = np.unique(collocation_points(1.0, emax, POINTS_PER_DECADE))
+        etas = np.unique(collocation_points(1.0, (h.sizes[dim] - 1) / 2, POINTS_PER_DECADE))
         curv = apply_lateral(max_negative_curvature, h, core_dims=tuple(other) + (dim,),
                              output_core_dims=[["_eta"]], output_sizes={"_eta": etas.size},
                              kwargs=dict(dx=dx, etas=etas, periodic=periodic, rows=len(other)),
@@ -114,7 +111,7 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
         along every lateral dim (no curvature can be formed).
     """
     prep = prepare(obj)
-    units = prep.units
+    h, units = prep.h, prep.units
     attrs = {"units": units, "long_name": "short reliability cutoff"}
     res = _attr_length(obj, "resolution", units)
     if res is not None:
@@ -122,15 +119,13 @@ def reliability_cutoff(obj, *, c: Annotated[float, Positive()] = TIP_FACTOR) -> 
     tip = _attr_length(obj, "tip_radius", units)
     if tip is None:
         return xr.DataArray(np.nan, name="reliability_cutoff", attrs=dict(attrs, method="none"))
-    threshold = c / tip
-    h = prep.h
     dims = [dim for dim in prep.lat if (h.sizes[dim] - 1) / 2 >= 1]
     if not dims:
         raise GridError(f"reliability_cutoff: the tip-radius criterion (eq. 13) needs at least 3 points along "
                         f"{' or '.join(repr(d) for d in prep.lat)}, these data have {dict(h.sizes)}; remove the "
                         "'tip_radius' attribute or pass reliable=False")
     kw = dict(lat=tuple(prep.lat), dims=tuple(dims), spacings={d: prep.spacing(d) for d in dims},
-              periodic=prep.periodic, threshold=threshold)
+              periodic=prep.periodic, threshold=c / tip)
     if h.chunks is None:
         cut = _tip_cutoff(h, **kw)
     else:  # one task per chunk, not a chain of dask arrays: building those dominated twins of many files
@@ -172,8 +167,7 @@ def apply_reliability(result: xr.DataArray, obj, *, coord: str, kind: str, relia
         return result
     x = result[coord]
     if cut.ndim == 0 and cut.chunks is None:
-        value = float(cut)
-        attrs["reliability_cutoff"] = value
+        attrs["reliability_cutoff"] = value = float(cut)
         out = result.sel({coord: reliable_scales(x, value, kind).values})
         out.attrs = attrs
         return out

@@ -97,6 +97,5 @@ def scalars(obj) -> xr.Dataset:
     r = r.assign_coords(direction=("direction", np.array([X, Y][: r.sizes["direction"]]),
                                    {"long_name": "direction of the profiles"}))
     out.update(split_parameters(r, _attrs(_k.LINE_PARAMETERS, units)))
-    ds = xr.Dataset(out)
-    ds.attrs = {"title": "scalar roughness parameters", "periodic": int(periodic)}
+    ds = xr.Dataset(out, attrs={"title": "scalar roughness parameters", "periodic": int(periodic)})
     return provenance(ds, obj, "scalars")

@@ -78,9 +78,7 @@ def sdrp(obj, order: Annotated[int, Choice(1, 2)] = 1, *, dim: str = X,
     u = prep.units
     out = prep.along(sdrp_rms, dim, length_coord("distance", distances, u, "stencil length"), 1, "sdrp", dx=dx,
                      etas=distances / (order * dx), order=order, periodic=prep.periodic)
-    if order == 1:
-        out = finish(out, "sdrp", "1", "scale-dependent RMS slope", prep, order=1, direction=dim)
-    else:
-        out = finish(out, "sdrp", f"{u}-1", "scale-dependent RMS curvature", prep, order=2, direction=dim)
+    units, what = ("1", "slope") if order == 1 else (f"{u}-1", "curvature")
+    out = finish(out, "sdrp", units, f"scale-dependent RMS {what}", prep, order=order, direction=dim)
     out = apply_reliability(out, obj, coord="distance", kind="length", reliable=reliable)
     return provenance(out, obj, "sdrp", order=order, dim=dim, distances=given, reliable=reliable)

@@ -76,11 +76,10 @@ def vbm(obj, *, min_pixels: Annotated[int, Count(min=2)] = 4, reliable: Annotate
     h, u = prep.h, prep.units
     if min_pixels < 2 + (not prep.is_area):
         raise XtopoError(f"min_pixels must be an integer >= 3 for a line scan, got {min_pixels!r}")
-    sizes = [h.sizes[d] for d in prep.lat]
-    levels = _k.vbm_levels(sizes, min_pixels)
-    kwargs = dict(levels=levels, ndim=len(prep.lat), quadratic=average == "rms")
+    levels = _k.vbm_levels([h.sizes[d] for d in prep.lat], min_pixels)
     out = apply_lateral(_k.vbm, h, output_core_dims=[["bandwidth"]], output_sizes={"bandwidth": levels.size},
-                        kwargs=kwargs, height_power=(1,), what="vbm")
+                        kwargs=dict(levels=levels, ndim=len(prep.lat), quadratic=average == "rms"), height_power=(1,),
+                        what="vbm")
     length = float(np.prod([prep.size(d) for d in prep.lat]) ** (1 / len(prep.lat)))  # sqrt(Lx Ly), or L
     out = out.assign_coords(bandwidth=length_coord("bandwidth", length / levels, u, "bandwidth"),
                             magnification=("bandwidth", levels, {"units": "1", "long_name": "magnification ζ"}))
