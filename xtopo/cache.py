@@ -63,7 +63,7 @@ from .errors import XtopoError
 from .params import Count, Data, Path, checked
 from .io.netcdf import PROVENANCE_KEYS, atomic_write, prepare_for_netcdf, read_netcdf, sanitize_attrs, to_netcdf
 
-__all__ = ["Cache", "checksum", "default_directory", "freeze"]
+__all__ = ["Cache", "checksum", "default_directory", "freeze", "remember"]
 
 #: arrays smaller than this are hashed every time (remembering them costs more than hashing)
 _MEMO_MIN_BYTES = 1 << 16
@@ -203,7 +203,7 @@ class _Memory:
             return entry[1]
 
     def put(self, path: str, signature, result, budget: int) -> None:
-        size = int(result.nbytes)
+        size = sum(int(r.nbytes) for r in (result if isinstance(result, tuple) else (result,)) if r is not None)
         with _lock:
             self._drop(path)
             if signature is None or size > budget:
@@ -258,6 +258,26 @@ def _private_copy(obj):
     if isinstance(obj, xr.DataArray):
         return obj._replace(own(None, obj.variable), {k: own(k, v) for k, v in obj._coords.items()})
     return obj._replace({k: own(k, v) for k, v in obj._variables.items()})  # attrs, encoding copied
+
+
+def remember(func, ds, *also):
+    """``func(ds)``, kept in this process's memory layer only (no file): called again with the same ``ds`` (by
+    :func:`checksum`), ``func`` (by content) and ``also`` (what else the result depends on, e.g. attributes of ``ds``
+    that :func:`checksum` leaves out), a private copy of the result (an xarray object or a tuple of them and Nones).
+
+    For work that a session repeats on data in memory (a twin's curves, which each of its averages, figures and
+    reports takes again). Without dask, which keys functions, every call computes.
+    """
+    try:
+        key = _key(func, checksum(ds), {"also": also})
+    except XtopoError:  # the core install: no tokens of functions
+        return func(ds)
+    held = _memory.get(key, "memory")
+    if held is None:
+        held = func(ds)
+        _memory.put(key, "memory", held, MEMORY_BYTES)
+    return tuple(None if r is None else _private_copy(r) for r in held) if isinstance(held, tuple) \
+        else _private_copy(held)
 
 
 class Cache:
