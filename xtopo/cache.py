@@ -266,8 +266,11 @@ def remember(func, ds, *also):
     that :func:`checksum` leaves out), a private copy of the result (an xarray object or a tuple of them and Nones).
 
     For work that a session repeats on data in memory (a twin's curves, which each of its averages, figures and
-    reports takes again). Without dask, which keys functions, every call computes.
+    reports takes again). Lazy (dask-backed) data, whose checksum would load them, and the core install (without
+    dask, which keys functions) compute every call.
     """
+    if any(v.chunks is not None for v in ds.variables.values()):
+        return func(ds)
     try:
         key = _key(func, checksum(ds), {"also": also})
     except XtopoError:  # the core install: no tokens of functions

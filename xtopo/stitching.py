@@ -289,7 +289,7 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
     if h.chunks is None and bool(np.isfinite(h.values).all()):
         return ds  # complete: no second fill_missing line after --fill-missing (issue 26)
     try:
-        return fill_missing(ds)
+        return remember(fill_missing, ds, ds.attrs)  # once for all averages of the twin
     except GridError as exc:
         raise GridError(f"measurement {name!r}: {exc}") from None
 
@@ -342,7 +342,7 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     """
     if not reliable:
         return curve
-    cut = reliability_cutoff(ds)
+    cut = remember(reliability_cutoff, ds, _shape(ds))  # once for all averages of the twin
     criterion = cut.attrs.pop("method", "none")
     if coord == "q":  # spectra also end where aliasing sets in; which criterion wins is data (lazy: at compute)
         sampling = sampling_cutoff(ds, curve.attrs.get("direction", "x"))
