@@ -289,7 +289,7 @@ def _complete(ds: xr.Dataset, name: str) -> xr.Dataset:
     if h.chunks is None and bool(np.isfinite(h.values).all()):
         return ds  # complete: no second fill_missing line after --fill-missing (issue 26)
     try:
-        return remember(fill_missing, ds, ds.attrs)  # once for all averages of the twin
+        return fill_missing(ds)
     except GridError as exc:
         raise GridError(f"measurement {name!r}: {exc}") from None
 
