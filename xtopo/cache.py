@@ -63,7 +63,7 @@ from .errors import XtopoError
 from .params import Count, Data, Path, checked
 from .io.netcdf import PROVENANCE_KEYS, atomic_write, prepare_for_netcdf, read_netcdf, sanitize_attrs, to_netcdf
 
-__all__ = ["Cache", "checksum", "default_directory", "freeze", "remember"]
+__all__ = ["Cache", "checksum", "default_directory", "freeze"]
 
 #: arrays smaller than this are hashed every time (remembering them costs more than hashing)
 _MEMO_MIN_BYTES = 1 << 16
