@@ -1,9 +1,11 @@
 """Twin averages of the example twin, first and second call in one process: ``tw.topo.plot()`` (Figure 5),
-``twin_psd`` and ``report``, each in fresh processes, interleaved between checkouts.
+the five averages of :data:`xtopo.stitching.ANALYSES` alone, ``twin_psd`` and ``report``, each in fresh processes,
+interleaved between checkouts.
 
 Run: ``python benchmarks/bench_twin_averages.py [--repeat 3] [--profile] CHECKOUT [CHECKOUT ...]``
 (each CHECKOUT a repository root put first on ``PYTHONPATH``). Printed per checkout and operation: median
-[min–max] of the first and the second call (s). ``--profile``: cProfile of the second ``plot()`` in this process.
+[min–max] of the wall and CPU times (s) of the first and the second call. ``--profile``: cProfile of the second
+``plot()`` in this process.
 """
 
 from __future__ import annotations
@@ -26,11 +28,12 @@ tw = xtopo.datasets.example_twin()
 op = sys.argv[1]
 d = tempfile.mkdtemp()
 run = {"plot": lambda: tw.topo.plot(), "twin_psd": lambda: twin_psd(tw),
+       "averages": lambda: [a(tw).compute() for a in xtopo.stitching.ANALYSES.values()],
        "report": lambda: report(tw, os.path.join(d, "r.html"))}[op]
 ts = []
 for _ in range(2):
-    t0 = time.perf_counter(); run(); ts.append(time.perf_counter() - t0)
-print(xtopo.__file__, file=sys.stderr)
+    t0, c0 = time.perf_counter(), time.process_time(); run()
+    ts += [time.perf_counter() - t0, time.process_time() - c0]
 print(*ts)
 """
 
@@ -39,7 +42,7 @@ def main():
     p = argparse.ArgumentParser()
     p.add_argument("checkouts", nargs="*")
     p.add_argument("--repeat", type=int, default=3)
-    p.add_argument("--ops", default="plot,twin_psd,report")
+    p.add_argument("--ops", default="plot,averages,twin_psd,report")
     p.add_argument("--profile", action="store_true")
     a = p.parse_args()
     if a.profile:
@@ -60,9 +63,10 @@ def main():
                 env = {**os.environ, "PYTHONPATH": os.path.abspath(c), "XTOPO_CACHE_DIR": tempfile.mkdtemp()}
                 out = subprocess.run([sys.executable, "-c", _CHILD, op], env=env, check=True, capture_output=True,
                                      text=True, cwd=tempfile.gettempdir())
-                res.setdefault((c, op), []).append([float(v) for v in out.stdout.split()[-2:]])
-    for (c, op), ts in res.items():
-        print(f"{c:30s} {op:9s} first {spread([t[0] for t in ts])}  second {spread([t[1] for t in ts])}")
+                res.setdefault((c, op), []).append([float(v) for v in out.stdout.split()[-4:]])
+    for (c, op), ts in sorted(res.items(), key=lambda kv: kv[0][1]):
+        print(f"{c:24s} {op:9s} wall first {spread([t[0] for t in ts])} second {spread([t[2] for t in ts])}; "
+              f"CPU first {spread([t[1] for t in ts])} second {spread([t[3] for t in ts])}")
 
 
 if __name__ == "__main__":
