@@ -446,3 +446,24 @@ def test_datetime_variables_are_checksummed_and_cached(tmp_path):
 
 def _total(ds):
     return ds.v.sum()
+
+
+def _pair(ds):
+    _CALLS.append("pair")
+    return scalars(ds), None
+
+
+def test_remember_keeps_results_in_memory_and_returns_private_copies():
+    """remember: no file; the same data, function and ``also`` computed once, each caller its own copy."""
+    from xtopo.cache import remember
+
+    _CALLS.clear()
+    ds = fractal_surface((32, 32), 1.0, hurst=0.7, seed=3)
+    first, none = remember(_pair, ds, "a")
+    first["Sq"].values[...] = -1.0
+    again, _ = remember(_pair, ds.copy(deep=True), "a")
+    assert none is None and len(_CALLS) == 1 and float(again["Sq"]) > 0
+    xr.testing.assert_identical(again, scalars(ds))
+    remember(_pair, ds, "b")
+    remember(_pair, ds.assign_attrs(tip_radius=1e-3), "a")
+    assert len(_CALLS) == 3

@@ -381,3 +381,27 @@ def test_twin_average_of_two_overlapping_crops_follows_the_whole_surface():
     np.testing.assert_allclose(avg.average.values[small], own.values, rtol=1e-9)
     whole = sdrp(s, 1, dim="x", distances=d, reliable=False)
     np.testing.assert_allclose(avg.average.values[small], whole.values, rtol=0.05)
+
+
+_MEASURED = []
+
+
+def _counted_acf(ds, **kw):
+    _MEASURED.append(1)  # module level: a closure over the list would be keyed by its content
+    return xtopo.analysis.acf.acf(ds, **kw)
+
+
+def test_each_curve_of_a_twin_in_memory_is_computed_once():
+    """Averages asked again (figure, report) take each measurement's curve, cutoff and predicted error from
+    memory (xtopo.cache.remember), until something the curves depend on changes."""
+    _MEASURED.clear()
+    tree = xtopo.twin({"a": fractal_surface((32, 32), 1.0, hurst=0.7, units="um", seed=1),
+                       "b": fractal_surface(64, 0.5, hurst=0.7, units="um", seed=2)})
+    first = xtopo.stitching.twin_average(tree, _counted_acf, kind="1d")
+    xtopo.stitching.twin_average(tree, _counted_acf, kind="1d", per_decade=5)
+    assert len(_MEASURED) == 2
+    xr.testing.assert_identical(xtopo.stitching.twin_average(tree, _counted_acf, kind="1d"), first)
+    xtopo.stitching.twin_average(tree, _counted_acf, kind="1d", reliable=False)
+    tree["a"].attrs["measurement_kind"] = "profiles"
+    xtopo.stitching.twin_average(tree, _counted_acf, kind="1d")
+    assert len(_MEASURED) == 5

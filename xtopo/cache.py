@@ -203,7 +203,7 @@ class _Memory:
             return entry[1]
 
     def put(self, path: str, signature, result, budget: int) -> None:
-        size = int(result.nbytes)
+        size = sum(int(r.nbytes) for r in (result if isinstance(result, tuple) else (result,)) if r is not None)
         with _lock:
             self._drop(path)
             if signature is None or size > budget:
@@ -258,6 +258,29 @@ def _private_copy(obj):
     if isinstance(obj, xr.DataArray):
         return obj._replace(own(None, obj.variable), {k: own(k, v) for k, v in obj._coords.items()})
     return obj._replace({k: own(k, v) for k, v in obj._variables.items()})  # attrs, encoding copied
+
+
+def remember(func, ds, *also):
+    """``func(ds)``, kept in this process's memory layer only (no file): called again with the same ``ds`` (by
+    :func:`checksum`), ``func`` (by content) and ``also`` (what else the result depends on, e.g. attributes of ``ds``
+    that :func:`checksum` leaves out), a private copy of the result (an xarray object or a tuple of them and Nones).
+
+    For work that a session repeats on data in memory (a twin's curves, which each of its averages, figures and
+    reports takes again). Lazy (dask-backed) data, whose checksum would load them, and the core install (without
+    dask, which keys functions) compute every call.
+    """
+    if any(v.chunks is not None for v in ds.variables.values()):
+        return func(ds)
+    try:
+        key = _key(func, checksum(ds), {"also": also})
+    except XtopoError:  # the core install: no tokens of functions
+        return func(ds)
+    held = _memory.get(key, "memory")
+    if held is None:
+        held = func(ds)
+        _memory.put(key, "memory", held, MEMORY_BYTES)
+    return tuple(None if r is None else _private_copy(r) for r in held) if isinstance(held, tuple) \
+        else _private_copy(held)
 
 
 class Cache:

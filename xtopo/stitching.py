@@ -26,6 +26,7 @@ import xarray as xr
 
 from ._checks import MAX_SPARSE_BINS
 from ._one_task import one_task, template
+from .cache import remember
 from ._kernels.collocation import collocate, collocate_error, collocation_points, equal_weight_mean, select_for_mean
 from ._progress import progress_bar
 from .analysis._scale import provenance
@@ -341,7 +342,7 @@ def _reliable_part(curve: xr.DataArray, ds: xr.Dataset, coord: str, reliable: bo
     """
     if not reliable:
         return curve
-    cut = reliability_cutoff(ds)
+    cut = remember(reliability_cutoff, ds, _shape(ds))  # once for all averages of the twin
     criterion = cut.attrs.pop("method", "none")
     if coord == "q":  # spectra also end where aliasing sets in; which criterion wins is data (lazy: at compute)
         sampling = sampling_cutoff(ds, curve.attrs.get("direction", "x"))
@@ -421,14 +422,12 @@ def _curve(ds: xr.Dataset, *, name: str, func, extra: dict, reliable: bool, quan
     return (curve if post is None else post(curve)), err
 
 
-def _shape_key(ds: xr.Dataset) -> str:
-    """What the coordinates of a measurement's curves rest on: its variables' dims, shapes, dtypes and attrs,
+def _shape(ds: xr.Dataset) -> tuple:
+    """What the curves of a measurement rest on besides its data: its variables' dims, shapes, dtypes and attrs,
     its coordinates and its :data:`~xtopo.conventions.MEASUREMENT_ATTRS` (not its provenance)."""
-    from dask.base import tokenize  # deferred: lazy measurements only (the core install has no dask)
-
-    return tokenize({n: (v.dims, v.shape, v.dtype.str, v.attrs, v.data if n in ds.coords else None)
-                     for n, v in ds.variables.items()},
-                    {k: v for k, v in ds.attrs.items() if k.startswith(MEASUREMENT_ATTRS) or k == "measurement_kind"})
+    return ({n: (v.dims, v.shape, v.dtype.str, v.attrs, v.data if n in ds.coords else None)
+             for n, v in ds.variables.items()},
+            {k: v for k, v in ds.attrs.items() if k.startswith(MEASUREMENT_ATTRS) or k == "measurement_kind"})
 
 
 def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None, reliable: bool,
@@ -443,10 +442,12 @@ def _per_measurement(tree, func, area_kw: dict, line_kw: dict, units: str | None
         extra = area_kw if lateral_dims(ds["height"]) == ("y", "x") else line_kw
         measure = partial(_curve, name=name, func=func, extra=extra, reliable=reliable,
                           quantity=quantity, post=post, kw=kw)
-        if ds["height"].chunks is None:
-            curves[name], errors[name] = measure(ds)
+        if ds["height"].chunks is None:  # each average, figure and report of the twin asks again
+            curves[name], errors[name] = remember(measure, ds, _shape(ds))
         else:
-            key = _shape_key(ds)
+            from dask.base import tokenize  # deferred: lazy measurements only (the core install has no dask)
+
+            key = tokenize(_shape(ds))
             if key not in templates:
                 templates[key] = template(measure(ds))
             curves[name], errors[name] = one_task(measure, ds, templates[key])

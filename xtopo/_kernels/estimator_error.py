@@ -40,12 +40,14 @@ def variogram_from_samples(acf: np.ndarray, lags: np.ndarray):
 
     def gamma(r):
         r = np.abs(np.asarray(r, dtype=float))
-        with np.errstate(divide="ignore"):
-            x = np.log(np.where(r > 0, r, 1.0))
-        inner = np.interp(x, lr, lg)
-        out = np.where(x < lr[0], lg[0] + lo_slope * (x - lr[0]),
-                       np.where(x > lr[-1], lg[-1] + hi_slope * (x - lr[-1]), inner))
-        return np.where(r > 0, np.exp(out), 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = np.log(r)
+            out = np.asarray(np.interp(x, lr, lg))  # an array also of one lag
+            for side, end, slope in ((x < lr[0], 0, lo_slope), (x > lr[-1], -1, hi_slope)):
+                out[side] = lg[end] + slope * (x[side] - lr[end])
+        out = np.exp(out, out=out)
+        out[r == 0] = 0.0
+        return out
 
     return gamma
 
@@ -89,10 +91,14 @@ def mean_square_relative_error(gamma, lengths, *, offsets, weights, n: int, dx: 
     """
     a = np.asarray(offsets, dtype=float)
     w = np.asarray(weights, dtype=float)
-    pair_a = (a[:, None] - a[None, :]).ravel()
+    diff = (a[:, None] - a[None, :]).ravel()
     pair_w = (w[:, None] * w[None, :]).ravel()
+    pair_a, pair = np.unique(diff, return_inverse=True)  # pairs of one offset a_i - a_j share their γ
+    zero = pair_a == 0
     j_nodes, j_weights = _quadrature(max(int(rows), 1), 16)
     ds = j_nodes * row_spacing
+    # γ at the lags of the zero offset (the pairs i = j) do not depend on ℓ: for every point of the profile at once
+    at_zero = gamma(np.hypot(np.arange(n, dtype=float) * dx, ds[:, None]))
     out = np.full(np.size(lengths), np.nan)
     for i, ell in enumerate(np.atleast_1d(np.asarray(lengths, dtype=float))):
         span = (a.max() - a.min()) * ell
@@ -101,13 +107,15 @@ def mean_square_relative_error(gamma, lengths, *, offsets, weights, n: int, dx: 
             continue
         dense = int(min(m, max(64, 8 * np.ceil(span / dx))))
         s_nodes, s_weights = _quadrature(m, dense)
-        sx = s_nodes * dx
-        # Cov(s, d) = -Σ_ij w_i w_j γ(√((s + a_i - a_j)² + d²)), shape (rows nodes, s nodes)
-        lag = sx[None, :, None] + ell * pair_a[None, None, :]
-        cov = -np.sum(pair_w * gamma(np.hypot(lag, ds[:, None, None])), axis=-1)
+        # Cov(s, d) = -Σ_ij w_i w_j γ(√((s + a_i - a_j)² + d²)), shape (rows nodes, s nodes); γ on (offsets, rows
+        # nodes, s nodes): its interpolation walks the samples in order along s (in random order: 10x slower)
+        g = np.empty((pair_a.size, ds.size, s_nodes.size))
+        g[~zero] = gamma(np.hypot(s_nodes * dx + ell * pair_a[~zero, None, None], ds[:, None]))
+        g[zero] = at_zero[:, s_nodes.astype(int)]
+        cov = -np.sum(pair_w * np.moveaxis(g[pair], 0, -1).copy(), axis=-1)  # summed pair by pair, i then j
         mult_s = s_weights * (m - s_nodes) * np.where(s_nodes > 0, 2.0, 1.0)
         mult_j = j_weights * (rows - j_nodes) * np.where(j_nodes > 0, 2.0, 1.0)
         var = 2.0 * np.sum(mult_j[:, None] * mult_s[None, :] * cov**2) / (m * rows) ** 2
-        mean = -np.sum(pair_w * gamma(ell * np.abs(pair_a)))
+        mean = -np.sum(pair_w * gamma(ell * np.abs(diff)))
         out[i] = np.sqrt(var) / mean if mean > 0 else np.nan
     return out
