@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from xtopo.analysis.reliability import reliability_cutoff
 from xtopo.analysis.scalars import scalars
 from xtopo.cache import Cache, checksum
+from xtopo.conventions import height_of
 from xtopo.datasets import fractal_surface
 from xtopo.errors import XtopoError
 
@@ -414,6 +416,16 @@ def test_checksum_follows_what_analyses_read(ds_change, in_height):
     assert (checksum(changed.height) != checksum(ds.height)) == in_height
     stretched = ds.assign_coords(x=ds.x * 2)
     assert checksum(ds_change(stretched)) != checksum(changed)
+
+
+def test_a_tip_radius_in_other_units_keys_other_results():
+    """A tip radius of 50 nm on µm data: its height DataArray read it as 50 µm (the units attr stayed behind: a
+    reliability cutoff 18× too long), and the checksum of 50 nm equalled that of 50 µm (a stale cached cutoff)."""
+    ds = fractal_surface((64, 64), 1.0, hurst=0.8, rms_slope=0.1, seed=1, units="um")
+    in_nm = ds.assign_attrs(tip_radius=50.0, tip_radius_units="nm")
+    in_um = ds.assign_attrs(tip_radius=0.05, tip_radius_units="um")
+    assert float(reliability_cutoff(height_of(in_nm))) == float(reliability_cutoff(in_um))
+    assert checksum(in_nm) != checksum(in_nm.assign_attrs(tip_radius_units="um"))
 
 
 def test_parameters_are_keyed_by_value_and_type(tmp_path):

@@ -50,8 +50,9 @@ CONVENTIONS = "CF-1.12, ACDD-1.3"
 
 #: Dataset attributes that hold a length in the dataset's length unit.
 LENGTH_ATTRS = ("tip_radius", "resolution")
-#: Attributes that describe the measurement as a whole and travel with ``height``.
-MEASUREMENT_ATTRS = ("periodic", "tip_radius", "resolution", "grid", "instrument")
+#: Attributes that describe the measurement as a whole and travel with ``height`` (and key cached results).
+MEASUREMENT_ATTRS = ("periodic", "tip_radius", "resolution", "grid", "instrument", "tip_radius_units",
+                     "resolution_units")
 
 _LONG_NAMES = {X: "position x", Y: "position y", HEIGHT: "height"}
 
