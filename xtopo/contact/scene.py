@@ -144,10 +144,15 @@ class Scene:
         self.nominal_area = self.pixel_area * int(np.prod(self.shape))
         self.backend_request = backend
         self.fft_shape = self.shape if self.periodic else padded_shape(self.shape)
-        self.backend = choose_backend(self.fft_shape, backend, planned=True)
-        if self.backend == "pyfftw":  # the [fftw] extra (auto takes pyFFTW only where it imports)
-            require("pyfftw", "backend='pyfftw'")
+        self._choose_backend()
         self._conv = None
+
+    def _choose_backend(self):
+        """The FFT backend of this process: ``auto`` takes pyFFTW where it imports (a worker may lack it);
+        ``pyfftw`` needs the [fftw] extra."""
+        self.backend = choose_backend(self.fft_shape, self.backend_request, planned=True)
+        if self.backend == "pyfftw":
+            require("pyfftw", "backend='pyfftw'")
 
     @staticmethod
     def _check_same_grid(h1, h2):
@@ -183,10 +188,7 @@ class Scene:
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        if self.backend_request == "auto":  # the best backend of this process (a worker may lack pyFFTW)
-            self.backend = choose_backend(self.fft_shape, "auto", planned=True)
-        elif self.backend == "pyfftw":
-            require("pyfftw", "backend='pyfftw'")
+        self._choose_backend()  # unpickled in another process (a dask worker)
 
     def __repr__(self) -> str:
         grid = "×".join(str(n) for n in self.shape)
