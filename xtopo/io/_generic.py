@@ -44,11 +44,11 @@ def stated_or_given(path, stated: str | None, given: str | None, option: str, wh
 
     Raises
     ------
-    ReaderError
-        If the file states ``what`` and the caller gives ``option`` too.
+    OptionError
+        If the file states ``what`` and the caller gives ``option`` too (no other reader is tried).
     """
     if stated is not None and given is not None:
-        raise ReaderError(path, f"the file states {what} ({stated!r}); do not pass {option}")
+        raise OptionError(path, f"the file states {what} ({stated!r}); do not pass {option}")
     return stated or given
 
 
