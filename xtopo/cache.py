@@ -81,14 +81,13 @@ def _head(dtype: np.dtype, shape: tuple) -> bytes:
 
 
 def _hash_array(a: np.ndarray) -> bytes:
-    """XXH3-128 digest of an array's dtype, shape and content (text arrays by their values)."""
+    """An array's dtype and shape followed by the XXH3-128 digest of its content (text arrays by their values)."""
     if a.dtype.kind in "OUS":  # text: the same digest whichever way numpy holds it (a NetCDF read gives objects)
-        h = xxhash.xxh3_128(f"text{a.shape}".encode())
-        h.update(repr([str(v) for v in a.ravel().tolist()]).encode())
-    else:  # the bytes (no copy for contiguous data) of any dtype, datetimes included (no buffer of their own)
-        h = xxhash.xxh3_128(_head(a.dtype, a.shape))
-        h.update(np.ascontiguousarray(a).reshape(-1).view(np.uint8))
-    return h.digest()
+        text = repr([str(v) for v in a.ravel().tolist()]).encode()
+        return f"text{a.shape}".encode() + xxhash.xxh3_128_digest(text)
+    # the bytes (no copy for contiguous data) of any dtype, datetimes included (no buffer of their own); one-shot
+    # digest: 6 µs less than a hasher object at 1024² (issue 27's writeable cache hit is this hash)
+    return _head(a.dtype, a.shape) + xxhash.xxh3_128_digest(np.ascontiguousarray(a).reshape(-1).view(np.uint8))
 
 
 def _array_digest(arr) -> bytes:
@@ -118,7 +117,7 @@ def checksum(ds: Annotated[xr.Dataset | xr.DataArray, Data()]) -> str:
     h = hashlib.sha256()
     items = list(ds.variables.items()) if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable),
                                                                           *ds.coords.variables.items()]
-    indexes = ds.xindexes
+    indexes = ds._indexes  # xarray's own mapping: ``xindexes`` builds a new one per call (3 µs of a 35 µs hit)
     for name, var in sorted(items, key=lambda kv: str(kv[0])):
         h.update(f"{name}\0{var.dims}\0{var.attrs.get('units')}\0".encode())
         index = indexes.get(name)  # a pandas index: its values without xarray's conversion (4 µs)
