@@ -450,7 +450,7 @@ def test_contact_batch_refuses_loads_for_a_mix_of_line_and_area_scans(tmp_path, 
 
     monkeypatch.setattr(batch._dispatch, "run_chunk", no_task)
     with pytest.raises(XtopoError, match=r"loads= for a mix of line and area scans: measurement 'area' is an area "
-                                         r"scan, 'line' a line scan: a load is a force on an area scan \(E\*·um²\)"):
+                                         r"scan, 'line' a line scan: a load is a force on an area scan \(a pressure "):
         batch.contact({"area": s, "line": line}, [0.01], **kw)
     monkeypatch.setattr(batch._dispatch, "run_chunk", run_chunk)
     # a file is known only once read: one of the other kind fails as an item, the others keep their labels

@@ -46,9 +46,9 @@ def _a(scan: str) -> str:
 
 
 def _mixed_scans_message(control: str, found: str, units: str) -> str:
-    return (f"{found}: a load is a force on an area scan (E*·{units}²) but a force per unit length on a line scan "
-            f"(E*·{units}), so one {control!r} coordinate cannot label both; solve line and area scans in separate "
-            "batches, or give mean_pressures= or penetrations=, which mean the same on both")
+    return (f"{found}: a load is a force on an area scan (a pressure times {units}²) but a force per unit length on "
+            f"a line scan (a pressure times {units}), so one {control!r} coordinate cannot label both; solve line and "
+            "area scans in separate batches, or give mean_pressures= or penetrations=, which mean the same on both")
 
 
 def wrong_scan_message(control: str, kind: str, scan: str, whose: str, units: str) -> str:
