@@ -134,8 +134,8 @@ def contact_gaps(c, inc, slots, fresh, out, load_control, delta, delta_ref, grid
     return delta, shift, big, ss
 
 
-_BLOCK = 256  # the overlap scan's block: overlaps are few, so most blocks are passed on a count alone
-_SUB = 32     # and the sub-blocks a block with overlaps is counted in again (overlaps are scattered)
+_BLOCK = 1024  # the overlap scan's block: overlaps are few, so most blocks are passed on a count alone
+_SUB = 64      # and the sub-blocks a block with overlaps is counted in again (overlaps are scattered)
 
 
 @njit(**_FAST)
