@@ -2,8 +2,9 @@
 
 For each grid the same seeded fractal surface as ``bench_contact.py`` is solved at the same
 mean pressure ``--repeat`` times on one scene. Around every solve a forward+inverse float64 real
-FFT pair on the solver's FFT grid (a measured FFTW plan, one thread, aligned buffers) is timed
-``--pairs`` times, so that each solve is compared with a pair measured under the same load. Per
+FFT pair on the solver's FFT grid (the fastest of three measured FFTW plans, one thread, aligned buffers) is timed
+``--pairs`` times after three untimed ones, so that each solve is compared with a warm pair measured under the
+same load. Per
 solve:
 
 * ``loop/it``  the iteration loop's time (first to last residual callback) per iteration,
@@ -42,24 +43,40 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 MEAN_PRESSURE = 0.005
 
 
-def _pair(shape):
-    """A measured one-thread FFTW float64 forward+inverse pair on ``shape``: a callable."""
+def _pair(shape, plans=3):
+    """The fastest of ``plans`` independently measured one-thread FFTW float64 forward+inverse pairs on ``shape``.
+
+    FFTW_MEASURE picks a different plan from one process to the next (a 512² pair took 1.28-1.54 ms, 1024² 7.5-10.7 ms
+    across processes), which moved the ratio more than the solver's changes did: each candidate is planned with
+    FFTW's wisdom forgotten, timed, and the fastest kept (the fastest backend, as issue 27 asks); the process's wisdom
+    is restored afterwards (the solver's plans come from it).
+    """
     import pyfftw
 
     r_in = pyfftw.empty_aligned(shape, dtype="float64")
     spec = pyfftw.empty_aligned(shape[:-1] + (shape[-1] // 2 + 1,), dtype="complex128")
     r_out = pyfftw.empty_aligned(shape, dtype="float64")
     axes = tuple(range(len(shape)))
-    fwd = pyfftw.FFTW(r_in, spec, axes=axes, flags=("FFTW_MEASURE",), threads=1)
-    bwd = pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD", flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
-                      threads=1)
-    r_in[...] = np.random.default_rng(0).random(shape)
+    wisdom = pyfftw.export_wisdom()
+    best = None
+    for _ in range(plans):
+        pyfftw.forget_wisdom()
+        fwd = pyfftw.FFTW(r_in, spec, axes=axes, flags=("FFTW_MEASURE",), threads=1)
+        bwd = pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD",
+                          flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"), threads=1)
+        r_in[...] = np.random.default_rng(0).random(shape)
 
-    def run():
-        fwd.execute()
-        bwd.execute()
+        def run(fwd=fwd, bwd=bwd):
+            fwd.execute()
+            bwd.execute()
 
-    return run
+        took = _median(_time(run, 15), 0)
+        if best is None or took < best[0]:
+            best = (took, run)
+    pyfftw.forget_wisdom()
+    pyfftw.import_wisdom(wisdom)
+    r_in[...] = np.random.default_rng(0).random(shape)  # planning the later candidates wrote over it
+    return best[1]
 
 
 def _now():
@@ -76,6 +93,14 @@ def _time(fn, k):
         w1, c1 = _now()
         out.append((w1 - w, c1 - c))
     return out
+
+
+def _warm_time(pair, k, warm=3):
+    """``k`` timings of ``pair()`` after ``warm`` untimed ones: right after other work its first runs are slower
+    (1.8-2.0 ms against 1.2-1.3 at 512²: its buffers out of cache), which made the reference pair slow and the
+    solver's ratio look better than it is."""
+    _time(pair, warm)
+    return _time(pair, k)
 
 
 def _median(rows, i):
@@ -97,12 +122,12 @@ def run_case(n, periodic, dtype, tol, repeat, pairs):
     _time(pair, 2)
     rows = []
     for _ in range(repeat):
-        around = _time(pair, pairs)
+        around = _warm_time(pair, pairs)
         stamps = []
         t0 = _now()
         r = scene.solve(**solve, callback=lambda i, res: stamps.append(_now()))
         t1 = _now()
-        around += _time(pair, pairs)
+        around += _warm_time(pair, pairs)
         it = int(r.iterations)
         rows.append(dict(loop=(stamps[-1][0] - stamps[0][0]) / it, solve=(t1[0] - t0[0]) / it, pair=_median(around, 0),
                          loop_cpu=(stamps[-1][1] - stamps[0][1]) / it, pair_cpu=_median(around, 1)))
@@ -144,8 +169,8 @@ def main():
         print(json.dumps(run_case(int(n), boundary == "periodic", dtype, float(tol), int(repeat), int(pairs))))
         return
     trees = args.tree or [os.path.dirname(HERE)]
-    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, pair: measured FFTW "
-          f"float64, 1 thread; median [min, max] over the solves")
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, pair: fastest of 3 measured FFTW "
+          f"float64 plans, 1 thread; median [min, max] over the solves")
     print(f"{'grid':>14} {'dtype':>8} {'tree':>18} {'iters':>5} {'area':>9} {'pair ms':>8} "
           f"{'loop pairs/it':>20} {'loop, CPU time':>20} {'solve pairs/it':>20} {'loop ms/it':>8}  load")
     for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
