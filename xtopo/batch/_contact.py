@@ -242,4 +242,5 @@ def contact(measurements, loads=None, *, mean_pressures=None, penetrations=None,
     return run_batch(func, measurements, values, dim=control, dim_attrs=dim_attrs, chunks=chunks, client=client,
                      scheduler=scheduler, workers=workers, store=store, progress=progress, fft_threads=fft_threads,
                      retries=retries, read_options=read_options, preprocess=preprocess,
-                     finish={"name": "settle_scans", "kwargs": {"control": control, "units": units, "pressure": pressure}})
+                     finish={"name": "settle_scans",
+                             "kwargs": {"control": control, "units": units, "pressure": pressure}})
