@@ -44,12 +44,14 @@ MEAN_PRESSURE = 0.005
 
 
 def _pair(shape, plans=3):
-    """The fastest of ``plans`` independently measured one-thread FFTW float64 forward+inverse pairs on ``shape``.
+    """The fastest of ``plans`` independently measured one-thread FFTW float64 forward+inverse pairs on ``shape``
+    and one planned as the solver plans its own with use (rows measured, columns in place by ``FFTW_PATIENT``).
 
     FFTW_MEASURE picks a different plan from one process to the next (a 512² pair took 1.28-1.54 ms, 1024² 7.5-10.7 ms
     across processes), which moved the ratio more than the solver's changes did: each candidate is planned with
     FFTW's wisdom forgotten, timed, and the fastest kept (the fastest backend, as issue 27 asks); the process's wisdom
-    is restored afterwards (the solver's plans come from it).
+    is restored afterwards (the solver's plans come from it). The patient candidate costs 3 s (512²) to 30 s (2048²)
+    of planning per case.
     """
     import pyfftw
 
@@ -59,16 +61,23 @@ def _pair(shape, plans=3):
     axes = tuple(range(len(shape)))
     wisdom = pyfftw.export_wisdom()
     best = None
-    for _ in range(plans):
+    measure, destroy = dict(flags=("FFTW_MEASURE",), threads=1), dict(flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
+                                                                      threads=1)
+    for k in range(plans + (len(shape) == 2)):
         pyfftw.forget_wisdom()
-        fwd = pyfftw.FFTW(r_in, spec, axes=axes, flags=("FFTW_MEASURE",), threads=1)
-        bwd = pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD",
-                          flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"), threads=1)
+        if k < plans:
+            fwd = [pyfftw.FFTW(r_in, spec, axes=axes, **measure)]
+            bwd = [pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD", **destroy)]
+        else:
+            patient = dict(flags=("FFTW_PATIENT",), threads=1)
+            fwd = [pyfftw.FFTW(r_in, spec, axes=(-1,), **measure), pyfftw.FFTW(spec, spec, axes=(0,), **patient)]
+            bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **patient),
+                   pyfftw.FFTW(spec, r_out, axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
         r_in[...] = np.random.default_rng(0).random(shape)
 
-        def run(fwd=fwd, bwd=bwd):
-            fwd.execute()
-            bwd.execute()
+        def run(plans=fwd + bwd):
+            for p in plans:
+                p.execute()
 
         took = _median(_time(run, 15), 0)
         if best is None or took < best[0]:
@@ -107,10 +116,14 @@ def _median(rows, i):
     return statistics.median(r[i] for r in rows)
 
 
-def run_case(n, periodic, dtype, tol, repeat, pairs):
+def run_case(n, periodic, dtype, tol, repeat, pairs, planner):
     """One grid in this process: per solve, loop and solve time per iteration and the pairs around it."""
     from xtopo import datasets
+    from xtopo._kernels import convolution
     from xtopo.contact import Scene
+
+    if planner == "auto":   # the plans a scene has once it has served enough solves (set from the first)
+        convolution._MEASURE_AFTER = convolution._PATIENT_AFTER = 1
 
     # the surface of bench_contact.py (not imported: it puts its own tree first on the path)
     ds = datasets.fractal_surface((n, n), 1.0, hurst=0.8, rms_slope=0.1, short_cutoff=4.0 / n, seed=11,
@@ -118,7 +131,8 @@ def run_case(n, periodic, dtype, tol, repeat, pairs):
     scene = Scene(ds, dtype=dtype)
     pair = _pair(tuple(scene.fft_shape))
     solve = dict(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
-    r = scene.solve(**solve)               # warm-up: plans, compiled kernels, work arrays
+    for _ in range(2):                     # warm-up: plans (replanned with rigor at the second), kernels, work arrays
+        r = scene.solve(**solve)
     _time(pair, 2)
     rows = []
     for _ in range(repeat):
@@ -136,10 +150,9 @@ def run_case(n, periodic, dtype, tol, repeat, pairs):
                 backend=scene.backend)
 
 
-def case(tree, n, boundary, dtype, tol, repeat, pairs):
-    # measured plans from the first solve (by default a grid new to FFTW's wisdom is measured at the third)
-    env = dict(os.environ, PYTHONPATH=os.path.abspath(tree), XTOPO_FFTW_PLANNER="measure")
-    cmd = [sys.executable, __file__, "--case", str(n), boundary, dtype, str(tol), str(repeat), str(pairs)]
+def case(tree, n, boundary, dtype, tol, repeat, pairs, planner):
+    env = dict(os.environ, PYTHONPATH=os.path.abspath(tree), XTOPO_FFTW_PLANNER="" if planner == "auto" else planner)
+    cmd = [sys.executable, __file__, "--case", str(n), boundary, dtype, str(tol), str(repeat), str(pairs), planner]
     out = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                          cwd=os.path.abspath(tree))
     for line in out.stdout.splitlines()[::-1]:
@@ -162,15 +175,21 @@ def main():
     ap.add_argument("--pairs", type=int, default=5, help="FFT pairs timed before and after each solve")
     ap.add_argument("--tree", action="append", default=None,
                     help="source tree to import xtopo from (repeatable; default: this one)")
-    ap.add_argument("--case", nargs=6, help=argparse.SUPPRESS)
+    ap.add_argument("--planner", default="auto", choices=["auto", "estimate", "measure", "patient"],
+                    help="FFTW planning of the solver: auto (default) = the plans a scene has after "
+                         "xtopo._kernels.convolution._PATIENT_AFTER solves (measured; float32 columns patient), "
+                         "from the first solve; else XTOPO_FFTW_PLANNER")
+    ap.add_argument("--case", nargs=7, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
-        n, boundary, dtype, tol, repeat, pairs = args.case
-        print(json.dumps(run_case(int(n), boundary == "periodic", dtype, float(tol), int(repeat), int(pairs))))
+        n, boundary, dtype, tol, repeat, pairs, planner = args.case
+        print(json.dumps(run_case(int(n), boundary == "periodic", dtype, float(tol), int(repeat), int(pairs),
+                                  planner)))
         return
     trees = args.tree or [os.path.dirname(HERE)]
-    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, pair: fastest of 3 measured FFTW "
-          f"float64 plans, 1 thread; median [min, max] over the solves")
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, solver plans {args.planner}, "
+          f"pair: fastest of 3 measured FFTW float64 plans and a patient-column one, 1 thread; median [min, max] over "
+          f"the solves")
     print(f"{'grid':>14} {'dtype':>8} {'tree':>18} {'iters':>5} {'area':>9} {'pair ms':>8} "
           f"{'loop pairs/it':>20} {'loop, CPU time':>20} {'solve pairs/it':>20} {'loop ms/it':>8}  load")
     for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):
@@ -178,7 +197,7 @@ def main():
             for dtype in args.dtype:
                 for tree in trees:
                     load = os.getloadavg()[0]
-                    r = case(tree, n, boundary, dtype, args.tol, args.repeat, args.pairs)
+                    r = case(tree, n, boundary, dtype, args.tol, args.repeat, args.pairs, args.planner)
                     name = os.path.basename(os.path.abspath(tree))
                     grid = f"{boundary} {n}"
                     if "error" in r:

@@ -97,12 +97,13 @@ def test_wisdom_of_processes_saving_meanwhile_is_kept(tmp_path, monkeypatch):
     for shape in ((6, 10), (14, 18), (6, 12)):
         c = Convolution(shape, (1.0, 1.0), periodic=True, backend="pyfftw")
         c.input
-        assert not c._estimated, shape   # measured plans known from the file
+        assert c._planned == "FFTW_MEASURE", shape   # measured plans known from the file
 
 
-def test_plans_estimated_until_the_operator_proves_its_use(tmp_path, monkeypatch):
+def test_plans_gain_rigor_as_the_operator_proves_its_use(tmp_path, monkeypatch):
     """A grid the wisdom does not know is planned by estimate (measuring costs more than a solve); the
-    operator's third solve measures its plans and stores them, and a new operator finds them known."""
+    operator's third solve measures its plans, a later one plans its columns patiently, each stored, and a new
+    operator finds the most rigorous plans known."""
     import pyfftw
 
     from xtopo import datasets
@@ -112,12 +113,18 @@ def test_plans_estimated_until_the_operator_proves_its_use(tmp_path, monkeypatch
     monkeypatch.delenv("XTOPO_FFTW_PLANNER", raising=False)
     monkeypatch.setitem(conv_mod._WISDOM, "loaded", True)        # nothing read from disk
     monkeypatch.setattr(conv_mod, "_MEASURE_FROM", 1)
+    monkeypatch.setattr(conv_mod, "_PATIENT_AFTER", conv_mod._MEASURE_AFTER + 2)
     pyfftw.forget_wisdom()
     ds = datasets.fractal_surface((24, 40), 1.0, hurst=0.8, rms_slope=0.1, seed=4, periodic=True, units="um")
     scene = Scene(ds, backend="pyfftw")
-    results = [scene.solve(mean_pressure=0.02, tol=1e-8) for _ in range(conv_mod._MEASURE_AFTER)]
-    ops = [scene.convolution, *scene.convolution._workspaces.values()]
-    assert len(ops) == 3 and all(op._measure and not op._estimated for op in ops)
+    ops = lambda s: [s.convolution, *s.convolution._workspaces.values()]  # noqa: E731
+    results = []
+    for k in range(1, conv_mod._PATIENT_AFTER + 1):
+        results.append(scene.solve(mean_pressure=0.02, tol=1e-8))
+        rigor = 2 if k >= conv_mod._PATIENT_AFTER else 1 if k >= conv_mod._MEASURE_AFTER else 0
+        assert len(ops(scene)) == 3, k
+        for op in ops(scene):   # patience for the float32 operators only (the iterations' transforms)
+            assert op._planned == conv_mod._RIGOR[min(rigor, 2 if op.dtype == np.float32 else 1)], (k, op.dtype)
     assert (tmp_path / "fftw-wisdom.npz").stat().st_size > 0
     for r in results[1:]:     # the plans change the float32 rounding, not the solution
         for name in ("pressure", "gap", "displacement"):
@@ -125,7 +132,7 @@ def test_plans_estimated_until_the_operator_proves_its_use(tmp_path, monkeypatch
         assert float(r.residual) <= 1e-8
     fresh = Scene(ds, backend="pyfftw")
     fresh.solve(mean_pressure=0.02, tol=1e-8)
-    assert not any(op._estimated for op in [fresh.convolution, *fresh.convolution._workspaces.values()])
+    assert [op._planned for op in ops(fresh)] == [op._planned for op in ops(scene)]
 
 
 @pytest.mark.parametrize("backend", ["scipy", "pyfftw"])

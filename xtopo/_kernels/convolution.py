@@ -25,10 +25,14 @@ plans but allocates its outputs). ``"auto"`` takes pyFFTW when it is installed: 
 FFTW transforms run 1.4–2× faster than pocketfft on 256²–2048² grids. Measured plans
 (``FFTW_MEASURE``, from 256² on) run about 1.25× faster than estimated ones, but measuring
 the three plans of a 1024² solve costs 8 s, twice the solve: a grid FFTW's wisdom (kept in the
-user cache directory) does not know yet is planned by estimate, and measured once the operator
-has served :data:`_MEASURE_AFTER` solves (load curves, batches), which stores the wisdom for
-every later process. ``XTOPO_FFTW_PLANNER=estimate|measure`` overrides. One FFT thread unless
-``XTOPO_FFT_THREADS`` says otherwise (:func:`xtopo._kernels.fft.workers`).
+user cache directory) does not know yet is planned by estimate, measured once the operator has
+served :data:`_MEASURE_AFTER` solves (load curves, batches), and its column transforms planned
+by ``FFTW_PATIENT`` once it has served :data:`_PATIENT_AFTER`; each step stores the wisdom for
+every later process, which starts from the most rigorous plans the wisdom knows. Patience pays
+on the columns only (strided transforms: 512² float32 0.22 → 0.18 ms, 1024² 0.95 → 0.85 ms,
+2048² 5.3 → 4.6–5.1 ms; rows gain nothing) and costs 3 s (512²) to 23 s (2048²) of planning per
+precision, once per machine. ``XTOPO_FFTW_PLANNER=estimate|measure|patient`` overrides. One FFT
+thread unless ``XTOPO_FFT_THREADS`` says otherwise (:func:`xtopo._kernels.fft.workers`).
 """
 
 from __future__ import annotations
@@ -50,15 +54,18 @@ _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex
 _MEASURE_FROM = 256 * 256
 #: solves on one operator after which estimated plans are replaced by measured ones (saved as wisdom)
 _MEASURE_AFTER = 3
+#: solves after which the column transforms of a 2-D grid are planned by ``FFTW_PATIENT`` (saved as wisdom)
+_PATIENT_AFTER = 20
+#: planner rigor, least first
+_RIGOR = ("FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT")
 _WISDOM = {"loaded": False}
 
 
 def _planner(fft_shape) -> str:
-    """``FFTW_MEASURE`` (``XTOPO_FFTW_PLANNER=measure``), ``FFTW_ESTIMATE`` (``=estimate``) or the default
-    ``"auto"``: measured plans where FFTW's wisdom knows them, estimated ones otherwise (see
-    :meth:`Convolution.begin_solve`)."""
+    """The planner flag ``XTOPO_FFTW_PLANNER=estimate|measure|patient`` asks for, or the default ``"auto"``:
+    the most rigorous plans FFTW's wisdom knows, estimated ones otherwise (see :meth:`Convolution.begin_solve`)."""
     env = os.environ.get("XTOPO_FFTW_PLANNER", "").lower()
-    if env in ("estimate", "measure"):
+    if env in ("estimate", "measure", "patient"):
         return "FFTW_" + env.upper()
     return "auto" if int(np.prod(fft_shape)) >= _MEASURE_FROM else "FFTW_ESTIMATE"
 
@@ -161,8 +168,8 @@ class Convolution:
         self._workspaces = {}
         self._scratch = {}
         self._self_stiffness = None
-        self._estimated = False   # planned by estimate for want of wisdom
-        self._measure = False     # plan by measurement (this operator has served enough solves)
+        self._planned = None      # the rigor its plans were made with (auto: what the wisdom knew)
+        self._wanted = None       # the rigor to plan with next (None: what the wisdom knows)
         self._solves = 0
         self.lock = _owner.lock if _owner is not None else threading.RLock()
 
@@ -214,13 +221,19 @@ class Convolution:
 
     def begin_solve(self) -> None:
         """Count a solve on this operator; the :data:`_MEASURE_AFTER`-th replaces estimated plans (the grid
-        was new to FFTW's wisdom) by measured ones and stores the wisdom. Call with :attr:`lock` held, before
-        the buffers hold anything (planning overwrites them)."""
+        was new to FFTW's wisdom) by measured ones, the :data:`_PATIENT_AFTER`-th the columns' plans by patient
+        ones (float32 operators: the iterations' transforms), storing the wisdom (``auto`` planning only). Call with :attr:`lock` held, before the buffers hold
+        anything (planning overwrites them)."""
         self._solves += 1
+        if _planner(self.fft_shape) != "auto":
+            return
+        rigor = 2 if self._solves >= _PATIENT_AFTER else 1 if self._solves >= _MEASURE_AFTER else 0
         ops = [self, *self._workspaces.values()]
-        if self._solves >= _MEASURE_AFTER and any(op._estimated for op in ops):
-            for op in ops:   # all of them: the workspaces' spectra live in this operator's buffer
-                op._measure, op._estimated, op._plan, op._buffers = True, False, None, None
+        # patience for the columns of the transforms the iterations run (float32), not for the rare exact ones
+        wanted = [min(rigor, 2 if op.ndim == 2 and op.dtype == np.float32 else 1) for op in ops]
+        if any(op._planned is not None and _RIGOR.index(op._planned) < k for op, k in zip(ops, wanted)):
+            for op, k in zip(ops, wanted):   # all of them: the workspaces' spectra live in this operator's buffer
+                op._wanted, op._plan, op._buffers = _RIGOR[k], None, None
 
     def scratch(self, name: str, size: int, dtype) -> np.ndarray:
         """A 1-D work array of ``size`` kept under ``name`` (contents undefined; allocated once).
@@ -246,6 +259,7 @@ class Convolution:
         state["_workspaces"] = {}
         state["_scratch"] = {}
         state["_multipliers"] = {self.dtype: self._gmul}
+        state.update(_planned=None, _wanted=None, _solves=0)   # a copy elsewhere plans from that machine's wisdom
         del state["lock"]
         return state
 
@@ -270,20 +284,31 @@ class Convolution:
 
         _load_wisdom(pyfftw)
         flag = _planner(self.fft_shape)
-        if flag == "auto":
-            flag = "FFTW_MEASURE" if self._measure else "FFTW_ESTIMATE"
-            try:   # plans the wisdom knows are measured at no cost
-                self._plan_pyfftw(pyfftw, ("FFTW_MEASURE", "FFTW_WISDOM_ONLY"))
-                return
-            except RuntimeError:   # not known: estimate now, measure once the operator has proved its use
-                self._estimated = not self._measure
-        self._plan_pyfftw(pyfftw, (flag,))
-        if flag == "FFTW_MEASURE":
+        if flag == "auto" and self._wanted is None:
+            # the most rigorous plans the wisdom knows cost nothing; not known: estimate now, plan with more rigor
+            # once the operator has proved its use (begin_solve)
+            for known in _RIGOR[:0:-1]:
+                try:
+                    self._plan_pyfftw(pyfftw, known, ("FFTW_WISDOM_ONLY",))
+                    self._planned = known
+                    return
+                except RuntimeError:
+                    pass
+            flag = "FFTW_ESTIMATE"
+        elif flag == "auto":
+            flag = self._wanted
+        self._plan_pyfftw(pyfftw, flag)
+        self._planned = flag
+        if flag != "FFTW_ESTIMATE":
             _save_wisdom(pyfftw)
 
-    def _plan_pyfftw(self, pyfftw, flags):
-        kw = dict(threads=self.workers, flags=flags)
-        destroy = dict(threads=self.workers, flags=(*flags, "FFTW_DESTROY_INPUT"))
+    def _plan_pyfftw(self, pyfftw, rigor, extra=()):
+        """Plans at ``rigor`` (an FFTW planner flag; rows and lines at most ``FFTW_MEASURE``, where patience finds
+        nothing faster) on this operator's buffers."""
+        cols = dict(threads=self.workers, flags=(rigor, *extra))
+        row_flags = ("FFTW_MEASURE" if rigor == "FFTW_PATIENT" else rigor, *extra)
+        kw = dict(threads=self.workers, flags=row_flags)
+        destroy = dict(threads=self.workers, flags=(*row_flags, "FFTW_DESTROY_INPUT"))
         nxc = self.fft_shape[-1] // 2 + 1
         nfx = self.fft_shape[-1]
         spec_shape = self.fft_shape[:-1] + (nxc,)
@@ -300,17 +325,17 @@ class Convolution:
             r_in = real   # transforms in place: the input is consumed
         else:
             r_in = pyfftw.zeros_aligned(self.shape[:-1] + (2 * nxc,), dtype=self.dtype)
-        if self.ndim == 1 or self.periodic:
-            axes = tuple(range(-self.ndim, 0))
-            fwd = [pyfftw.FFTW(r_in[..., :nfx], spec, axes=axes, direction="FFTW_FORWARD", **kw)]
-            bwd = [pyfftw.FFTW(spec, real[..., :nfx], axes=axes, direction="FFTW_BACKWARD", **destroy)]
+        if self.ndim == 1:
+            fwd = [pyfftw.FFTW(r_in[..., :nfx], spec, axes=(-1,), direction="FFTW_FORWARD", **kw)]
+            bwd = [pyfftw.FFTW(spec, real[..., :nfx], axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
         else:
-            # rows along x into the top half, the bottom half zeroed, then columns in place
-            # (in-place column transforms run ~3x faster than out-of-place ones here)
+            # rows along x (on a free grid into the top half, the bottom half zeroed), then columns in place: as
+            # fast as one 2-D plan at the same rigor, and the columns can be planned with more (in-place column
+            # transforms run ~3x faster than out-of-place ones here)
             fwd = [pyfftw.FFTW(r_in[:ny, :nfx], spec[:ny], axes=(-1,), direction="FFTW_FORWARD", **kw),
-                   spec[ny:],
-                   pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_FORWARD", **kw)]
-            bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **kw),
+                   *([spec[ny:]] if ny < spec.shape[0] else []),
+                   pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_FORWARD", **cols)]
+            bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **cols),
                    pyfftw.FFTW(spec[:ny], real[:ny, :nfx], axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
         self._plan = (fwd, bwd)
         n = self.shape[-1]
