@@ -27,6 +27,20 @@ def test_line_scan_with_one_missing_sample_is_nonuniform(tmp_path):
     np.testing.assert_allclose(ds.height.values, np.round(np.sin(x), 6))
 
 
+@pytest.mark.parametrize("columns", ["x h", "index x h"])
+def test_line_scan_of_positions_keeps_its_channel_and_refuses_a_size(tmp_path, columns):
+    # regression: the x h reader dropped the header's channel (the other layouts kept it)
+    p = tmp_path / "profile.txt"
+    rows = [f"{i} {0.5 * i:.1f} {i * i}" if columns == "index x h" else f"{0.5 * i:.1f} {i * i}" for i in range(6)]
+    p.write_text("# Channel: Profile A\n" + "\n".join(rows) + "\n")
+    ds = _open(p, file_units="um")
+    assert ds.attrs["channel"] == "Profile A"
+    assert ds.height.dims == ("x",) and spacing(ds, "x") == pytest.approx(0.5)
+    np.testing.assert_array_equal(ds.height.values, [0, 1, 4, 9, 16, 25])
+    with pytest.raises(ReaderError, match="do not pass physical_size"):
+        _open(p, file_units="um", physical_size=3.0)
+
+
 @pytest.mark.parametrize("where", [1, 7, 50, 97])
 def test_a_missing_sample_anywhere_is_found(where):
     x = np.delete(np.round(np.arange(100) * 0.1, 1), where)

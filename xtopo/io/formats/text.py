@@ -43,8 +43,8 @@ import numpy as np
 
 from ...conventions import length_factor
 from ...errors import OptionError, ReaderError
-from .._generic import generic_measurement, resolve_units, single_channel
-from .._text import (column_precision, header_value, is_number, line_measurement, looks_like_text, parse_quantity,
+from .._generic import generic_measurement, single_channel
+from .._text import (column_precision, header_value, is_number, looks_like_text, parse_quantity,
                      parse_table, read_text, uniform_spacing)
 from ..registry import READ_OPTIONS, Format, register
 from ._common import length_unit as unit_or_none
@@ -227,10 +227,12 @@ def _positions(path, table, data, sep, common):
     """
     nrows, ncols = table.shape
     if ncols == 2:
-        return _line_xy(path, table[:, 0], table[:, 1], column_precision(_tokens(data, sep, 0)), common)
+        return generic_measurement(path, table[:, 1], x=table[:, 0], precision=column_precision(_tokens(data, sep, 0)),
+                                   **common)
     first, second = table[:, 0], table[:, 1]
     if np.array_equal(first, first[0] + np.arange(nrows)) and np.all(np.diff(second) > 0):  # index, x, h
-        return _line_xy(path, second, table[:, 2], column_precision(_tokens(data, sep, 1)), common)
+        return generic_measurement(path, table[:, 2], x=second, precision=column_precision(_tokens(data, sep, 1)),
+                                   **common)
     grid = _xyz_grid(path, table, data, sep)
     if grid is None:
         if common["physical_size"] is not None:
@@ -272,15 +274,6 @@ def _xyz_grid(path, table, data, sep):
     heights = np.empty(n)
     heights[cell] = table[:, 2]
     return heights.reshape(uy.size, ux.size), (uy.size * steps[1], ux.size * steps[0])
-
-
-def _line_xy(path, x, h, precision, common):
-    lateral, factor = resolve_units(path, found_units=common["found_units"],
-                                    found_height_units=common["found_height_units"],
-                                    file_units=common["file_units"], height_units=common["height_units"])
-    if common["physical_size"] is not None:
-        raise OptionError(path, "the file stores the positions of its line scan; do not pass physical_size")
-    return line_measurement(path, x, h * factor, lateral, precision=precision)
 
 
 def read_dhm(path, *, channel=None):
