@@ -21,7 +21,7 @@ Usage::
     python benchmarks/bench_contact.py --big 4096          # one 4096² free solve: time and peak memory
     python benchmarks/bench_contact.py --big 8192 --boundary periodic
     python benchmarks/bench_contact.py --memory            # bytes per point of a scene set up and solved
-    python benchmarks/bench_contact.py --cold --periodic 1024 2048 --free  # first solve vs warm ones
+    python benchmarks/bench_contact.py --cold --periodic 1024 2048 --free  # first solve vs warm ones, numba floor
     python benchmarks/bench_contact.py --cold --periodic 2048 --free --threads 1 2 2 1  # FFT threads
     python benchmarks/bench_contact.py --cold --new-machine --periodic 1024 --free 512  # + empty numba/FFTW caches
 
@@ -32,6 +32,7 @@ length ``tol·PtV`` is ContactMechanics' ``pentol``; tamaas gets its own relativ
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import resource
@@ -257,7 +258,24 @@ def run_cold(n, periodic, tol, repeat, dtype="float64"):
                 area=float(r.area_fraction), threads=scene.convolution.workers, rss=peak_rss_mb())
 
 
-RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas, "memory": run_memory, "cold": run_cold}
+def run_numba_start(n, periodic, tol, repeat, dtype="float64"):
+    """What a fresh process spends before its first solve can iterate: ``import numba`` and the solver's compiled
+    kernels loaded from numba's cache (a 32² solve of the same boundary loads them; it costs milliseconds itself).
+    ``cold / warm`` of a solve cannot fall below ``(warm + start) / warm`` while the kernels are numba's."""
+    ds = surface(32, periodic)
+    from xtopo.contact import Scene
+
+    scene = Scene(ds, dtype=dtype)
+    t0 = time.perf_counter()
+    importlib.import_module("numba")
+    t1 = time.perf_counter()
+    scene.solve(mean_pressure=MEAN_PRESSURE, tol=tol)
+    t2 = time.perf_counter()
+    return dict(start=t2 - t0, import_numba=t1 - t0)
+
+
+RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas, "memory": run_memory, "cold": run_cold,
+           "numba": run_numba_start}
 PACKAGES = ("xtopo", "ContactMechanics", "tamaas")   # the side-by-side table
 
 
@@ -315,10 +333,16 @@ def main():
                         if "error" in r:
                             print(f"{boundary} {n}: failed: {r['error']}")
                             continue
+                        floor = ""
+                        if not new:   # numba's own start, in another fresh process
+                            s = case("numba", n, boundary, args.tol, 1)
+                            if "error" not in s:
+                                floor = (f"; numba start {s['start']:.2f} s (import {s['import_numba']:.2f} s), floor "
+                                         f"{(r['time'] + s['start']) / r['time']:.2f}")
                         print(f"{boundary + ' ' + str(n):>14} threads {r['threads']}: cold {r['cold']:7.2f} s, warm "
                               f"{r['time']:7.2f} s [{r['min']:.2f}, {r['max']:.2f}], cold/warm "
                               f"{r['cold'] / r['time']:.2f}, {r['iterations']} iterations"
-                              + ("  (empty caches: a new machine)" if new else ""))
+                              + ("  (empty caches: a new machine)" if new else floor))
         return
     if args.memory:
         print(f"peak memory over the process's memory before, per measurement point (tol {args.tol})")
