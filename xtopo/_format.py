@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["format_quantities", "format_quantity", "format_columns"]
+__all__ = ["format_quantities", "format_quantity", "format_length", "format_columns"]
 
 #: prefixes from large to small (the first whose factor the value reaches is used)
 _PREFIXES = (("G", 1e9), ("M", 1e6), ("k", 1e3), ("", 1.0), ("m", 1e-3), ("µ", 1e-6), ("n", 1e-9), ("p", 1e-12),
@@ -101,3 +101,8 @@ def format_columns(columns) -> str:
             cells.append([str(v) for v in values])
     widths = [max([len(h)] + [len(c) for c in col]) for h, col in zip(header, cells)]
     return "\n".join("  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in [header, *zip(*cells)])
+
+
+def format_length(v: float) -> str:
+    """A length in metres with three significant digits and its prefix (``0.9999996`` prints as ``1 m``)."""
+    return format_quantity(v, "m", digits=3)

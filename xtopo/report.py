@@ -18,6 +18,7 @@ from typing import Annotated
 import xarray as xr
 
 from . import plot as _plot
+from ._format import format_length
 from ._optional import require
 from ._progress import progress_bar
 from ._version import __version__
@@ -31,7 +32,7 @@ from .plot import group_colours
 from .preprocess import STEPS
 from .stitching import _complete
 from .stitching import ANALYSES as _REGISTRY
-from .summary import _fmt_len, summary_table, table_rows
+from .summary import summary_table, table_rows
 from .twins import measurements, twin
 
 __all__ = ["report", "ANALYSES"]
@@ -114,10 +115,10 @@ def _reliability_rows(ms: dict) -> list:
         cause = causes.get(method, method)
         if method == "tip_radius" and ds.attrs.get("tip_radius") is not None:
             radius = float(ds.attrs["tip_radius"]) * length_factor(ds.attrs.get("tip_radius_units", units), "m")
-            cause += f", R = {_fmt_len(radius)}"
+            cause += f", R = {format_length(radius)}"
         if method == "tip_radius" and value == 0:
             cause += ": the tip limits no scale the data resolve"
-        text = _fmt_len(value * length_factor(units, "m")) if value > 0 else "—"
+        text = format_length(value * length_factor(units, "m")) if value > 0 else "—"
         rows.append([name, str(ds.attrs.get("instrument") or ""), _preprocessing(ds), text, cause])
     return rows
 

@@ -10,7 +10,7 @@ import xarray as xr
 
 from .analysis.scalars import scalars
 from .conventions import HEIGHT, MEASUREMENT_ATTRS, convert_length, height_of, is_nonuniform, lateral_dims, physical_size
-from ._format import format_quantity
+from ._format import format_length
 from ._tree import measurements as tree_measurements
 from ._tree import name_of, unique_name
 from .errors import GridError, ValidationError
@@ -112,10 +112,6 @@ def summary_table(measurements) -> xr.Dataset:
     return xr.Dataset(data, coords=coords, attrs={"title": "measurement summary"})
 
 
-def _fmt_len(v: float) -> str:
-    return format_quantity(v, "m", digits=3)  # the unit for the value as printed: 0.9999996 m is "1 m"
-
-
 def format_percent(p: float) -> str:
     """A share in percent with one decimal; a share above 0 that would print as ``0.0 %`` prints ``<0.1 %``
     (116 undefined pixels of 480 × 640 are not "0.0 %" missing: a contact calculation refuses them)."""
@@ -132,12 +128,12 @@ def table_rows(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
     for i in range(table.sizes["measurement"]):
         t = table.isel(measurement=i)
         if t.kind.item() == "area":
-            size = f"{_fmt_len(float(t.size_y))} × {_fmt_len(float(t.size_x))}"
+            size = f"{format_length(float(t.size_y))} × {format_length(float(t.size_x))}"
             grid = f"{int(t.ny)} × {int(t.nx)}"
         else:
-            size, grid = _fmt_len(float(t.size_x)), f"{int(t.nx)}"
-        lines.append([str(t.measurement.item()), str(t.kind.item()), size, grid, _fmt_len(float(t.tip_radius)),
-                      format_percent(float(t.missing_percent)), _fmt_len(float(t.rms_height)),
+            size, grid = format_length(float(t.size_x)), f"{int(t.nx)}"
+        lines.append([str(t.measurement.item()), str(t.kind.item()), size, grid, format_length(float(t.tip_radius)),
+                      format_percent(float(t.missing_percent)), format_length(float(t.rms_height)),
                       f"{float(t.rms_slope):.3g}", f"{float(t.rms_curvature):.3g} m⁻¹"])
     return header, lines
 

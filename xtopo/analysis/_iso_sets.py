@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
+from .._format import format_length
 from ..conventions import HEIGHT, X, convert_length, lateral_dims
 from ..errors import XtopoError
-from ..summary import _fmt_len
 from .iso21920 import iso21920
 from .iso25178 import iso25178
 
@@ -120,7 +120,7 @@ def format_iso_table(table: xr.Dataset) -> tuple[list[str], list[list[str]]]:
         cells = [str(table.measurement.values[i])]
         for n in names:
             v = float(table[n].values[i])
-            cells.append("-" if not np.isfinite(v) else _fmt_len(v) if table[n].attrs.get("units") == "m"
+            cells.append("-" if not np.isfinite(v) else format_length(v) if table[n].attrs.get("units") == "m"
                          else f"{v:.3g}")
         rows.append(cells)
     return header, rows
