@@ -133,6 +133,10 @@ def test_plans_gain_rigor_as_the_operator_proves_its_use(tmp_path, monkeypatch):
     fresh = Scene(ds, backend="pyfftw")
     fresh.solve(mean_pressure=0.02, tol=1e-8)
     assert [op._planned for op in ops(fresh)] == [op._planned for op in ops(scene)]
+    import pickle   # a copy sent elsewhere (a batch worker) plans from that machine's wisdom and climbs anew
+
+    copy = pickle.loads(pickle.dumps(scene.convolution))
+    assert (copy._planned, copy._wanted, copy._solves) == (None, None, 0)
 
 
 @pytest.mark.parametrize("backend", ["scipy", "pyfftw"])

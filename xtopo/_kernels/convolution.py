@@ -287,7 +287,7 @@ class Convolution:
         if flag == "auto" and self._wanted is None:
             # the most rigorous plans the wisdom knows cost nothing; not known: estimate now, plan with more rigor
             # once the operator has proved its use (begin_solve)
-            for known in _RIGOR[:0:-1]:
+            for known in _RIGOR[:0:-1] if self.ndim == 2 else _RIGOR[1:2]:   # lines: rows only, measured at most
                 try:
                     self._plan_pyfftw(pyfftw, known, ("FFTW_WISDOM_ONLY",))
                     self._planned = known
