@@ -21,6 +21,7 @@ Usage::
 
     python benchmarks/bench_iteration.py                          # periodic 512 1024 2048, float64 + float32
     python benchmarks/bench_iteration.py --periodic 1024 --free 512 --dtype float64
+    python benchmarks/bench_iteration.py --periodic 512 --planner patient      # XTOPO_FFTW_PLANNER=patient
     python benchmarks/bench_iteration.py --tree /work/main --tree .   # the same cases on two source trees,
                                                                       # interleaved (before/after in one run)
 
@@ -43,15 +44,16 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 MEAN_PRESSURE = 0.005
 
 
-def _pair(shape, plans=3):
+def _pair(shape, plans=3, patient=False):
     """The fastest of ``plans`` independently measured one-thread FFTW float64 forward+inverse pairs on ``shape``
-    and one planned as the solver plans its own with use (rows measured, columns in place by ``FFTW_PATIENT``).
+    (with ``patient``, as the solver plans with ``XTOPO_FFTW_PLANNER=patient``, also one with its rows measured and
+    its columns in place by ``FFTW_PATIENT``: the reference takes the same planning effort as the solver).
 
     FFTW_MEASURE picks a different plan from one process to the next (a 512² pair took 1.28-1.54 ms, 1024² 7.5-10.7 ms
     across processes), which moved the ratio more than the solver's changes did: each candidate is planned with
     FFTW's wisdom forgotten, timed, and the fastest kept (the fastest backend, as issue 27 asks); the process's wisdom
     is restored afterwards (the solver's plans come from it). The patient candidate costs 3 s (512²) to 30 s (2048²)
-    of planning per case.
+    of planning per case (it wins at 512²: 1.07-1.10 ms against 1.19-1.28).
     """
     import pyfftw
 
@@ -63,7 +65,7 @@ def _pair(shape, plans=3):
     best = None
     measure, destroy = dict(flags=("FFTW_MEASURE",), threads=1), dict(flags=("FFTW_MEASURE", "FFTW_DESTROY_INPUT"),
                                                                       threads=1)
-    for k in range(plans + (len(shape) == 2)):
+    for k in range(plans + (patient and len(shape) == 2)):
         pyfftw.forget_wisdom()
         if k < plans:
             fwd = [pyfftw.FFTW(r_in, spec, axes=axes, **measure)]
@@ -119,20 +121,16 @@ def _median(rows, i):
 def run_case(n, periodic, dtype, tol, repeat, pairs, planner):
     """One grid in this process: per solve, loop and solve time per iteration and the pairs around it."""
     from xtopo import datasets
-    from xtopo._kernels import convolution
     from xtopo.contact import Scene
 
-    if planner == "auto":   # the plans a scene has once it has served enough solves (set from the first)
-        convolution._MEASURE_AFTER = convolution._PATIENT_AFTER = 1
 
     # the surface of bench_contact.py (not imported: it puts its own tree first on the path)
     ds = datasets.fractal_surface((n, n), 1.0, hurst=0.8, rms_slope=0.1, short_cutoff=4.0 / n, seed=11,
                                   periodic=periodic, units="um")
     scene = Scene(ds, dtype=dtype)
-    pair = _pair(tuple(scene.fft_shape))
+    pair = _pair(tuple(scene.fft_shape), patient=planner == "patient")
     solve = dict(mean_pressure=MEAN_PRESSURE, tol=tol, maxiter=5000)
-    for _ in range(2):                     # warm-up: plans (replanned with rigor at the second), kernels, work arrays
-        r = scene.solve(**solve)
+    r = scene.solve(**solve)               # warm-up: plans, compiled kernels, work arrays
     _time(pair, 2)
     rows = []
     for _ in range(repeat):
@@ -151,7 +149,8 @@ def run_case(n, periodic, dtype, tol, repeat, pairs, planner):
 
 
 def case(tree, n, boundary, dtype, tol, repeat, pairs, planner):
-    env = dict(os.environ, PYTHONPATH=os.path.abspath(tree), XTOPO_FFTW_PLANNER="" if planner == "auto" else planner)
+    # measured plans from the first solve (by default a grid new to FFTW's wisdom is measured at the third)
+    env = dict(os.environ, PYTHONPATH=os.path.abspath(tree), XTOPO_FFTW_PLANNER=planner)
     cmd = [sys.executable, __file__, "--case", str(n), boundary, dtype, str(tol), str(repeat), str(pairs), planner]
     out = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
                          cwd=os.path.abspath(tree))
@@ -175,10 +174,9 @@ def main():
     ap.add_argument("--pairs", type=int, default=5, help="FFT pairs timed before and after each solve")
     ap.add_argument("--tree", action="append", default=None,
                     help="source tree to import xtopo from (repeatable; default: this one)")
-    ap.add_argument("--planner", default="auto", choices=["auto", "estimate", "measure", "patient"],
-                    help="FFTW planning of the solver: auto (default) = the plans a scene has after "
-                         "xtopo._kernels.convolution._PATIENT_AFTER solves (measured; float32 columns patient), "
-                         "from the first solve; else XTOPO_FFTW_PLANNER")
+    ap.add_argument("--planner", default="measure", choices=["measure", "patient"],
+                    help="XTOPO_FFTW_PLANNER of the solver (default measure: the plans a scene has from its third "
+                         "solve on); patient adds a patient-column candidate to the reference pair")
     ap.add_argument("--case", nargs=7, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
@@ -188,8 +186,8 @@ def main():
         return
     trees = args.tree or [os.path.dirname(HERE)]
     print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, solver plans {args.planner}, "
-          f"pair: fastest of 3 measured FFTW float64 plans and a patient-column one, 1 thread; median [min, max] over "
-          f"the solves")
+          f"pair: fastest of 3 measured FFTW float64 plans{' and a patient-column one' if args.planner == 'patient' else ''}, "
+          f"1 thread; median [min, max] over the solves")
     print(f"{'grid':>14} {'dtype':>8} {'tree':>18} {'iters':>5} {'area':>9} {'pair ms':>8} "
           f"{'loop pairs/it':>20} {'loop, CPU time':>20} {'solve pairs/it':>20} {'loop ms/it':>8}  load")
     for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):

@@ -25,14 +25,15 @@ plans but allocates its outputs). ``"auto"`` takes pyFFTW when it is installed: 
 FFTW transforms run 1.4–2× faster than pocketfft on 256²–2048² grids. Measured plans
 (``FFTW_MEASURE``, from 256² on) run about 1.25× faster than estimated ones, but measuring
 the three plans of a 1024² solve costs 8 s, twice the solve: a grid FFTW's wisdom (kept in the
-user cache directory) does not know yet is planned by estimate, measured once the operator has
-served :data:`_MEASURE_AFTER` solves (load curves, batches), and its column transforms planned
-by ``FFTW_PATIENT`` once it has served :data:`_PATIENT_AFTER`; each step stores the wisdom for
-every later process, which starts from the most rigorous plans the wisdom knows. Patience pays
-on the columns only (strided transforms: 512² float32 0.22 → 0.18 ms, 1024² 0.95 → 0.85 ms,
-2048² 5.3 → 4.6–5.1 ms; rows gain nothing) and costs 3 s (512²) to 23 s (2048²) of planning per
-precision, once per machine. ``XTOPO_FFTW_PLANNER=estimate|measure|patient`` overrides. One FFT
-thread unless ``XTOPO_FFT_THREADS`` says otherwise (:func:`xtopo._kernels.fft.workers`).
+user cache directory) does not know yet is planned by estimate, and measured once the operator
+has served :data:`_MEASURE_AFTER` solves (load curves, batches), which stores the wisdom for every
+later process. ``XTOPO_FFTW_PLANNER=estimate|measure|patient`` overrides; ``patient`` plans the
+column transforms of 2-D grids by ``FFTW_PATIENT`` (strided transforms: 512² float32 0.22 → 0.18
+ms, 1024² 0.95 → 0.85 ms, 2048² 5.3 → 4.6–5.1 ms; rows gain nothing and stay measured) at 3 s
+(512²) to 23 s (2048²) of planning per precision: it pays back only after some hundred solves of
+the grid, so it is the user's choice (one run with it stores the plans, and every later process
+starts from the most rigorous plans the wisdom knows). One FFT thread unless ``XTOPO_FFT_THREADS``
+says otherwise (:func:`xtopo._kernels.fft.workers`).
 """
 
 from __future__ import annotations
@@ -54,8 +55,6 @@ _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex
 _MEASURE_FROM = 256 * 256
 #: solves on one operator after which estimated plans are replaced by measured ones (saved as wisdom)
 _MEASURE_AFTER = 3
-#: solves after which the column transforms of a 2-D grid are planned by ``FFTW_PATIENT`` (saved as wisdom)
-_PATIENT_AFTER = 20
 #: planner rigor, least first
 _RIGOR = ("FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT")
 _WISDOM = {"loaded": False}
@@ -221,19 +220,14 @@ class Convolution:
 
     def begin_solve(self) -> None:
         """Count a solve on this operator; the :data:`_MEASURE_AFTER`-th replaces estimated plans (the grid
-        was new to FFTW's wisdom) by measured ones, the :data:`_PATIENT_AFTER`-th the columns' plans by patient
-        ones (float32 operators: the iterations' transforms), storing the wisdom (``auto`` planning only). Call with :attr:`lock` held, before the buffers hold
-        anything (planning overwrites them)."""
+        was new to FFTW's wisdom) by measured ones and stores the wisdom (``auto`` planning only). Call with
+        :attr:`lock` held, before the buffers hold anything (planning overwrites them)."""
         self._solves += 1
-        if _planner(self.fft_shape) != "auto":
-            return
-        rigor = 2 if self._solves >= _PATIENT_AFTER else 1 if self._solves >= _MEASURE_AFTER else 0
         ops = [self, *self._workspaces.values()]
-        # patience for the columns of the transforms the iterations run (float32), not for the rare exact ones
-        wanted = [min(rigor, 2 if op.ndim == 2 and op.dtype == np.float32 else 1) for op in ops]
-        if any(op._planned is not None and _RIGOR.index(op._planned) < k for op, k in zip(ops, wanted)):
-            for op, k in zip(ops, wanted):   # all of them: the workspaces' spectra live in this operator's buffer
-                op._wanted, op._plan, op._buffers = _RIGOR[k], None, None
+        if (self._solves >= _MEASURE_AFTER and _planner(self.fft_shape) == "auto"
+                and any(op._planned == "FFTW_ESTIMATE" for op in ops)):
+            for op in ops:   # all of them: the workspaces' spectra live in this operator's buffer
+                op._wanted, op._plan, op._buffers = "FFTW_MEASURE", None, None
 
     def scratch(self, name: str, size: int, dtype) -> np.ndarray:
         """A 1-D work array of ``size`` kept under ``name`` (contents undefined; allocated once).
