@@ -274,8 +274,8 @@ def run_numba_start(n, periodic, tol, repeat, dtype="float64"):
     return dict(start=t2 - t0, import_numba=t1 - t0)
 
 
-RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas, "memory": run_memory, "cold": run_cold,
-           "numba": run_numba_start}
+RUNNERS = {"xtopo": run_xtopo, "ContactMechanics": run_contactmechanics, "tamaas": run_tamaas, "memory": run_memory,
+           "cold": run_cold, "numba": run_numba_start}
 PACKAGES = ("xtopo", "ContactMechanics", "tamaas")   # the side-by-side table
 
 

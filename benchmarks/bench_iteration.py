@@ -71,9 +71,9 @@ def _pair(shape, plans=3, patient=False):
             fwd = [pyfftw.FFTW(r_in, spec, axes=axes, **measure)]
             bwd = [pyfftw.FFTW(spec, r_out, axes=axes, direction="FFTW_BACKWARD", **destroy)]
         else:
-            patient = dict(flags=("FFTW_PATIENT",), threads=1)
-            fwd = [pyfftw.FFTW(r_in, spec, axes=(-1,), **measure), pyfftw.FFTW(spec, spec, axes=(0,), **patient)]
-            bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **patient),
+            cols = dict(flags=("FFTW_PATIENT",), threads=1)
+            fwd = [pyfftw.FFTW(r_in, spec, axes=(-1,), **measure), pyfftw.FFTW(spec, spec, axes=(0,), **cols)]
+            bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **cols),
                    pyfftw.FFTW(spec, r_out, axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
         r_in[...] = np.random.default_rng(0).random(shape)
 
@@ -122,7 +122,6 @@ def run_case(n, periodic, dtype, tol, repeat, pairs, planner):
     """One grid in this process: per solve, loop and solve time per iteration and the pairs around it."""
     from xtopo import datasets
     from xtopo.contact import Scene
-
 
     # the surface of bench_contact.py (not imported: it puts its own tree first on the path)
     ds = datasets.fractal_surface((n, n), 1.0, hurst=0.8, rms_slope=0.1, short_cutoff=4.0 / n, seed=11,
@@ -185,9 +184,10 @@ def main():
                                   planner)))
         return
     trees = args.tree or [os.path.dirname(HERE)]
-    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, solver plans {args.planner}, "
-          f"pair: fastest of 3 measured FFTW float64 plans{' and a patient-column one' if args.planner == 'patient' else ''}, "
-          f"1 thread; median [min, max] over the solves")
+    also = " and a patient-column one" if args.planner == "patient" else ""
+    print(f"mean pressure {MEAN_PRESSURE} E*, tol {args.tol}, {args.repeat} solves per case, solver plans "
+          f"{args.planner}, pair: fastest of 3 measured FFTW float64 plans{also}, 1 thread; median [min, max] over the "
+          f"solves")
     print(f"{'grid':>14} {'dtype':>8} {'tree':>18} {'iters':>5} {'area':>9} {'pair ms':>8} "
           f"{'loop pairs/it':>20} {'loop, CPU time':>20} {'solve pairs/it':>20} {'loop ms/it':>8}  load")
     for boundary, sizes in (("periodic", args.periodic), ("free", args.free)):

@@ -130,7 +130,8 @@ def test_plans_estimated_until_the_operator_proves_its_use(tmp_path, monkeypatch
 
 def test_patient_plans_are_asked_for_and_then_found(tmp_path, monkeypatch):
     """``XTOPO_FFTW_PLANNER=patient`` plans the columns of 2-D grids patiently (same results) and stores them; a
-    later default operator starts from them; a line grid has no columns and stays measured."""
+    later default operator starts from them; a line grid has no columns to plan patiently (one the wisdom does
+    not know is estimated)."""
     import pyfftw
 
     from xtopo import datasets

@@ -55,8 +55,6 @@ _COMPLEX = {np.dtype(np.float32): np.complex64, np.dtype(np.float64): np.complex
 _MEASURE_FROM = 256 * 256
 #: solves on one operator after which estimated plans are replaced by measured ones (saved as wisdom)
 _MEASURE_AFTER = 3
-#: planner rigor, least first
-_RIGOR = ("FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT")
 _WISDOM = {"loaded": False}
 
 
@@ -281,7 +279,7 @@ class Convolution:
         if flag == "auto" and self._wanted is None:
             # the most rigorous plans the wisdom knows cost nothing; not known: estimate now, plan with more rigor
             # once the operator has proved its use (begin_solve)
-            for known in _RIGOR[:0:-1] if self.ndim == 2 else _RIGOR[1:2]:   # lines: rows only, measured at most
+            for known in ("FFTW_PATIENT", "FFTW_MEASURE") if self.ndim == 2 else ("FFTW_MEASURE",):  # lines: no columns
                 try:
                     self._plan_pyfftw(pyfftw, known, ("FFTW_WISDOM_ONLY",))
                     self._planned = known
@@ -301,7 +299,7 @@ class Convolution:
         nothing faster) on this operator's buffers."""
         cols = dict(threads=self.workers, flags=(rigor, *extra))
         row_flags = ("FFTW_MEASURE" if rigor == "FFTW_PATIENT" else rigor, *extra)
-        kw = dict(threads=self.workers, flags=row_flags)
+        rows = dict(threads=self.workers, flags=row_flags)
         destroy = dict(threads=self.workers, flags=(*row_flags, "FFTW_DESTROY_INPUT"))
         nxc = self.fft_shape[-1] // 2 + 1
         nfx = self.fft_shape[-1]
@@ -320,13 +318,13 @@ class Convolution:
         else:
             r_in = pyfftw.zeros_aligned(self.shape[:-1] + (2 * nxc,), dtype=self.dtype)
         if self.ndim == 1:
-            fwd = [pyfftw.FFTW(r_in[..., :nfx], spec, axes=(-1,), direction="FFTW_FORWARD", **kw)]
+            fwd = [pyfftw.FFTW(r_in[..., :nfx], spec, axes=(-1,), direction="FFTW_FORWARD", **rows)]
             bwd = [pyfftw.FFTW(spec, real[..., :nfx], axes=(-1,), direction="FFTW_BACKWARD", **destroy)]
         else:
             # rows along x (on a free grid into the top half, the bottom half zeroed), then columns in place: as
             # fast as one 2-D plan at the same rigor, and the columns can be planned with more (in-place column
             # transforms run ~3x faster than out-of-place ones here)
-            fwd = [pyfftw.FFTW(r_in[:ny, :nfx], spec[:ny], axes=(-1,), direction="FFTW_FORWARD", **kw),
+            fwd = [pyfftw.FFTW(r_in[:ny, :nfx], spec[:ny], axes=(-1,), direction="FFTW_FORWARD", **rows),
                    *([spec[ny:]] if ny < spec.shape[0] else []),
                    pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_FORWARD", **cols)]
             bwd = [pyfftw.FFTW(spec, spec, axes=(0,), direction="FFTW_BACKWARD", **cols),
