@@ -10,6 +10,7 @@ from xtopo._kernels import compiled, convolution as conv_mod
 from xtopo._kernels.convolution import Convolution
 from xtopo._kernels.fft import choose_backend
 from xtopo._kernels.pk_solver import polonsky_keer
+from xtopo.errors import XtopoError
 
 SHAPES = [(6, 5), (8, 8), (7,), (12,)]
 
@@ -98,6 +99,16 @@ def test_wisdom_of_processes_saving_meanwhile_is_kept(tmp_path, monkeypatch):
         c = Convolution(shape, (1.0, 1.0), periodic=True, backend="pyfftw")
         c.input
         assert c._planned == "FFTW_MEASURE", shape   # measured plans known from the file
+
+
+@pytest.mark.parametrize(("name", "value"), [("XTOPO_FFTW_PLANNER", "patiant"), ("XTOPO_FFT_THREADS", "two"),
+                                           ("XTOPO_FFT_THREADS", "0")])
+def test_a_misspelt_fft_setting_is_refused(monkeypatch, name, value):
+    """An FFT setting in the environment that names no choice is refused, naming the variable and what to set;
+    before, a misspelt planner planned by default and a non-number of threads raised a bare ValueError."""
+    monkeypatch.setenv(name, value)
+    with pytest.raises(XtopoError, match=f"{name}=.*(use estimate, measure or patient|a whole number of threads)"):
+        Convolution((512, 512), (1.0, 1.0), periodic=True, backend="pyfftw").input
 
 
 def test_plans_estimated_until_the_operator_proves_its_use(tmp_path, monkeypatch):

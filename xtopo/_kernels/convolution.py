@@ -44,6 +44,7 @@ import threading
 import numpy as np
 import scipy.fft as sfft
 
+from ..errors import XtopoError
 from . import fft as _fft
 from . import compiled
 from ._cache_dir import default_directory
@@ -61,9 +62,11 @@ _WISDOM = {"loaded": False}
 def _planner(fft_shape) -> str:
     """The planner flag ``XTOPO_FFTW_PLANNER=estimate|measure|patient`` asks for, or the default ``"auto"``:
     the most rigorous plans FFTW's wisdom knows, estimated ones otherwise (see :meth:`Convolution.begin_solve`)."""
-    env = os.environ.get("XTOPO_FFTW_PLANNER", "").lower()
+    env = os.environ.get("XTOPO_FFTW_PLANNER", "").strip().lower()
     if env in ("estimate", "measure", "patient"):
         return "FFTW_" + env.upper()
+    if env not in ("", "auto"):   # a misspelt choice would silently plan otherwise
+        raise XtopoError(f"XTOPO_FFTW_PLANNER={env!r}: use estimate, measure or patient, or leave it unset (auto)")
     return "auto" if int(np.prod(fft_shape)) >= _MEASURE_FROM else "FFTW_ESTIMATE"
 
 

@@ -12,6 +12,7 @@ import os
 
 import numpy as np
 
+from ..errors import XtopoError
 from ._lazy import Lazy
 
 sfft = Lazy("scipy.fft")  # imported on first use (startup time, issue 26)
@@ -32,8 +33,12 @@ def workers() -> int:
     (:mod:`xtopo.batch`) uses the cores without that risk; set ``XTOPO_FFT_THREADS`` on a machine of
     one's own.
     """
-    env = os.environ.get("XTOPO_FFT_THREADS")
-    return max(1, int(env)) if env else 1
+    env = os.environ.get("XTOPO_FFT_THREADS", "").strip()
+    if not env:
+        return 1
+    if not env.isdigit() or int(env) < 1:
+        raise XtopoError(f"XTOPO_FFT_THREADS={env!r}: a whole number of threads, at least 1, or leave it unset (1)")
+    return int(env)
 
 
 def choose_backend(shape, backend: str = "auto", *, planned: bool = False) -> str:
