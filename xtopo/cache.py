@@ -74,6 +74,10 @@ _lock = threading.Lock()
 _digests: dict[int, tuple] = {}  # id(array) -> (weakref to array, digest)
 
 
+#: dtype kinds whose arrays export their bytes as a buffer (bool, integers, floats, complex)
+_BUFFERED = frozenset("biufc")
+
+
 @functools.lru_cache(maxsize=1024)
 def _head(dtype: np.dtype, shape: tuple) -> bytes:
     """What identifies an array's layout (formatting it took half of hashing a small array)."""
@@ -85,9 +89,12 @@ def _hash_array(a: np.ndarray) -> bytes:
     if a.dtype.kind in "OUS":  # text: the same digest whichever way numpy holds it (a NetCDF read gives objects)
         text = repr([str(v) for v in a.ravel().tolist()]).encode()
         return f"text{a.shape}".encode() + xxhash.xxh3_128_digest(text)
-    # the bytes (no copy for contiguous data) of any dtype, datetimes included (no buffer of their own); one-shot
-    # digest: 6 µs less than a hasher object at 1024² (issue 27's writeable cache hit is this hash)
-    return _head(a.dtype, a.shape) + xxhash.xxh3_128_digest(np.ascontiguousarray(a).reshape(-1).view(np.uint8))
+    # the bytes of any dtype (datetimes have no buffer of their own: a byte view); a C-contiguous numeric array is
+    # hashed through its own buffer (the view took a third of a small array's digest); one-shot digest: 6 µs less
+    # than a hasher object at 1024² (issue 27's writeable cache hit is this hash)
+    data = a if a.flags.c_contiguous and a.dtype.kind in _BUFFERED else np.ascontiguousarray(a).reshape(-1).view(
+        np.uint8)
+    return _head(a.dtype, a.shape) + xxhash.xxh3_128_digest(data)
 
 
 def _array_digest(arr) -> bytes:
@@ -114,16 +121,16 @@ def checksum(ds: Annotated[xr.Dataset | xr.DataArray, Data()]) -> str:
 
     Computing it loads dask-backed data.
     """
-    h = hashlib.sha256()
-    items = list(ds.variables.items()) if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable),
-                                                                          *ds.coords.variables.items()]
-    indexes = ds._indexes  # xarray's own mapping: ``xindexes`` builds a new one per call (3 µs of a 35 µs hit)
+    items = ds._variables.items() if isinstance(ds, xr.Dataset) else [(ds.name, ds.variable), *ds._coords.items()]
+    indexes = ds._indexes  # xarray's own mappings: ``variables``/``xindexes`` build new ones per call
+    parts = []  # one SHA-256 update of all parts (the same digest as one update per part)
     for name, var in sorted(items, key=lambda kv: str(kv[0])):
-        h.update(f"{name}\0{var.dims}\0{var.attrs.get('units')}\0".encode())
+        parts.append(f"{name}\0{var.dims}\0{var.attrs.get('units')}\0".encode())
         index = indexes.get(name)  # a pandas index: its values without xarray's conversion (4 µs)
-        h.update(_array_digest(np.asarray(index.index) if isinstance(index, xr.indexes.PandasIndex) else var.values))
-    h.update(repr([(k, str(ds.attrs[k])) for k in MEASUREMENT_ATTRS if k in ds.attrs]).encode())
-    return h.hexdigest()
+        parts.append(_array_digest(np.asarray(index.index) if isinstance(index, xr.indexes.PandasIndex) else var.values))
+    attrs = ds.attrs
+    parts.append(repr([(k, str(attrs[k])) for k in MEASUREMENT_ATTRS if k in attrs]).encode())
+    return hashlib.sha256(b"".join(parts)).hexdigest()
 
 
 #: parameter types keyed by ``repr`` (exact: 1, 1.0 and True differ; a tenth of a ``tokenize``)
@@ -250,9 +257,10 @@ def _private_copy(obj):
     ``_replace`` at half the cost of ``copy(deep=False)``, which rebuilds them."""
     indexes = obj._indexes
 
-    def own(name, var):  # new attrs and encoding dicts (the constructor copies them), new data
-        return var.copy(deep=False) if name in indexes else xr.Variable(var.dims, np.array(var.data), var.attrs,
-                                                                         var.encoding, fastpath=True)
+    def own(name, var):  # new attrs and encoding dicts (the constructors copy them), new data (an index's is immutable)
+        if name in indexes:
+            return xr.IndexVariable(var.dims, var._data, var._attrs, var._encoding, fastpath=True)
+        return xr.Variable(var.dims, np.array(var._data), var._attrs, var._encoding, fastpath=True)
 
     if isinstance(obj, xr.DataArray):
         return obj._replace(own(None, obj.variable), {k: own(k, v) for k, v in obj._coords.items()})
