@@ -59,12 +59,13 @@ def _by_reference(func) -> bool:
 
 def callable_token(func) -> str:
     """A token of ``func`` by content: dask's ``tokenize`` plus the code of its Python functions."""
-    hit = _memo.get(func) if type(func) is types.FunctionType else None   # only ever functions by reference
-    if hit is not None and hit[0] is func.__code__:
-        return hit[1]
     tokenize = require("dask.base", "a token of a function (the result cache, batch stores)").tokenize  # [dask]
+
     if type(func) is not types.FunctionType or not _by_reference(func):
         return tokenize(func, _codes(func))
+    hit = _memo.get(func)
+    if hit is not None and hit[0] is func.__code__:
+        return hit[1]
     token = tokenize(func, _codes(func))
     _memo[func] = (func.__code__, token)
     return token
