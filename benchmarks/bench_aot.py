@@ -5,7 +5,9 @@ A measurement for a decision, not a feature: xtopo's solver passes are numba JIT
 initialises numba's typing and lowering registries (0.4-0.5 s here), which sets a floor of about 1.6 on
 cold / warm at 1024². This script builds the same kernel functions ahead of time with ``numba.pycc`` (pending
 deprecation since numba 0.57; needs a C compiler) into a temporary extension module, for the signatures that
-32² periodic and free float64 and float32 solves call, and times in fresh processes, interleaved:
+32² periodic and free float64 and float32 solves call, and times in fresh processes, interleaved (``pycc``
+compiles with its own options: the kernels' ``fastmath`` flags are dropped and its wrappers hold the GIL, so
+this measures the start-up, not a shippable build):
 
 * ``jit``: today's path (numba, kernels from its cache);
 * ``aot``: the module ``xtopo._kernels.compiled`` replaced by a stand-in that calls the ahead-of-time
