@@ -133,6 +133,22 @@ def test_nonuniform_line_resampled():
     assert "resampled" in p.attrs and np.all(np.isfinite(p.values))
 
 
+def test_nonuniform_line_in_memory_resampled_as_xarray_interpolates():
+    # a float64 line in memory is resampled by numpy directly, a lazy one by xarray's interp: the same values
+    from xtopo.analysis._scale import prepare
+
+    rng = np.random.default_rng(5)
+    x = np.cumsum(rng.uniform(0.5, 1.5, 300))
+    h = np.sin(x / 7)
+    h[[17, 18, 150]] = np.nan
+    ds = xtopo.make_measurement(h, x=x)
+    eager, lazy = prepare(ds).h, prepare(ds.chunk()).h.compute()
+    uniform = np.linspace(x[0], x[-1], x.size)
+    np.testing.assert_array_equal(eager.values, ds.height.interp(x=uniform, method="linear").values)
+    xr.testing.assert_identical(eager, lazy)
+    assert eager.x.attrs["spacing"] == uniform[1] - uniform[0] and "grid" not in eager.attrs
+
+
 def test_resolution_cutoff_drops_high_q(periodic_area):
     ds = periodic_area.assign_attrs(resolution=0.05, resolution_units="m")
     p = ds.topo.psd("iso")

@@ -78,12 +78,18 @@ def prepare(obj) -> Prepared:
     if is_nonuniform(h) or is_nonuniform(obj):
         xv = np.asarray(h[X].values, dtype=float)
         new = np.linspace(xv[0], xv[-1], xv.size)
-        attrs = dict(h.attrs)
-        cattrs = dict(h[X].attrs)
-        h = h.chunk({X: -1}) if h.chunks is not None else h
-        h = h.interp({X: new}, method="linear", assume_sorted=True)
-        h.attrs = {k: v for k, v in attrs.items() if k != "grid"}
-        h.coords[X].attrs = {**cattrs, "spacing": float(new[1] - new[0])}
+        attrs = {k: v for k, v in h.attrs.items() if k != "grid"}
+        cattrs = {**h[X].attrs, "spacing": float(new[1] - new[0])}
+        if h.chunks is None and h.dims == (X,) and set(h.coords) == {X} and h.dtype == np.float64:
+            # float64 in memory: numpy's linear interpolation, as xarray's runs it, without the reindexing (0.1 of
+            # 4 ms for 4000 points; the twin averages resample each TEM profile once per analysis)
+            h = xr.DataArray(np.interp(new, xv, h.values), dims=(X,), coords={X: (X, new, cattrs)}, attrs=attrs,
+                             name=h.name)
+        else:
+            h = h.chunk({X: -1}) if h.chunks is not None else h
+            h = h.interp({X: new}, method="linear", assume_sorted=True)
+            h.attrs = attrs
+            h.coords[X].attrs = cattrs
         resampled = True
     return Prepared(h, units, is_periodic(h) or is_periodic(obj), lat, resampled)
 
