@@ -542,17 +542,25 @@ def _long_modes(truth: FractalPSD, q_split: float, q_low: float, rng, *, per_dec
 def _eval_modes(modes, y: np.ndarray, x: np.ndarray, block: int = 4096) -> np.ndarray:
     """``Σ_m Re(c_m e^{i(qy_m y + qx_m x)})`` on the grid ``y × x`` (``x`` evenly spaced from 0).
 
-    Separable: one matrix product per block of ``x``. The phases of a block are those of the
-    first block shifted, ``e^{iq(x_j + x_0)} = e^{iqx_j} e^{iqx_0}``, so the exponentials are
-    taken once (a fifth of the time for 20 000-point profiles; equal to round-off).
+    Separable: one matrix product per block of ``x`` (its real part as two real products: half the
+    work of a complex one). The phases of a block are those of the first block shifted,
+    ``e^{iq(x_j + x_0)} = e^{iqx_j} e^{iqx_0}``, and those of the first block products of a coarse
+    and a fine step, ``e^{iq x_(as+b)} = e^{iq x_(as)} e^{iq x_b}``, so few exponentials are taken
+    (a profile of 16 000 points: 60 → 23–27 ms; equal to round-off: 2e-15 of the largest value).
     """
     qy, qx, c = modes
     rows = c[None, :] * np.exp(1j * np.outer(y, qy))
-    first = np.exp(1j * np.outer(qx, x[:block]))
+    width = min(block, x.size)
+    step = max(1, int(np.sqrt(width)))
+    coarse = np.exp(1j * np.outer(qx, x[:width:step]))
+    fine = np.exp(1j * np.outer(qx, x[:step]))
+    first = (coarse[:, :, None] * fine[:, None, :]).reshape(qx.size, -1)[:, :width]
+    first_re, first_im = np.ascontiguousarray(first.real), np.ascontiguousarray(first.imag)
     out = np.empty((y.size, x.size))
     for j in range(0, x.size, block):
-        width = min(block, x.size - j)
-        out[:, j:j + width] = ((rows * np.exp(1j * qx * x[j])) @ first[:, :width]).real
+        w = min(block, x.size - j)
+        shifted = rows * np.exp(1j * qx * x[j])
+        out[:, j:j + w] = shifted.real @ first_re[:, :w] - shifted.imag @ first_im[:, :w]
     return out
 
 
