@@ -94,6 +94,7 @@ def mean_square_relative_error(gamma, lengths, *, offsets, weights, n: int, dx: 
     diff = (a[:, None] - a[None, :]).ravel()
     pair_w = (w[:, None] * w[None, :]).ravel()
     pair_a, pair = np.unique(diff, return_inverse=True)  # pairs of one offset a_i - a_j share their γ
+    offset_w = np.bincount(pair, weights=pair_w, minlength=pair_a.size)  # and enter Cov with their summed weight
     zero = pair_a == 0
     j_nodes, j_weights = _quadrature(max(int(rows), 1), 16)
     ds = j_nodes * row_spacing
@@ -107,12 +108,13 @@ def mean_square_relative_error(gamma, lengths, *, offsets, weights, n: int, dx: 
             continue
         dense = int(min(m, max(64, 8 * np.ceil(span / dx))))
         s_nodes, s_weights = _quadrature(m, dense)
-        # Cov(s, d) = -Σ_ij w_i w_j γ(√((s + a_i - a_j)² + d²)), shape (rows nodes, s nodes); γ on (offsets, rows
-        # nodes, s nodes): its interpolation walks the samples in order along s (in random order: 10x slower)
+        # Cov(s, d) = -Σ_ij w_i w_j γ(√((s + a_i - a_j)² + d²)), shape (rows nodes, s nodes), summed per offset
+        # a_i - a_j; γ on (offsets, rows nodes, s nodes): its interpolation walks the samples in order along s (in
+        # random order: 10x slower)
         g = np.empty((pair_a.size, ds.size, s_nodes.size))
         g[~zero] = gamma(np.hypot(s_nodes * dx + ell * pair_a[~zero, None, None], ds[:, None]))
         g[zero] = at_zero[:, s_nodes.astype(int)]
-        cov = -np.sum(pair_w * np.moveaxis(g[pair], 0, -1).copy(), axis=-1)  # summed pair by pair, i then j
+        cov = -np.tensordot(offset_w, g, axes=1)
         mult_s = s_weights * (m - s_nodes) * np.where(s_nodes > 0, 2.0, 1.0)
         mult_j = j_weights * (rows - j_nodes) * np.where(j_nodes > 0, 2.0, 1.0)
         var = 2.0 * np.sum(mult_j[:, None] * mult_s[None, :] * cov**2) / (m * rows) ** 2
