@@ -115,9 +115,15 @@ def _nan(func, *args, **kwargs):
         return func(*args, **kwargs)
 
 
+def _mean_of(a):
+    """``np.mean``, or ``np.nanmean`` (quietly NaN for all-NaN slices) where ``a`` has NaN: nanmean copies the
+    array; on NaN-free data both give the same sums."""
+    return functools.partial(_nan, np.nanmean) if np.isnan(a).any() else np.mean
+
+
 def _amplitude(z, dx, rz, sampling):
     """Ra, Rq, Rsk, Rku, Rdq, RSm of rows ``z`` (reduced over the last axis); ``sampling``: points per section."""
-    mean = functools.partial(_nan, np.nanmean) if np.isnan(z).any() else np.mean  # nanmean copies: only if needed
+    mean = _mean_of(z)
     z2 = z * z
     ra = mean(np.abs(z), -1)
     rq = np.sqrt(mean(z2, -1))
