@@ -346,7 +346,7 @@ class _Displacements:
         test. Returns ``(gone, capped)``."""
         if cg.t is None:   # no direction was set (an empty set)
             cg.t = np.zeros(cg.s.size, cg.p.dtype)
-        joining = sum(float(np.sum(v, dtype=np.float64)) for _, v in joins)
+        joining = sum((float(np.sum(v, dtype=np.float64)) for _, v in joins), 0.0)   # a float also with no joins
         buf, nx, pad = self.low.input_flat, self.nx, self.pad
         m, gone, capped, scale = compiled.step_project(
             cg.s, cg.p, cg.t, cg.c, cg.r, cg.n, tau, H if H is not None else np.inf, H is not None, self.c_low,
