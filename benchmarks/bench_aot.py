@@ -11,8 +11,8 @@ this measures the start-up, not a shippable build):
 
 * ``jit``: today's path (numba, kernels from its cache);
 * ``aot``: the module ``xtopo._kernels.compiled`` replaced by a stand-in that calls the ahead-of-time
-  functions, chosen by the dtypes and dimensions of the arrays passed (numba is never imported unless a
-  call matches no built signature; the row says how many calls fell back).
+  functions, chosen by the exact argument types (arrays: dtype, dims, layout; scalars: their type); numba is
+  never imported unless a call matches no built signature (the row says how many calls fell back).
 
 Each row: cold first solve (scene + solve), warm median [min, max] of ``--repeat`` solves, their ratio, the
 iterations and the contact area (equal in both: the same functions, compiled once by each route).
@@ -67,7 +67,7 @@ def build(directory: str) -> float:
             for i, result in enumerate(kernel.overloads.values()):
                 cc.export(f"{name}_{i}", result.signature)(kernel.py_func)
                 table.setdefault(name, []).append(
-                    (f"{name}_{i}", [(t.dtype.name, t.ndim) if hasattr(t, "ndim") else None
+                    (f"{name}_{i}", [[t.dtype.name, t.ndim, t.layout] if hasattr(t, "ndim") else str(t)
                                      for t in result.signature.args]))
     with open(os.path.join(directory, "table.json"), "w") as f:
         json.dump(table, f)
@@ -98,13 +98,25 @@ def _stand_in(directory: str):
                 spec.loader.exec_module(loaded[kind])
         return loaded[kind]
 
+    def typeof(a):
+        """What numba's typing makes of an argument: an array's dtype, dims and layout, a scalar's type (a Python
+        int is int64, a float float64): a call must match an export exactly (a float passed where an int64 is
+        compiled would be truncated, a float32 array read as float64)."""
+        if isinstance(a, np.ndarray):
+            return (a.dtype.name, a.ndim, "C" if a.flags.c_contiguous else "F" if a.flags.f_contiguous else "A")
+        if isinstance(a, (bool, np.bool_)):
+            return "bool"
+        if isinstance(a, np.generic):
+            return a.dtype.name
+        return {int: "int64", float: "float64"}.get(type(a))
+
     def kernel(name, entries):
-        wanted = [(export, [tuple(a) if a else None for a in args]) for export, args in entries]
+        wanted = [(export, [tuple(a) if isinstance(a, list) else a for a in args]) for export, args in entries]
 
         def call(*args):
-            got = [(a.dtype.name, a.ndim) if isinstance(a, np.ndarray) else None for a in args]
+            got = [typeof(a) for a in args]
             for export, types_ in wanted:
-                if all(t is None or t == g for t, g in zip(types_, got)):
+                if types_ == got:
                     return getattr(module("aot"), export)(*args)
             stub.fallbacks += 1
             return getattr(module("jit"), name)(*args)
